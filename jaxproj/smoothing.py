@@ -1,0 +1,113 @@
+"""Double exponential smoothing of a projected motion (paper section II-D, after LaViola 2003).
+
+For a motion ``y_0 .. y_{T-1}`` (each a vector of joint angles, rad), with ``s_0 = y_0`` and
+``b_0 = 0``, every later frame does::
+
+    s~_t = alpha * y_t + (1 - alpha) * (s_{t-1} + b_{t-1})
+    s_t  = s_{t-1}  if ||s~_t - s_{t-1}||_2 < eta  else  s~_t        (dead band)
+    b_t  = gamma * (s_t - s_{t-1}) + (1 - gamma) * b_{t-1}
+
+The paper lists the dead band after the trend update; we apply it before, so that a held frame
+also decays the trend (``b_t = (1 - gamma) b_{t-1}``) instead of feeding a step that never
+happened into it. ``eta`` is in the units of ``y`` (radians; the norm runs over all the joints
+given, usually ``robot.DRIVEN_JOINTS``). Defaults are the paper's: alpha 0.75, gamma 0.3,
+eta 0.15.
+
+``smooth`` handles one motion (``lax.scan`` over time); ``smooth_batch`` vmaps it over a padded
+batch ``(B, T, n)`` with lengths: frames past a motion's length leave its state untouched and
+are returned as the input.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxproj.exceptions import ConfigError
+
+
+class SmoothingParams(NamedTuple):
+    """Smoother gains (traced, so changing them does not recompile)."""
+
+    alpha: float = 0.75
+    gamma: float = 0.3
+    eta: float = 0.15
+
+    def check(self) -> SmoothingParams:
+        """Raise ``ConfigError`` unless 0 <= alpha, gamma <= 1 and eta >= 0."""
+        for name in ("alpha", "gamma"):
+            v = float(getattr(self, name))
+            if not 0.0 <= v <= 1.0:
+                raise ConfigError(f"smoothing {name}={v} must lie in [0, 1]")
+        if not float(self.eta) >= 0.0:
+            raise ConfigError(f"smoothing eta={self.eta} must be >= 0")
+        return self
+
+
+PAPER_SMOOTHING = SmoothingParams()
+"""The paper's gains: alpha 0.75, gamma 0.3, eta 0.15."""
+
+
+def _smooth_one(y: jax.Array, length: jax.Array, params: SmoothingParams) -> jax.Array:
+    alpha, gamma, eta = (jnp.asarray(v, y.dtype) for v in params)
+
+    def step(carry, inp):
+        s_prev, b_prev = carry
+        y_t, t = inp
+        cand = alpha * y_t + (1 - alpha) * (s_prev + b_prev)
+        moved = jnp.sqrt(jnp.sum((cand - s_prev) ** 2)) >= eta
+        s_t = jnp.where(moved, cand, s_prev)
+        b_t = gamma * (s_t - s_prev) + (1 - gamma) * b_prev
+        live = t < length
+        s_t = jnp.where(live, s_t, s_prev)
+        b_t = jnp.where(live, b_t, b_prev)
+        return (s_t, b_t), jnp.where(live, s_t, y_t)
+
+    s0 = y[0]
+    ts = jnp.arange(1, y.shape[0])
+    _, rest = jax.lax.scan(step, (s0, jnp.zeros_like(s0)), (y[1:], ts))
+    return jnp.concatenate([s0[None], rest], axis=0)
+
+
+@jax.jit
+def _smooth_batch(y: jax.Array, lengths: jax.Array, params: SmoothingParams) -> jax.Array:
+    return jax.vmap(_smooth_one, in_axes=(0, 0, None))(y, lengths, params)
+
+
+def smooth(y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING) -> jax.Array:
+    """Smooth one motion.
+
+    Args:
+      y: ``(T, n)`` joint angles over time (T >= 1).
+      params: gains; defaults are the paper's.
+
+    Returns:
+      ``(T, n)`` smoothed motion, same dtype.
+    """
+    y = jnp.asarray(y)
+    if y.ndim != 2 or y.shape[0] < 1:
+        raise ConfigError(f"smooth expects a (T, n) motion with T >= 1, got shape {y.shape}")
+    params.check()
+    return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), params)[0]
+
+
+def smooth_batch(
+    y: jax.Array, lengths: jax.Array, params: SmoothingParams = PAPER_SMOOTHING
+) -> jax.Array:
+    """Smooth a padded batch of motions in one call.
+
+    Args:
+      y: ``(B, T, n)`` motions padded to a common ``T``.
+      lengths: ``(B,)`` int, the true length of each motion (1..T).
+      params: gains.
+
+    Returns:
+      ``(B, T, n)``; entries past a motion's length are the input, unchanged.
+    """
+    y = jnp.asarray(y)
+    if y.ndim != 3:
+        raise ConfigError(f"smooth_batch expects (B, T, n) motions, got shape {y.shape}")
+    params.check()
+    return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), params)

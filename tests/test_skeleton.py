@@ -1,0 +1,126 @@
+import numpy as np
+import pytest
+
+from jaxproj import datasets
+from jaxproj.exceptions import ConfigError
+from jaxproj.skeleton import (
+    BONE_NAMES,
+    BONES,
+    FULL_BODY,
+    JOINT_NAMES,
+    UPPER_BODY,
+    J,
+    body_frame,
+    descriptor,
+)
+
+
+@pytest.fixture(scope="module")
+def frames() -> np.ndarray:
+    """(N, 20, 3) valid real frames from several bundled sequences."""
+    seqs = datasets.msr_action3d(subjects=[1, 2], actions=[1, 5, 10, 19])
+    return np.concatenate([s.positions[s.valid] for s in seqs])
+
+
+def _rot_y(theta: float) -> np.ndarray:
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]], dtype=np.float64)
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return q
+
+
+def test_tree_is_the_kinect_v1_tree():
+    assert len(BONES) == 19 and len(BONE_NAMES) == 19
+    children = [c for _, c in BONES]
+    # every joint but the root is the child of exactly one bone
+    assert sorted(children) == sorted(n for n in JOINT_NAMES if n != "HipCenter")
+
+
+@pytest.mark.parametrize("bones", ["upper", "full"])
+def test_unit_norm_on_real_frames(frames, bones):
+    d, ok = descriptor(frames, bones=bones)
+    d, ok = np.asarray(d), np.asarray(ok)
+    assert ok.all()
+    n_b = len(UPPER_BODY) if bones == "upper" else len(FULL_BODY)
+    norms = np.linalg.norm(d.reshape(len(d), n_b, 3), axis=-1)
+    np.testing.assert_allclose(norms, 1.0, atol=1e-5)
+
+
+def test_invariant_to_translation_vertical_rotation_and_scale(frames):
+    rng = np.random.default_rng(0)
+    d0, _ = descriptor(frames, bones="full")
+    for _ in range(5):
+        rot = _rot_y(rng.uniform(-np.pi, np.pi))  # Kinect camera y is vertical
+        moved = (frames.astype(np.float64) @ rot.T) * rng.uniform(0.5, 2.0)
+        moved = moved + rng.normal(size=3) * 2.0
+        d1, ok = descriptor(moved.astype(np.float32), bones="full")
+        assert np.asarray(ok).all()
+        np.testing.assert_allclose(np.asarray(d1), np.asarray(d0), atol=2e-5)
+    # the frame is built from the skeleton, so any rotation leaves the descriptor unchanged
+    rot = _random_rotation(rng)
+    d2, _ = descriptor((frames.astype(np.float64) @ rot.T).astype(np.float32), bones="full")
+    np.testing.assert_allclose(np.asarray(d2), np.asarray(d0), atol=2e-5)
+
+
+def test_body_frame_is_right_handed_and_forward_faces_the_camera(frames):
+    rot, ok = body_frame(frames)
+    rot = np.asarray(rot)
+    assert np.asarray(ok).all()
+    np.testing.assert_allclose(
+        rot @ np.swapaxes(rot, -1, -2), np.broadcast_to(np.eye(3), rot.shape), atol=1e-5
+    )
+    np.testing.assert_allclose(np.linalg.det(rot), 1.0, atol=1e-5)
+    # MSR Action3D: the sensor looks along +z at people facing it -> forward has negative z
+    assert np.mean(rot[:, 0, 2] < 0) > 0.95
+
+
+def test_arms_hang_down_in_a_rest_frame(frames):
+    d, _ = descriptor(frames[:1], bones="upper")
+    v = np.asarray(d)[0].reshape(5, 3)
+    assert v[0, 2] > 0.8  # neck points up
+    assert v[1, 2] < -0.5 and v[3, 2] < -0.5  # upper arms point down (first frame = rest)
+
+
+def test_zero_length_bone_or_nonfinite_frame_is_invalid_never_nan(frames):
+    bad = np.repeat(frames[:1], 5, axis=0).copy()
+    bad[0, J["ElbowLeft"]] = bad[0, J["ShoulderLeft"]]  # zero-length upper arm
+    bad[1, J["WristRight"], 0] = np.nan
+    bad[2, J["Head"], 1] = np.inf
+    bad[3] = 0.0  # lost tracking
+    d, ok = descriptor(bad)
+    d, ok = np.asarray(d), np.asarray(ok)
+    assert ok.tolist() == [False, False, False, False, True]
+    assert np.isfinite(d).all()
+    assert (d[:4] == 0).all()
+    # a zero-length bone outside the chosen subset does not invalidate the frame
+    legs = frames[:1].copy()
+    legs[0, J["FootLeft"]] = legs[0, J["AnkleLeft"]]
+    assert bool(np.asarray(descriptor(legs, bones="upper")[1])[0])
+    assert not bool(np.asarray(descriptor(legs, bones="full")[1])[0])
+
+
+def test_mirror_equals_descriptor_of_the_reflected_skeleton(frames):
+    # Reflect the skeleton through a plane (camera x -> -x) and swap left/right joint labels:
+    # that is the mirror image of the person; its direct descriptor must equal `mirror=True`.
+    swap = [
+        J[n.replace("Left", "_").replace("Right", "Left").replace("_", "Right")]
+        for n in JOINT_NAMES
+    ]
+    reflected = frames[:, swap] * np.array([-1.0, 1.0, 1.0], dtype=np.float32)
+    dm, _ = descriptor(frames, bones="full", mirror=True)
+    dr, _ = descriptor(reflected, bones="full")
+    np.testing.assert_allclose(np.asarray(dm), np.asarray(dr), atol=2e-5)
+    assert not np.allclose(np.asarray(dm), np.asarray(descriptor(frames, bones="full")[0]))
+
+
+def test_bad_subset_is_a_config_error():
+    with pytest.raises(ConfigError, match="unknown bone"):
+        descriptor(np.zeros((1, 20, 3), np.float32), bones="arms")
+    with pytest.raises(ConfigError, match="unknown bone"):
+        descriptor(np.zeros((1, 20, 3), np.float32), bones=("neck", "tail"))

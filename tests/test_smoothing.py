@@ -1,0 +1,83 @@
+import numpy as np
+import pytest
+
+from jaxproj import smoothing
+from jaxproj.exceptions import ConfigError
+from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth, smooth_batch
+
+
+def _reference(y: np.ndarray, alpha: float, gamma: float, eta: float) -> np.ndarray:
+    """Plain NumPy loop of the documented update rule (float64)."""
+    y = np.asarray(y, dtype=np.float64)
+    out = np.empty_like(y)
+    s = y[0].copy()
+    b = np.zeros_like(s)
+    out[0] = s
+    for t in range(1, len(y)):
+        cand = alpha * y[t] + (1 - alpha) * (s + b)
+        new = cand if np.linalg.norm(cand - s) >= eta else s
+        b = gamma * (new - s) + (1 - gamma) * b
+        s = new
+        out[t] = s
+    return out
+
+
+def _motion(rng: np.random.Generator, t: int, n: int = 10) -> np.ndarray:
+    base = np.cumsum(rng.normal(scale=0.08, size=(t, n)), axis=0)
+    return (base + rng.normal(scale=0.02, size=(t, n))).astype(np.float32)
+
+
+@pytest.mark.parametrize(
+    "params", [PAPER_SMOOTHING, SmoothingParams(0.5, 0.1, 0.0), SmoothingParams(0.9, 0.6, 0.05)]
+)
+def test_matches_numpy_loop(params):
+    rng = np.random.default_rng(1)
+    y = _motion(rng, 80)
+    got = np.asarray(smooth(y, params))
+    want = _reference(y, *params)
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    # the dead band actually held some frames with the paper's eta, and not with eta=0
+    held = np.all(np.diff(got, axis=0) == 0, axis=1).sum()
+    assert (held > 0) == (params.eta > 0.1)
+
+
+def test_padded_batch_equals_one_by_one():
+    rng = np.random.default_rng(2)
+    lengths = [5, 40, 1, 23]
+    t_max = 40
+    ys = [_motion(rng, t) for t in lengths]
+    batch = np.zeros((len(ys), t_max, 10), np.float32)
+    for i, y in enumerate(ys):
+        batch[i, : len(y)] = y
+        batch[i, len(y) :] = 99.0  # padding must not leak into anything
+    out = np.asarray(smooth_batch(batch, np.array(lengths)))
+    for i, y in enumerate(ys):
+        np.testing.assert_allclose(out[i, : len(y)], _reference(y, *PAPER_SMOOTHING), atol=1e-5)
+        assert (out[i, len(y) :] == 99.0).all()
+
+
+def test_constant_motion_is_a_fixed_point():
+    y = np.tile(np.linspace(-1, 1, 10, dtype=np.float32), (30, 1))
+    np.testing.assert_array_equal(np.asarray(smooth(y)), y)
+
+
+def test_new_gains_do_not_recompile():
+    rng = np.random.default_rng(3)
+    y = _motion(rng, 30)[None]
+    lengths = np.array([30])
+    smooth_batch(y, lengths, SmoothingParams(0.7, 0.2, 0.1))
+
+    before = smoothing._smooth_batch._cache_size()
+    smooth_batch(y, lengths, SmoothingParams(0.6, 0.25, 0.12))
+    smooth_batch(y + 1.0, lengths, SmoothingParams(0.8, 0.3, 0.0))
+    assert smoothing._smooth_batch._cache_size() == before
+
+
+def test_bad_gains_are_config_errors():
+    y = np.zeros((3, 2), np.float32)
+    with pytest.raises(ConfigError, match="alpha"):
+        smooth(y, SmoothingParams(alpha=1.5))
+    with pytest.raises(ConfigError, match="eta"):
+        smooth(y, SmoothingParams(eta=-1.0))
+    with pytest.raises(ConfigError, match="shape"):
+        smooth(np.zeros((3,), np.float32))
