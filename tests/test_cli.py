@@ -1,0 +1,108 @@
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxproj import datasets, ik, robot
+from jaxproj.cli import main
+from jaxproj.readers import MSR_TO_SDK
+from jaxproj.skeleton import descriptor
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _write_msr(path: Path, positions: np.ndarray) -> None:
+    """MSR Action3D text: 20 rows of `x y z c` per frame, MSR joint order."""
+    msr = np.empty_like(positions)
+    msr[:, MSR_TO_SDK] = positions
+    rows = np.concatenate([msr.reshape(-1, 3), np.ones((msr.size // 3, 1))], axis=1)
+    np.savetxt(path, rows, fmt="%.6f")
+
+
+def test_info_json(capsys):
+    code, out, _ = _run(capsys, "info", "--json")
+    assert code == 0
+    info = json.loads(out)
+    assert info["robot"]["joints"] == list(robot.JOINT_NAMES) and len(info["robot"]["joints"]) == 26
+    assert info["robot"]["driven_joints"] == list(robot.DRIVEN_JOINTS)
+    mjcf = Path(info["robot"]["mjcf"])
+    assert mjcf.is_absolute() and mjcf.is_file()
+    msr = info["datasets"]["msr_action3d"]
+    assert (msr["sequences"], msr["frames"], msr["subjects"]) == (567, 23478, 10)
+    assert info["devices"]
+
+
+def test_retarget_msr_text_with_lost_frames(tmp_path, capsys):
+    seq = next(s for s in datasets.msr_action3d(subjects=[2], actions=[13]) if s.take == 2)
+    assert (~seq.valid).any() and seq.valid.any()
+    src = tmp_path / "a13_s02_e02_skeleton3D.txt"
+    _write_msr(src, seq.positions)
+    out = tmp_path / "out.npz"
+    code, stdout, _ = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth")
+    assert code == 0 and "valid" in stdout
+    res = np.load(out)
+    angles, valid = res["angles"], res["valid"]
+    assert angles.shape == (len(seq.valid), 26) and angles.dtype == np.float32
+    assert list(res["joint_names"]) == list(robot.JOINT_NAMES)
+    np.testing.assert_array_equal(valid, seq.valid)
+    assert np.isfinite(angles).all()
+    assert (angles >= robot.LOWER).all() and (angles <= robot.UPPER).all()
+    # valid frames are the IK of the frame; invalid ones hold the last valid (or first valid)
+    d, _ = descriptor(seq.positions)
+    want = np.asarray(ik.solve(d))
+    np.testing.assert_allclose(angles[valid], want[valid], atol=1e-5)
+    idx = np.flatnonzero(valid)
+    for t in np.flatnonzero(~valid):
+        src_t = idx[idx < t].max() if (idx < t).any() else idx.min()
+        np.testing.assert_array_equal(angles[t], angles[src_t])
+
+
+def test_retarget_smoothing_changes_the_motion_and_stays_in_limits(tmp_path, capsys):
+    seq = datasets.msr_action3d(subjects=[1], actions=[1])[0]
+    src = tmp_path / "m.npz"
+    np.savez(src, positions=seq.positions)
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    assert _run(capsys, "retarget", str(src), "--out", str(a))[0] == 0
+    assert _run(capsys, "retarget", str(src), "--out", str(b), "--no-smooth")[0] == 0
+    sa, sb = np.load(a)["angles"], np.load(b)["angles"]
+    assert not np.allclose(sa, sb)
+    assert (sa >= robot.LOWER).all() and (sa <= robot.UPPER).all()
+    jerk = [np.mean(np.diff(x[:, robot.DRIVEN_INDEX], n=3, axis=0) ** 2) for x in (sa, sb)]
+    assert jerk[0] < jerk[1]
+
+
+def test_retarget_csv_and_no_valid_frame(tmp_path, capsys):
+    src = tmp_path / "lost.csv"
+    np.savetxt(src, np.zeros((4, 60)), delimiter=",")
+    out = tmp_path / "o.npz"
+    assert _run(capsys, "retarget", str(src), "--out", str(out))[0] == 0
+    res = np.load(out)
+    assert not res["valid"].any()
+    np.testing.assert_array_equal(res["angles"], np.tile(robot.STANDING_POSTURE, (4, 1)))
+
+
+@pytest.mark.parametrize(
+    ("content", "word"),
+    [
+        (None, "not found"),
+        ("", "empty"),
+        ("1 2 3 4\n" * 21, "multiple of 20"),
+        ("1 2 3 x\n" * 20, "non-numeric"),
+    ],
+)
+def test_retarget_bad_input_is_one_line_and_exit_2(tmp_path, capsys, content, word):
+    src = tmp_path / "bad_skeleton.txt"
+    if content is not None:
+        src.write_text(content)
+    code, _, err = _run(capsys, "retarget", str(src), "--out", str(tmp_path / "o.npz"))
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "bad_skeleton.txt" in lines[0]
+    assert word in lines[0].lower()
+    assert "Traceback" not in err
+    assert not (tmp_path / "o.npz").exists()
