@@ -207,7 +207,10 @@ def actuator_index(model: mujoco.MjModel) -> np.ndarray:
     """(26,) int: id of the actuator driving each joint of ``JOINT_NAMES``.
 
     RHipYawPitch has no actuator of its own (one motor drives both hips): it maps to the
-    LHipYawPitch actuator. ConfigError if some joint is not driven.
+    LHipYawPitch actuator, so the returned ids are not unique. When scattering a configuration
+    into ``ctrl`` with ``ctrl[actuator_index(m)] = q``, the RHipYawPitch entry (later in the
+    order) overwrites the LHipYawPitch one: set ``q[RHipYawPitch] = q[LHipYawPitch]`` first.
+    ConfigError if some joint is not driven.
     """
     jids = _joint_ids(model)
     by_joint: dict[int, int] = {}
