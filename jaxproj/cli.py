@@ -16,7 +16,7 @@ from pathlib import Path
 from jaxproj import __version__
 from jaxproj.exceptions import JaxprojError
 
-METHODS = ("ik",)
+METHODS = ("ik", "relaxed", "full")
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -69,12 +69,26 @@ def _retarget(args: argparse.Namespace) -> int:
     from jaxproj.retarget import retarget_positions
     from jaxproj.smoothing import SmoothingParams
 
+    mapping, bones, mirror = None, args.bones, args.mirror
+    if args.method != "ik":
+        from jaxproj import engine
+
+        if args.model is None:
+            raise JaxprojError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
+        model = engine.load(args.model)
+        engine.check_neighbours(model, args.L, args.M)
+        bones, mirror = model.config.bones, model.config.mirror
+
+        def mapping(d):
+            return engine.project(model, d, args.method, n_l=args.L, n_m=args.M)[0]
+
     rec = read_skeleton(args.input, format=args.format)
     result = retarget_positions(
         rec.positions,
         rec.valid,
-        bones=args.bones,
-        mirror=args.mirror,
+        mapping=mapping,
+        bones=bones,
+        mirror=mirror,
         smoothing=SmoothingParams() if args.smooth else None,
     )
     out = Path(args.out)
@@ -97,6 +111,88 @@ def _retarget(args: argparse.Namespace) -> int:
     return 0
 
 
+def _parse_ints(text: str) -> list[int]:
+    try:
+        return [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated integers, got {text!r}"
+        ) from None
+
+
+def _progress(label: str, done: int, total: int) -> None:
+    width = 24
+    fill = int(width * done / max(total, 1))
+    end = "\n" if done >= total else ""
+    print(f"\r{label:<28s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}", end=end,
+          file=sys.stderr, flush=True)  # fmt: skip
+
+
+def training_descriptors(data: str, subjects: list[int] | None, bones: str, mirror: bool):
+    """Descriptors of the valid frames of the bundled data (or of a folder of recordings)."""
+    import numpy as np
+
+    from jaxproj import datasets
+    from jaxproj.readers import read_skeleton
+    from jaxproj.skeleton import descriptor
+
+    if data == "bundled":
+        positions = [(s.positions, s.valid) for s in datasets.msr_action3d(subjects=subjects)]
+    else:
+        folder = Path(data)
+        if not folder.is_dir():
+            raise JaxprojError(f"{folder}: --data must be 'bundled' or a folder of recordings")
+        files = sorted(f for f in folder.iterdir() if f.is_file())
+        if subjects is not None:
+            import re
+
+            keep = {f"s{s:02d}" for s in subjects}
+            files = [f for f in files if (m := re.search(r"s\d{2}", f.name)) and m.group() in keep]
+        if not files:
+            raise JaxprojError(f"{folder}: no recordings found (for subjects {subjects})")
+        positions = []
+        for i, f in enumerate(files):
+            rec = read_skeleton(f)
+            positions.append((rec.positions, rec.valid))
+            _progress("reading recordings", i + 1, len(files))
+    pos = np.concatenate([p for p, _ in positions])
+    ok_in = np.concatenate([v for _, v in positions])
+    d, ok = descriptor(pos, bones=bones, mirror=mirror)
+    ok = np.asarray(ok) & ok_in
+    return np.asarray(d)[ok], int(len(ok))
+
+
+def _build(args: argparse.Namespace) -> int:
+    import time
+
+    from jaxproj import engine
+
+    cfg = engine.BuildConfig(
+        landmarks=args.landmarks,
+        bandwidth=args.bandwidth,
+        k=args.k,
+        hidden=args.hidden if args.hidden is not None else max(2 * args.k, 2),
+        lam=args.lam,
+        seed=args.seed,
+        mirror=args.mirror,
+    ).check()
+    t0 = time.perf_counter()
+    d, n_frames = training_descriptors(args.data, args.subjects, cfg.bones, cfg.mirror)
+    _progress("training descriptors", 1, 1)
+    print(f"mean shift over {len(d)} descriptors ...", file=sys.stderr, flush=True)
+    model = engine.build(d, cfg)
+    _progress("landmarks + ELM kernel banks", 1, 1)
+    engine.save(model, args.out)
+    dt = time.perf_counter() - t0
+    target = f" (target {cfg.landmarks})" if cfg.landmarks else ""
+    print(
+        f"built {model.n_landmarks} landmarks{target} from {model.n_train} valid frames "
+        f"(of {n_frames}), bandwidth {model.bandwidth:.4f}, k={cfg.k}, hidden={cfg.hidden}, "
+        f"seed={cfg.seed} in {dt:.1f} s -> {args.out}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
     p = argparse.ArgumentParser(prog="jaxproj", description=__doc__.splitlines()[0])
@@ -112,6 +208,9 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--out", required=True, help="output .npz (angles, joint_names, valid)")
     pr.add_argument("--format", default="auto", choices=("auto", "msr", "utkinect", "npz", "csv"))
     pr.add_argument("--method", default="ik", choices=METHODS)
+    pr.add_argument("--model", help="projector file from `jaxproj build` (relaxed / full)")
+    pr.add_argument("--L", type=int, default=10, help="human-landmark neighbours (candidates)")
+    pr.add_argument("--M", type=int, default=10, help="robot-landmark neighbours per candidate")
     pr.add_argument("--bones", default="upper", choices=("upper", "full"))
     pr.add_argument(
         "--mirror", action="store_true", help="mirror imitation: human left drives robot right"
@@ -123,6 +222,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="double exponential smoothing (alpha 0.75, gamma 0.3, eta 0.15)",
     )
     pr.set_defaults(func=_retarget)
+
+    pb = sub.add_parser("build", help="build a projector (landmarks + ELM kernels)")
+    pb.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
+    pb.add_argument("--subjects", type=_parse_ints, default=[1, 3, 5, 7, 9],
+                    help="training subjects, e.g. 1,3,5,7,9 (default)")  # fmt: skip
+    size = pb.add_mutually_exclusive_group(required=True)
+    size.add_argument("--landmarks", type=int, help="target landmark count (bisection)")
+    size.add_argument("--bandwidth", type=float, help="mean-shift bandwidth, used as is")
+    pb.add_argument("--k", type=int, default=32, help="training neighbours per ELM kernel")
+    pb.add_argument("--hidden", type=int, default=None, help="hidden units (default 2k)")
+    pb.add_argument("--lam", type=float, default=1e-3, help="ELM ridge regulariser")
+    pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
+    pb.add_argument("--mirror", action="store_true", help="mirror imitation")
+    pb.add_argument("--out", required=True, help="output projector .npz")
+    pb.set_defaults(func=_build)
     return p
 
 

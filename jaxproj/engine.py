@@ -1,0 +1,301 @@
+"""The projection engine's public API: build, project, save, load.
+
+``build`` turns training recordings into a ``Model``: mean-shift landmarks of the human
+descriptors (``jaxproj.landmarks``), their robot poses by the analytic IK (``jaxproj.ik``), and
+the forward / backward ELM kernel banks (``jaxproj.kernels``). ``project`` maps human
+descriptors to robot poses with the relaxed or the full objective (``jaxproj.projection``) in
+fixed-size jitted batches. ``save`` / ``load`` round-trip a model through one ``.npz`` file.
+
+Shapes: human descriptors ``(B, m)`` (``m = 15`` for the default upper-body bones), robot poses
+``(B, n)`` over ``robot.DRIVEN_JOINTS`` (``n = 10``), radians.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj import ik, landmarks, robot
+from jaxproj.exceptions import ConfigError, InputError
+from jaxproj.kernels import ELMBank, train_bank
+from jaxproj.projection import (
+    FullConfig,
+    Projector,
+    make_projector,
+    project_full_one,
+    project_relaxed_one,
+)
+
+FORMAT = "jaxproj-projector"
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    """How a model is built. Exactly one of ``landmarks`` / ``bandwidth`` sets the landmarks.
+
+    Attributes:
+      landmarks: target landmark count (the mean-shift bandwidth is found by bisection).
+      bandwidth: mean-shift bandwidth, used as is.
+      bones: descriptor bone subset (``skeleton.descriptor``); the IK needs ``"upper"`` bones.
+      mirror: mirror imitation (human left drives robot right).
+      k: training neighbours per ELM kernel (the landmark itself included).
+      hidden: hidden units per kernel (``>= k``).
+      lam: ridge regulariser of the ELMs.
+      input_scale: standard deviation of the random hidden weights.
+      seed: PRNG seed of the random hidden layers.
+    """
+
+    landmarks: int | None = 1644
+    bandwidth: float | None = None
+    bones: str = "upper"
+    mirror: bool = False
+    k: int = 32
+    hidden: int = 64
+    lam: float = 1e-3
+    input_scale: float = 1.0
+    seed: int = 0
+
+    def check(self) -> BuildConfig:
+        """Raise ``ConfigError`` on an inconsistent configuration."""
+        if (self.landmarks is None) == (self.bandwidth is None):
+            raise ConfigError("give exactly one of landmarks (a count) or bandwidth")
+        if self.landmarks is not None and self.landmarks < 2:
+            raise ConfigError(f"landmarks={self.landmarks} must be >= 2")
+        if self.bandwidth is not None and not self.bandwidth > 0:
+            raise ConfigError(f"bandwidth={self.bandwidth} must be > 0")
+        if self.hidden < self.k:
+            raise ConfigError(f"hidden={self.hidden} must be >= k={self.k}")
+        return self
+
+
+@dataclass(frozen=True)
+class Model:
+    """A built projector plus what it was built from.
+
+    Attributes:
+      projector: landmarks and kernel banks (a pytree, see ``projection.Projector``).
+      config: the ``BuildConfig``.
+      bandwidth: the mean-shift bandwidth used.
+      counts: ``(K,)`` training frames per landmark.
+      n_train: training frames (valid descriptors) the landmarks came from.
+    """
+
+    projector: Projector
+    config: BuildConfig
+    bandwidth: float
+    counts: np.ndarray
+    n_train: int
+
+    @property
+    def n_landmarks(self) -> int:
+        """Number of landmark pairs ``K``."""
+        return self.projector.n_landmarks
+
+
+def build_from_landmarks(
+    human: np.ndarray, robot_poses: np.ndarray, config: BuildConfig
+) -> Projector:
+    """Train both kernel banks on given landmark pairs ``(K, m)``, ``(K, n)``."""
+    key = jax.random.PRNGKey(config.seed)
+    k_fwd, k_bwd = jax.random.split(key)
+    if not 2 <= config.k <= len(human):
+        raise ConfigError(f"k={config.k} must lie in [2, number of landmarks={len(human)}]")
+    opts = dict(k=config.k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
+    forward = train_bank(human, robot_poses, k_fwd, **opts)
+    backward = train_bank(robot_poses, human, k_bwd, **opts)
+    return make_projector(human, robot_poses, forward, backward)
+
+
+def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_shift) -> Model:
+    """Build a model from training descriptors.
+
+    Args:
+      descriptors: ``(N, m)`` human descriptors of VALID training frames.
+      config: landmarks and kernel settings.
+      **mean_shift: extra options passed to ``landmarks.build_landmarks``.
+
+    Returns:
+      The ``Model``.
+    """
+    config.check()
+    d = np.asarray(descriptors, np.float32)
+    if d.ndim != 2 or len(d) < 2 or not np.isfinite(d).all():
+        raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
+    lm = landmarks.build_landmarks(
+        d, target=config.landmarks, bandwidth=config.bandwidth, bones=config.bones, **mean_shift
+    )
+    projector = build_from_landmarks(lm.human, lm.robot, config)
+    return Model(projector, config, float(lm.bandwidth), np.asarray(lm.counts), int(lm.n_frames))
+
+
+Objective = Literal["relaxed", "full"]
+
+
+def _project_chunk(
+    p: Projector, h: jax.Array, objective: str, n_l: int, n_m: int, full: FullConfig
+) -> tuple[jax.Array, jax.Array]:
+    if objective == "relaxed":
+        return jax.vmap(project_relaxed_one, in_axes=(None, 0, None, None))(p, h, n_l, n_m)
+    r, f, _ = jax.vmap(project_full_one, in_axes=(None, 0, None, None, None))(p, h, n_l, n_m, full)
+    return r, f
+
+
+project_chunk = jax.jit(_project_chunk, static_argnums=(2, 3, 4, 5))
+"""Jitted ``(projector, (B, m), objective, L, M, full) -> ((B, n), (B,))``: one batch."""
+
+
+def check_neighbours(model_or_projector: Model | Projector, n_l: int, n_m: int) -> None:
+    """Raise ``ConfigError`` unless ``1 <= L, M <= K``."""
+    p = model_or_projector
+    if isinstance(p, Model):
+        p = p.projector
+    for name, v in (("L", n_l), ("M", n_m)):
+        if not 1 <= v <= p.n_landmarks:
+            raise ConfigError(f"{name}={v} must lie in [1, number of landmarks={p.n_landmarks}]")
+
+
+def project(
+    model: Model | Projector,
+    descriptors: np.ndarray,
+    objective: Objective = "relaxed",
+    *,
+    n_l: int = 10,
+    n_m: int = 10,
+    full: FullConfig | None = None,
+    batch_size: int = 4096,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Project human descriptors to robot poses.
+
+    Batches are padded to ``batch_size`` so every call compiles once per
+    ``(objective, L, M, full, batch_size)``.
+
+    Args:
+      model: a ``Model`` or a bare ``Projector``.
+      descriptors: ``(B, m)`` human descriptors (valid frames).
+      objective: ``"relaxed"`` or ``"full"``.
+      n_l, n_m: ``L`` human and ``M`` robot neighbours.
+      full: settings of the full objective (default ``FullConfig()``).
+      batch_size: queries per jitted call.
+
+    Returns:
+      ``(angles, value)``: ``(B, n)`` float32 driven-joint angles (rad, within limits) and
+      ``(B,)`` the objective's value (relaxed: back-projected deviation; full: ``f(w*)``).
+    """
+    p = model.projector if isinstance(model, Model) else model
+    full = FullConfig() if full is None else full
+    if objective not in ("relaxed", "full"):
+        raise ConfigError(f"objective must be 'relaxed' or 'full', got {objective!r}")
+    check_neighbours(p, n_l, n_m)
+    h = np.asarray(descriptors, np.float32)
+    if h.ndim != 2 or h.shape[1] != p.human.shape[1]:
+        raise ConfigError(f"descriptors must be (B, {p.human.shape[1]}), got {h.shape}")
+    outs, vals = [], []
+    for start in range(0, len(h), batch_size):
+        chunk = h[start : start + batch_size]
+        pad = batch_size - len(chunk)
+        if pad:
+            chunk = np.concatenate([chunk, np.repeat(p_first(p), pad, axis=0)], axis=0)
+        r, v = project_chunk(p, jnp.asarray(chunk), objective, n_l, n_m, full)
+        outs.append(np.asarray(r)[: batch_size - pad])
+        vals.append(np.asarray(v)[: batch_size - pad])
+    if not outs:
+        return np.zeros((0, p.robot.shape[1]), np.float32), np.zeros((0,), np.float32)
+    return np.concatenate(outs), np.concatenate(vals)
+
+
+def p_first(p: Projector) -> np.ndarray:
+    """``(1, m)``: a harmless padding query (the first landmark)."""
+    return np.asarray(p.human[:1])
+
+
+# ---------------------------------------------------------------------------- save / load
+
+_BANK_FIELDS = ("w", "inv_scale", "bias", "out", "offset", "neighbours")
+
+
+def save(model: Model, path: str | Path) -> None:
+    """Write a model to one ``.npz``: every array, the config and a format version."""
+    p = model.projector
+    arrays: dict[str, np.ndarray] = {
+        "human": np.asarray(p.human),
+        "robot": np.asarray(p.robot),
+        "counts": np.asarray(model.counts),
+    }
+    for name, bank in (("forward", p.forward), ("backward", p.backward)):
+        for f in _BANK_FIELDS:
+            arrays[f"{name}.{f}"] = np.asarray(getattr(bank, f))
+    meta = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "config": asdict(model.config),
+        "bandwidth": model.bandwidth,
+        "n_train": model.n_train,
+        "driven_joints": list(robot.DRIVEN_JOINTS),
+        "ik": {
+            "head_pitch_neutral": ik.HEAD_PITCH_NEUTRAL,
+            "elbow_yaw_neutral": ik.ELBOW_YAW_NEUTRAL,
+        },
+    }
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "wb") as fh:
+            np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
+    except OSError as e:
+        raise InputError(path, f"cannot write model: {e.strerror or e}") from None
+
+
+def load(path: str | Path) -> Model:
+    """Read a model written by ``save``; ``InputError`` on a missing, corrupt or foreign file."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "model file not found")
+    try:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
+        raise InputError(path, f"not a readable model file ({type(e).__name__}: {e})") from None
+    if "meta" not in data:
+        raise InputError(path, "not a jaxproj model (no 'meta' entry)")
+    try:
+        meta = json.loads(str(data["meta"]))
+    except json.JSONDecodeError:
+        raise InputError(path, "corrupt model metadata") from None
+    if meta.get("format") != FORMAT:
+        raise InputError(path, f"not a jaxproj model (format {meta.get('format')!r})")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise InputError(
+            path,
+            f"model format version {meta.get('format_version')} is not supported "
+            f"(this jaxproj reads version {FORMAT_VERSION}); rebuild it with `jaxproj build`",
+        )
+    try:
+        config = BuildConfig(**meta["config"])
+        banks = {}
+        for name in ("forward", "backward"):
+            a = {f: data[f"{name}.{f}"] for f in _BANK_FIELDS}
+            banks[name] = ELMBank(
+                **{f: jnp.asarray(v) for f, v in a.items()},
+                n_kernels=int(a["out"].shape[0]),
+                hidden=int(a["out"].shape[1]),
+                d_in=int(a["w"].shape[1]),
+                d_out=int(a["out"].shape[2]),
+                k=int(a["neighbours"].shape[1]),
+            )
+        projector = make_projector(
+            data["human"], data["robot"], banks["forward"], banks["backward"]
+        )
+    except (KeyError, TypeError, IndexError, ValueError) as e:
+        raise InputError(path, f"incomplete or inconsistent model file ({e})") from None
+    k = projector.n_landmarks
+    if data["robot"].shape != (k, len(robot.DRIVEN_JOINTS)) or banks["forward"].n_kernels != k:
+        raise InputError(path, "inconsistent array shapes in model file")
+    return Model(projector, config, float(meta["bandwidth"]), data["counts"], int(meta["n_train"]))

@@ -1,0 +1,213 @@
+"""Configuration projection (paper section II-D): a human pose -> a NAO pose.
+
+For one query ``h*`` (a human descriptor):
+
+1. the ``L`` nearest human landmarks ``h_j`` give ``L`` candidates ``r_j = kappa^h_j(h*)``
+   through their forward kernels;
+2. each candidate's ``M`` nearest robot landmarks ``r_{j,k}`` give ``M`` backward kernels;
+3. **relaxed** objective (paper eq. 4): the answer is the candidate with the least
+   back-projected deviation ``min_k ||kappa^r_{j,k}(r_j) - h*||``;
+4. **full** objective (paper eq. 2-3): for each ``j``, simplex weights ``w`` over its ``M`` robot
+   landmarks give ``r(w) = sum_k w_k r_{j,k}``; ``w`` minimises a back-projected deviation (see
+   ``full_objective``) by projected gradient (optax), and the answer is ``r(w*)`` of the ``j``
+   with the least objective value.
+
+Everything here is written for ONE query and vmapped over batches by the public entry points
+(``project``), which are the only jitted functions. ``L`` and ``M`` are static.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from optax.projections import projection_simplex
+
+from jaxproj import robot
+from jaxproj.kernels import ELMBank, predict
+from jaxproj.search import nearest, sq_norms
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Projector:
+    """Landmarks and both kernel banks: everything a projection needs (a pytree).
+
+    Attributes:
+      human: ``(K, m)`` human landmarks ``h_i`` (descriptors).
+      robot: ``(K, n)`` robot landmarks ``r_i = IK(h_i)`` (driven joint angles, rad).
+      human_sq, robot_sq: ``(K,)`` squared norms (for the distance computations).
+      forward: ELM bank ``h -> r`` (one kernel per landmark).
+      backward: ELM bank ``r -> h``.
+      lower, upper: ``(n,)`` joint limits the outputs are clipped to.
+    """
+
+    human: jax.Array
+    robot: jax.Array
+    human_sq: jax.Array
+    robot_sq: jax.Array
+    forward: ELMBank
+    backward: ELMBank
+    lower: jax.Array
+    upper: jax.Array
+    n_landmarks: int = field(metadata=dict(static=True))
+
+
+def make_projector(
+    human: jax.Array, robot_poses: jax.Array, forward: ELMBank, backward: ELMBank
+) -> Projector:
+    """Assemble a ``Projector`` from landmarks ``(K, m)``, ``(K, n)`` and the two banks."""
+    human = jnp.asarray(human, jnp.float32)
+    robot_poses = jnp.asarray(robot_poses, jnp.float32)
+    return Projector(
+        human=human,
+        robot=robot_poses,
+        human_sq=sq_norms(human),
+        robot_sq=sq_norms(robot_poses),
+        forward=forward,
+        backward=backward,
+        lower=jnp.asarray(robot.LOWER[robot.DRIVEN_INDEX]),
+        upper=jnp.asarray(robot.UPPER[robot.DRIVEN_INDEX]),
+        n_landmarks=int(human.shape[0]),
+    )
+
+
+def candidates(p: Projector, h: jax.Array, n_l: int) -> jax.Array:
+    """``(m,) -> (L, n)``: forward-kernel candidates of the ``L`` nearest human landmarks."""
+    idx, _ = nearest(p.human, p.human_sq, h, n_l)
+    return predict(p.forward, h, idx)
+
+
+def back_deviation(p: Projector, r: jax.Array, h: jax.Array, idx: jax.Array) -> jax.Array:
+    """``||kappa^r_k(r) - h||^2`` for backward kernels ``idx (M,)`` at one robot point ``r``."""
+    back = predict(p.backward, r, idx)  # (M, m)
+    return jnp.sum((back - h[None]) ** 2, axis=-1)
+
+
+def project_relaxed_one(
+    p: Projector, h: jax.Array, n_l: int, n_m: int
+) -> tuple[jax.Array, jax.Array]:
+    """Relaxed projection of one query.
+
+    Args:
+      p: the projector.
+      h: ``(m,)`` human descriptor.
+      n_l, n_m: ``L`` and ``M`` (static).
+
+    Returns:
+      ``(r, dev)``: ``(n,)`` projected robot pose (clipped to the joint limits) and the
+      back-projected deviation ``min_k ||kappa^r_{j,k}(r_j) - h||`` of the chosen candidate.
+    """
+    cand = candidates(p, h, n_l)  # (L, n)
+    ridx, _ = nearest(p.robot, p.robot_sq, cand, n_m)  # (L, M)
+    dev = jax.vmap(back_deviation, in_axes=(None, 0, None, 0))(p, cand, h, ridx)  # (L, M)
+    best_per_j = jnp.min(dev, axis=1)
+    j = jnp.argmin(best_per_j)
+    return jnp.clip(cand[j], p.lower, p.upper), jnp.sqrt(best_per_j[j])
+
+
+Objective = Literal["weighted", "min"]
+
+
+class FullConfig(NamedTuple):
+    """Settings of the full (simplex-weighted) objective. All static.
+
+    Attributes:
+      objective: ``"weighted"`` (default) ``f(w) = sum_k w_k ||kappa^r_{j,k}(r(w)) - h||^2``;
+        ``"min"`` ``f(w) = min_k ||kappa^r_{j,k}(r(w)) - h||^2`` (the paper's eq. 2 read
+        literally as the best kernel of the cluster).
+      iterations: projected-gradient steps per candidate (fixed; no early exit).
+      learning_rate: Adam step size on the weights (the weights live on the simplex, so the
+        scale is absolute: 0.05 moves at most ~5% of mass per step).
+    """
+
+    objective: Objective = "weighted"
+    iterations: int = 30
+    learning_rate: float = 0.05
+    include_candidate: bool = False
+
+
+class _PGState(NamedTuple):
+    w: jax.Array
+    opt_state: optax.OptState
+    best_w: jax.Array
+    best_f: jax.Array
+
+
+def _solve_cluster(
+    p: Projector, h: jax.Array, r_c: jax.Array, idx: jax.Array, cfg: FullConfig
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Projected gradient on the simplex for one candidate; returns (r(w*), f(w*), f(w0)).
+
+    The simplex spans the candidate's ``M`` robot landmarks and, with
+    ``cfg.include_candidate``, the candidate ``r_c`` itself as vertex 0 (then ``w0 = e_0``: the
+    relaxed answer is the warm start). Otherwise ``w0`` is the inverse squared distance weights
+    of ``r_c`` to the landmarks. Every step is an Adam update followed by
+    ``optax.projections.projection_simplex``; the best iterate is kept, so the returned value
+    is never worse than the start.
+    """
+    rk = p.robot[idx]  # (M, n)
+    if cfg.include_candidate:
+        verts = jnp.concatenate([r_c[None], rk], axis=0)  # (M + 1, n)
+        w0 = jnp.zeros((verts.shape[0],), rk.dtype).at[0].set(1.0)
+    else:
+        verts = rk
+        d2 = jnp.sum((rk - r_c[None]) ** 2, axis=1)
+        w0 = 1.0 / (d2 + 1e-8)
+        w0 = w0 / jnp.sum(w0)
+
+    def objective(w: jax.Array) -> jax.Array:
+        dev = back_deviation(p, w @ verts, h, idx)  # (M,)
+        if cfg.objective == "min":
+            return jnp.min(dev)
+        wk = w[1:] / jnp.maximum(jnp.sum(w[1:]), 1e-12) if cfg.include_candidate else w
+        return jnp.sum(wk * dev)
+
+    opt = optax.adam(cfg.learning_rate)
+    f = jax.value_and_grad(objective)
+
+    def step(state: _PGState, _: None) -> tuple[_PGState, None]:
+        val, g = f(state.w)
+        better = val < state.best_f
+        best_w = jnp.where(better, state.w, state.best_w)
+        best_f = jnp.where(better, val, state.best_f)
+        # optax's Adam bias correction and simplex projection mix Python floats / int32 counts
+        # with float32: let them promote as written, whatever the caller's promotion mode.
+        with jax.numpy_dtype_promotion("standard"):
+            upd, opt_state = opt.update(g, state.opt_state, state.w)
+            w = projection_simplex(optax.apply_updates(state.w, upd))
+        return _PGState(w, opt_state, best_w, best_f), None
+
+    f0 = objective(w0)
+    init = _PGState(w0, opt.init(w0), w0, f0)
+    final, _ = jax.lax.scan(step, init, None, length=cfg.iterations)
+    f_last = objective(final.w)
+    better = f_last < final.best_f
+    w_best = jnp.where(better, final.w, final.best_w)
+    f_best = jnp.where(better, f_last, final.best_f)
+    return w_best @ verts, f_best, f0
+
+
+def project_full_one(
+    p: Projector, h: jax.Array, n_l: int, n_m: int, cfg: FullConfig
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Full projection of one query.
+
+    Args:
+      p: the projector.
+      h: ``(m,)`` human descriptor.
+      n_l, n_m: ``L`` and ``M`` (static).
+      cfg: objective and solver settings (static).
+
+    Returns:
+      ``(r, f, f0)``: ``(n,)`` projected pose, the objective value at the chosen cluster's
+      optimum and at its warm start.
+    """
+    cand = candidates(p, h, n_l)  # (L, n)
+    ridx, _ = nearest(p.robot, p.robot_sq, cand, n_m)  # (L, M)
+    r, f, f0 = jax.vmap(_solve_cluster, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
+    j = jnp.argmin(f)
+    return jnp.clip(r[j], p.lower, p.upper), f[j], f0[j]

@@ -1,0 +1,143 @@
+"""Projection engine tests on a small real landmark set (fast: no mean shift here)."""
+
+import numpy as np
+import pytest
+
+from jaxproj import datasets, engine, ik, robot
+from jaxproj.exceptions import ConfigError, InputError
+from jaxproj.projection import FullConfig
+from jaxproj.skeleton import descriptor
+
+CFG = engine.BuildConfig(landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, seed=0)
+
+
+def _descriptors(subjects, actions=None):
+    seqs = datasets.msr_action3d(subjects=subjects, actions=actions)
+    pos = np.concatenate([s.positions[s.valid] for s in seqs])
+    d, ok = descriptor(pos)
+    return np.asarray(d)[np.asarray(ok)]
+
+
+@pytest.fixture(scope="module")
+def model():
+    d = _descriptors([1, 3])
+    human = d[np.random.default_rng(0).choice(len(d), 400, replace=False)]
+    robot_poses = np.asarray(ik.solve_driven(human))
+    projector = engine.build_from_landmarks(human, robot_poses, CFG)
+    return engine.Model(projector, CFG, 1.0, np.ones(400, np.int64), len(d))
+
+
+def _deg(a, b):
+    return np.degrees(np.abs(np.asarray(a) - np.asarray(b)))
+
+
+@pytest.mark.parametrize("objective", ["relaxed", "full"])
+def test_identity_projecting_a_landmark_returns_its_robot_pose(model, objective):
+    p = model.projector
+    got, _ = engine.project(model, np.asarray(p.human), objective, batch_size=512)
+    err = _deg(got, p.robot).max(axis=1)
+    # Regularised ELMs make identity approximate (paper, Remark): documented tolerance
+    assert np.median(err) < 1.0
+    assert np.mean(err < 2.0) > 0.9
+
+
+def test_similarity_perturbed_landmark_stays_near_the_ik(model):
+    p = model.projector
+    rng = np.random.default_rng(1)
+    h = np.asarray(p.human)
+    pert = h + rng.normal(scale=0.03, size=h.shape).astype(np.float32)
+    truth = np.asarray(ik.solve_driven(pert))
+    got, _ = engine.project(model, pert, "relaxed")
+    err = _deg(got, truth).mean(axis=1)
+    # better than snapping to the landmark's own pose (what "no projection" would give)
+    snap = _deg(p.robot, truth).mean(axis=1)
+    assert np.median(err) < 3.0
+    assert np.median(err) < np.median(snap)
+
+
+def test_outputs_within_limits_and_finite_on_held_out_people(model):
+    d = _descriptors([2], actions=[1, 5, 9])
+    lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
+    for objective in ("relaxed", "full"):
+        got, val = engine.project(model, d, objective)
+        assert np.isfinite(got).all() and np.isfinite(val).all()
+        assert (got >= lo).all() and (got <= hi).all()
+
+
+def test_full_objective_is_a_real_optimisation(model):
+    d = _descriptors([2], actions=[1, 5])[:300]
+    relaxed, _ = engine.project(model, d, "relaxed")
+    for cfg in (FullConfig(), FullConfig(objective="min", include_candidate=True)):
+        full, f = engine.project(model, d, "full", full=cfg)
+        assert np.abs(full - relaxed).max() > 1e-3  # it moves away from the relaxed answer
+        # never worse than its warm start
+        r, f_star, f0 = _full_values(model, d, cfg)
+        assert (f_star <= f0 + 1e-7).all()
+        assert (f_star < f0 - 1e-6).mean() > 0.1  # and it improves a real share of queries
+
+
+def _full_values(model, d, cfg):
+    import jax
+
+    from jaxproj.projection import project_full_one
+
+    fn = jax.jit(jax.vmap(lambda h: project_full_one(model.projector, h, 10, 10, cfg)))
+    r, f, f0 = fn(d)
+    return np.asarray(r), np.asarray(f), np.asarray(f0)
+
+
+def test_no_recompilation_on_the_second_call(model):
+    d = _descriptors([2], actions=[2])
+    engine.project(model, d[:10], "relaxed", batch_size=256)
+    before = engine.project_chunk._cache_size()
+    engine.project(model, d[10:300], "relaxed", batch_size=256)  # other size, same batch
+    engine.project(model, d[:5], "relaxed", batch_size=256)
+    assert engine.project_chunk._cache_size() == before
+
+
+def test_save_load_is_bit_identical(model, tmp_path):
+    path = tmp_path / "p.npz"
+    engine.save(model, path)
+    back = engine.load(path)
+    d = _descriptors([4], actions=[9])[:200]
+    for objective in ("relaxed", "full"):
+        a, va = engine.project(model, d, objective)
+        b, vb = engine.project(back, d, objective)
+        np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(va, vb)
+    assert back.config == model.config and back.n_landmarks == model.n_landmarks
+
+
+def test_load_rejects_corrupt_or_foreign_files(model, tmp_path):
+    path = tmp_path / "p.npz"
+    engine.save(model, path)
+    raw = path.read_bytes()
+    (tmp_path / "trunc.npz").write_bytes(raw[: len(raw) // 2])
+    with pytest.raises(InputError, match="trunc.npz"):
+        engine.load(tmp_path / "trunc.npz")
+    np.savez(tmp_path / "other.npz", positions=np.zeros((2, 20, 3)))
+    with pytest.raises(InputError, match="not a jaxproj model"):
+        engine.load(tmp_path / "other.npz")
+    with pytest.raises(InputError, match="not found"):
+        engine.load(tmp_path / "missing.npz")
+    # a future format version is refused with a clear message
+    import json
+
+    with np.load(path) as z:
+        data = {k: z[k] for k in z.files}
+    meta = json.loads(str(data["meta"]))
+    meta["format_version"] = 99
+    data["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "v99.npz", **data)
+    with pytest.raises(InputError, match="version 99"):
+        engine.load(tmp_path / "v99.npz")
+
+
+def test_bad_neighbour_counts_are_config_errors(model):
+    d = np.zeros((2, 15), np.float32)
+    with pytest.raises(ConfigError, match="L="):
+        engine.project(model, d, n_l=0)
+    with pytest.raises(ConfigError, match="M="):
+        engine.project(model, d, n_m=10_000)
+    with pytest.raises(ConfigError, match="objective"):
+        engine.project(model, d, "exact")
