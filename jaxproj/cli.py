@@ -173,6 +173,7 @@ def _build(args: argparse.Namespace) -> int:
         k=args.k,
         hidden=args.hidden if args.hidden is not None else max(2 * args.k, 2),
         lam=args.lam,
+        input_scale=args.input_scale,
         seed=args.seed,
         mirror=args.mirror,
     ).check()
@@ -230,9 +231,10 @@ def build_parser() -> argparse.ArgumentParser:
     size = pb.add_mutually_exclusive_group(required=True)
     size.add_argument("--landmarks", type=int, help="target landmark count (bisection)")
     size.add_argument("--bandwidth", type=float, help="mean-shift bandwidth, used as is")
-    pb.add_argument("--k", type=int, default=32, help="training neighbours per ELM kernel")
+    pb.add_argument("--k", type=int, default=48, help="training neighbours per ELM kernel")
     pb.add_argument("--hidden", type=int, default=None, help="hidden units (default 2k)")
     pb.add_argument("--lam", type=float, default=1e-3, help="ELM ridge regulariser")
+    pb.add_argument("--input-scale", type=float, default=0.5, help="hidden-weight std")
     pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
     pb.add_argument("--mirror", action="store_true", help="mirror imitation")
     pb.add_argument("--out", required=True, help="output projector .npz")

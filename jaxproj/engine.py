@@ -57,10 +57,10 @@ class BuildConfig:
     bandwidth: float | None = None
     bones: str = "upper"
     mirror: bool = False
-    k: int = 32
-    hidden: int = 64
+    k: int = 48
+    hidden: int = 96
     lam: float = 1e-3
-    input_scale: float = 1.0
+    input_scale: float = 0.5
     seed: int = 0
 
     def check(self) -> BuildConfig:

@@ -24,8 +24,14 @@ target ``t_i``::
 
     B_i = H^T (lambda I + H H^T)^{-1} (T - t_i)           # (hidden, d_out)
 
-``hidden >= k`` so that, for small ``lambda``, each kernel interpolates its ``k`` training
-pairs (and in particular ``kappa_i(c_i) ~= t_i``, the identity property of the paper).
+``hidden >= k`` so that, for small ``lambda``, each kernel can interpolate its ``k`` training
+pairs. A regularised ELM reproduces its training pairs only approximately, which breaks the
+paper's identity property (its Remark). With ``anchor=True`` (default) each kernel is made exact
+at its own landmark: features are taken relative to the landmark's,
+``H~ = H - 1 Q_i(c_i)^T``, ``B_i = H~^T (lambda I + H~ H~^T)^{-1} (T - t_i)`` and
+``kappa_i(x) = t_i + (Q_i(x) - Q_i(c_i)) B_i``, so ``kappa_i(c_i) = t_i`` for any ``lambda``
+and input scale. It costs nothing at evaluation time:
+``t_i - Q_i(c_i) B_i`` is stored as the kernel's offset.
 All kernels of a direction are trained in one vmapped call (no Python loop over landmarks).
 """
 
@@ -49,7 +55,8 @@ class ELMBank:
       inv_scale: ``(n_kernels,)`` ``1 / rho_i``.
       bias: ``(n_kernels, hidden)`` ``beta_i = b - W c_i / rho_i``.
       out: ``(n_kernels, hidden, d_out)`` output weights ``B_i``.
-      offset: ``(n_kernels, d_out)`` ``t_i``, the target of the kernel's own landmark.
+      offset: ``(n_kernels, d_out)`` constant term: ``t_i`` (the target of the kernel's own
+        landmark), minus ``Q_i(c_i) B_i`` for anchored kernels.
       neighbours: ``(n_kernels, k)`` int32 indices of the training landmarks of each kernel.
       n_kernels, hidden, d_in, d_out, k: static sizes.
     """
@@ -135,6 +142,7 @@ def _train_one(
     b: jax.Array,
     lam: jax.Array,
     min_scale: float,
+    anchor: bool,
 ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     x = x_all[nbr]  # (k, d_in); nbr[0] is the kernel's own landmark
     t = t_all[nbr]  # (k, d_out)
@@ -143,9 +151,14 @@ def _train_one(
     inv = 1.0 / rho
     beta = b - (w @ c) * inv
     h = jax.nn.sigmoid((x @ w.T) * inv + beta[None])  # (k, hidden)
+    if anchor:
+        h = h - h[0][None]  # features relative to the kernel's own landmark (row 0)
     gram = h @ h.T + lam * jnp.eye(h.shape[0], dtype=h.dtype)
     coef = jax.scipy.linalg.solve(gram, t - t[0][None], assume_a="pos")
-    return inv, beta, h.T @ coef, t[0]
+    out = h.T @ coef
+    q0 = jax.nn.sigmoid((w @ c) * inv + beta)  # Q_i(c_i)
+    offset = t[0] - q0 @ out if anchor else t[0]
+    return inv, beta, out, offset
 
 
 def train_bank(
@@ -158,6 +171,7 @@ def train_bank(
     lam: float = 1e-3,
     input_scale: float = 1.0,
     min_scale: float = 1e-3,
+    anchor: bool = True,
 ) -> ELMBank:
     """Train one ELM kernel per landmark, all in one vmapped call.
 
@@ -171,6 +185,7 @@ def train_bank(
       input_scale: standard deviation of the random input weights (inputs are seen at unit
         neighbourhood scale, so ~1 puts the sigmoids in their responsive range).
       min_scale: floor of ``rho_i`` where all neighbours coincide.
+      anchor: make each kernel exact at its own landmark (see the module doc).
 
     Returns:
       The stacked ``ELMBank``.
@@ -186,18 +201,20 @@ def train_bank(
         raise ConfigError(f"hidden={hidden} must be >= k={k} (an ELM interpolates k samples)")
     if not lam > 0:
         raise ConfigError(f"lam={lam} must be > 0")
-    return _train_bank(inputs, targets, key, k, hidden, jnp.float32(lam), input_scale, min_scale)
+    return _train_bank(
+        inputs, targets, key, k, hidden, jnp.float32(lam), input_scale, min_scale, anchor
+    )
 
 
-def _train_bank(inputs, targets, key, k, hidden, lam, input_scale, min_scale) -> ELMBank:
+def _train_bank(inputs, targets, key, k, hidden, lam, input_scale, min_scale, anchor) -> ELMBank:
     d_in, d_out = inputs.shape[1], targets.shape[1]
     kw, kb = jax.random.split(key)
     w = input_scale * jax.random.normal(kw, (hidden, d_in), jnp.float32)
     b = jax.random.uniform(kb, (hidden,), jnp.float32, -1.0, 1.0)
     nbr = knn_indices(inputs, k)
-    inv, beta, out, off = jax.vmap(_train_one, in_axes=(None, None, 0, None, None, None, None))(
-        inputs, targets, nbr, w, b, lam, min_scale
-    )
+    inv, beta, out, off = jax.vmap(
+        _train_one, in_axes=(None, None, 0, None, None, None, None, None)
+    )(inputs, targets, nbr, w, b, lam, min_scale, anchor)
     return ELMBank(
         w=w,
         inv_scale=inv,
@@ -213,4 +230,4 @@ def _train_bank(inputs, targets, key, k, hidden, lam, input_scale, min_scale) ->
     )
 
 
-_train_bank = jax.jit(_train_bank, static_argnums=(3, 4, 6, 7))
+_train_bank = jax.jit(_train_bank, static_argnums=(3, 4, 6, 7, 8))

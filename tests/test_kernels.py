@@ -37,10 +37,11 @@ def test_nearest_matches_numpy():
     np.testing.assert_allclose(np.asarray(d2), np.sort(ref, axis=1)[:, :7], rtol=1e-4, atol=1e-4)
 
 
-def test_bank_equals_a_numpy_elm_per_kernel():
+@pytest.mark.parametrize("anchor", [False, True])
+def test_bank_equals_a_numpy_elm_per_kernel(anchor):
     x, y = _data()
     k, hidden, lam = 12, 24, 1e-3
-    bank = train_bank(x, y, jax.random.PRNGKey(3), k=k, hidden=hidden, lam=lam)
+    bank = train_bank(x, y, jax.random.PRNGKey(3), k=k, hidden=hidden, lam=lam, anchor=anchor)
     w = np.asarray(bank.w, np.float64)
     b_shared = None
     for i in (0, 17, 119):
@@ -53,9 +54,13 @@ def test_bank_equals_a_numpy_elm_per_kernel():
             b_shared = b
         np.testing.assert_allclose(b, b_shared, atol=1e-4)
         h = _sigmoid((xi - xi[0]) @ w.T / rho + b)
+        q0 = h[0].copy()
+        if anchor:
+            h = h - q0
         beta = h.T @ np.linalg.solve(lam * np.eye(k) + h @ h.T, ti - ti[0])
         q = np.random.default_rng(i).normal(size=6)
-        want = ti[0] + _sigmoid((q - xi[0]) @ w.T / rho + b) @ beta
+        feat = _sigmoid((q - xi[0]) @ w.T / rho + b)
+        want = ti[0] + ((feat - q0) if anchor else feat) @ beta
         got = np.asarray(predict(bank, q.astype(np.float32), np.array(i)))
         np.testing.assert_allclose(got, want, atol=2e-4)
 
@@ -69,6 +74,20 @@ def test_each_kernel_interpolates_its_training_pairs():
         np.testing.assert_allclose(got, y[nbr], atol=2e-2)
         # the kernel's own landmark is reproduced closely (identity property)
         np.testing.assert_allclose(got[0], y[i], atol=2e-3)
+
+
+def test_anchored_kernels_are_exact_at_their_landmark_even_when_smooth():
+    x, y = _data()
+    # heavy regularisation and a small input scale: the kernels no longer interpolate...
+    kw = dict(k=30, hidden=60, lam=1e-1, input_scale=0.3)
+    plain = train_bank(x, y, jax.random.PRNGKey(0), anchor=False, **kw)
+    anchored = train_bank(x, y, jax.random.PRNGKey(0), anchor=True, **kw)
+    idx = np.arange(len(x))
+    own_plain = np.stack([np.asarray(predict(plain, x[i], np.array(i))) for i in idx])
+    own_anchor = np.stack([np.asarray(predict(anchored, x[i], np.array(i))) for i in idx])
+    assert np.abs(own_plain - y).max() > 1e-2
+    # ...but the anchored ones still reproduce their own landmark
+    np.testing.assert_allclose(own_anchor, y, atol=1e-5)
 
 
 def test_training_is_deterministic_and_key_dependent():

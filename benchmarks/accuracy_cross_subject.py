@@ -1,0 +1,117 @@
+"""Cross-subject accuracy of the projection engine (the paper's protocol on MSR Action3D).
+
+Landmarks from subjects 1,3,5,7,9 (all actions, valid frames); evaluation on every valid frame of
+the arm-heavy actions (a01-a12, a17-a19) of subjects 2,4,6,8,10, against the analytic IK over
+``robot.DRIVEN_JOINTS``. Prints M_avg / M_max (degrees, the paper's definitions) per objective and
+for the nearest-landmark baseline, plus per-joint p95 and the identity error on the landmarks.
+
+    python benchmarks/accuracy_cross_subject.py [--landmarks 1644] [--seed 0] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import jax
+import numpy as np
+
+from jaxproj import datasets, engine, ik, robot
+from jaxproj.projection import FullConfig
+from jaxproj.search import nearest
+from jaxproj.skeleton import descriptor
+
+
+def _frames(subjects, actions=None) -> np.ndarray:
+    seqs = datasets.msr_action3d(subjects=subjects, actions=actions)
+    pos = np.concatenate([s.positions[s.valid] for s in seqs])
+    d, ok = descriptor(pos)
+    return np.asarray(d)[np.asarray(ok)]
+
+
+def _stats(pred: np.ndarray, truth: np.ndarray) -> dict:
+    err = np.degrees(np.abs(pred - truth))
+    m_avg, m_max = err.mean(axis=1), err.max(axis=1)
+    return {
+        "M_avg": {
+            "median": float(np.median(m_avg)),
+            "mean": float(m_avg.mean()),
+            "p95": float(np.percentile(m_avg, 95)),
+        },
+        "M_max": {
+            "median": float(np.median(m_max)),
+            "p95": float(np.percentile(m_max, 95)),
+            "max": float(m_max.max()),
+        },
+        "per_joint_p95": dict(
+            zip(robot.DRIVEN_JOINTS, np.percentile(err, 95, axis=0).round(2).tolist(), strict=True)
+        ),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--landmarks", type=int, default=1644)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+
+    train = _frames([1, 3, 5, 7, 9])
+    test = _frames([2, 4, 6, 8, 10], datasets.ARM_ACTIONS)
+    truth = np.asarray(ik.solve_driven(test))
+    t0 = time.perf_counter()
+    model = engine.build(train, engine.BuildConfig(landmarks=args.landmarks, seed=args.seed))
+    build_s = time.perf_counter() - t0
+    p = model.projector
+    out = {
+        "landmarks": model.n_landmarks,
+        "bandwidth": model.bandwidth,
+        "train_frames": len(train),
+        "test_frames": len(test),
+        "build_s": build_s,
+        "config": vars(model.config).copy(),
+        "device": str(jax.devices()[0]),
+        "methods": {},
+    }
+    nn = jax.jit(jax.vmap(lambda h: nearest(p.human, p.human_sq, h, 1)[0][0]))(test)
+    out["methods"]["nearest_landmark"] = _stats(np.asarray(p.robot)[np.asarray(nn)], truth)
+    variants = {
+        "relaxed": ("relaxed", None),
+        "full": ("full", FullConfig()),
+        "full_min_with_candidate": ("full", FullConfig(objective="min", include_candidate=True)),
+    }
+    for name, (objective, cfg) in variants.items():
+        t0 = time.perf_counter()
+        pred, _ = engine.project(model, test, objective, full=cfg)
+        out["methods"][name] = _stats(pred, truth) | {"wall_s": time.perf_counter() - t0}
+        ident, _ = engine.project(model, np.asarray(p.human), objective, full=cfg)
+        ie = np.degrees(np.abs(ident - np.asarray(p.robot))).max(axis=1)
+        out["methods"][name]["identity_M_max"] = {
+            "median": float(np.median(ie)),
+            "p95": float(np.percentile(ie, 95)),
+            "max": float(ie.max()),
+        }
+    print(
+        f"{out['landmarks']} landmarks (bandwidth {out['bandwidth']:.4f}) from "
+        f"{out['train_frames']} frames; {out['test_frames']} held-out arm-action frames"
+    )
+    print(
+        f"{'method':26s} {'M_avg med':>9s} {'M_avg mean':>10s} {'M_max med':>9s} {'M_max p95':>9s}"
+    )
+    for name, s in out["methods"].items():
+        print(
+            f"{name:26s} {s['M_avg']['median']:9.2f} {s['M_avg']['mean']:10.2f} "
+            f"{s['M_max']['median']:9.2f} {s['M_max']['p95']:9.2f}"
+        )
+    for name, s in out["methods"].items():
+        print(f"  {name} per-joint p95 (deg):", s["per_joint_p95"])
+        if "identity_M_max" in s:
+            print(f"  {name} identity M_max (deg):", s["identity_M_max"])
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
