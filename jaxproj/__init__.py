@@ -2,9 +2,29 @@
 
 Pipeline (one module per stage): ``readers`` / ``datasets`` / ``skeleton`` (data and the body-frame
 bone descriptor) -> ``robot`` / ``ik`` (NAO H25 model and the analytic IK ground truth) ->
-``retarget`` (whole motions) -> ``smoothing``.
+``landmarks`` (mean shift) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -> ``projection``
+(relaxed / full objectives) -> ``smoothing`` -> ``retarget`` (whole motions); ``engine`` holds the
+public build / project / save / load API.
 
 Jit policy: public entry points are jitted; helpers and loops inside them are not.
 """
 
 __version__ = "0.1.0"
+
+from jaxproj.engine import BuildConfig, Model, build, load, project, save
+from jaxproj.projection import FullConfig
+from jaxproj.smoothing import SmoothingParams, smooth, smooth_batch
+
+__all__ = [
+    "BuildConfig",
+    "FullConfig",
+    "Model",
+    "SmoothingParams",
+    "__version__",
+    "build",
+    "load",
+    "project",
+    "save",
+    "smooth",
+    "smooth_batch",
+]

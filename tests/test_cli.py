@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxproj import datasets, ik, robot
+from jaxproj import datasets, engine, ik, robot
 from jaxproj.cli import main
 from jaxproj.readers import MSR_TO_SDK
 from jaxproj.skeleton import descriptor
@@ -106,3 +106,38 @@ def test_retarget_bad_input_is_one_line_and_exit_2(tmp_path, capsys, content, wo
     assert word in lines[0].lower()
     assert "Traceback" not in err
     assert not (tmp_path / "o.npz").exists()
+
+
+def test_build_then_retarget_with_the_model(tmp_path, capsys):
+    model = tmp_path / "p.npz"
+    code, out, _ = _run(
+        capsys, "build", "--subjects", "1", "--landmarks", "150", "--k", "16", "--out", str(model)
+    )
+    assert code == 0 and "landmarks (target 150)" in out
+    n_reached = int(out.split("built ")[1].split()[0])
+    assert abs(n_reached - 150) <= 0.05 * 150
+    seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
+    src = tmp_path / "m.npz"
+    np.savez(src, positions=seq.positions)
+    d, _ = descriptor(seq.positions)
+    d = np.asarray(d)
+    truth = np.asarray(ik.solve(d))[:, robot.DRIVEN_INDEX]
+    errs = {}
+    for method in ("relaxed", "full"):
+        dst = tmp_path / f"{method}.npz"
+        argv = ["retarget", str(src), "--out", str(dst), "--method", method, "--model", str(model)]
+        assert _run(capsys, *argv, "--no-smooth", "--L", "5", "--M", "5")[0] == 0
+        angles = np.load(dst)["angles"]
+        assert np.isfinite(angles).all()
+        assert (angles >= robot.LOWER).all() and (angles <= robot.UPPER).all()
+        errs[method] = np.degrees(np.abs(angles[:, robot.DRIVEN_INDEX] - truth)).mean()
+    # a learned mapping: better than snapping to the nearest landmark's pose
+    proj = engine.load(model).projector
+    nn = np.argmin(((d[:, None, :] - np.asarray(proj.human)[None]) ** 2).sum(-1), axis=1)
+    snap = np.degrees(np.abs(np.asarray(proj.robot)[nn] - truth)).mean()
+    assert errs["relaxed"] < snap and errs["full"] < snap
+    # a method that needs a model, without one, is a clean error
+    code, _, err = _run(
+        capsys, "retarget", str(src), "--out", str(tmp_path / "x.npz"), "--method", "relaxed"
+    )
+    assert code == 2 and "--model" in err
