@@ -124,8 +124,12 @@ def _progress(label: str, done: int, total: int) -> None:
     width = 24
     fill = int(width * done / max(total, 1))
     end = "\n" if done >= total else ""
-    print(f"\r{label:<28s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}", end=end,
-          file=sys.stderr, flush=True)  # fmt: skip
+    print(
+        f"\r{label:<28s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}",
+        end=end,
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def training_descriptors(data: str, subjects: list[int] | None, bones: str, mirror: bool):
@@ -194,6 +198,75 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
+def evaluation_sequences(data: str, subjects: list[int] | None):
+    """Sequences to evaluate: the bundled MSR Action3D (filtered by subject) or a folder."""
+    from jaxproj import datasets
+
+    if data == "bundled":
+        return datasets.msr_action3d(subjects=subjects)
+    import re
+
+    import numpy as np
+
+    from jaxproj.readers import read_skeleton
+
+    folder = Path(data)
+    if not folder.is_dir():
+        raise JaxprojError(f"{folder}: --data must be 'bundled' or a folder of recordings")
+    seqs = []
+    for f in sorted(p for p in folder.iterdir() if p.is_file()):
+        m = re.search(r"a(\d{2})_s(\d{2})_e(\d{2})", f.name)
+        action, subject, take = (int(g) for g in m.groups()) if m else (0, 0, 0)
+        if subjects is not None and m and subject not in subjects:
+            continue
+        rec = read_skeleton(f)
+        conf = np.ones(rec.valid.shape + (20,), np.float32)
+        seqs.append(
+            datasets.MotionSequence(f.stem, action, subject, take, rec.positions, conf, rec.valid)
+        )
+    if not seqs:
+        raise JaxprojError(f"{folder}: no recordings found (for subjects {subjects})")
+    return seqs
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    import time
+
+    import jax
+
+    from jaxproj import engine, evaluate, report
+    from jaxproj.smoothing import SmoothingParams
+
+    if args.devices < 1 or args.devices > len(jax.devices()):
+        raise JaxprojError(
+            f"--devices {args.devices}: this machine has {len(jax.devices())} JAX device(s)"
+        )
+    model = engine.load(args.model)
+    engine.check_neighbours(model, args.L, args.M)
+    objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
+    methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
+    t0 = time.perf_counter()
+    seqs = evaluation_sequences(args.data, args.subjects)
+    data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
+    with engine.use_devices(args.devices):
+        out = evaluate.evaluate(
+            model,
+            data,
+            methods,
+            n_l=args.L,
+            n_m=args.M,
+            smoothing=SmoothingParams() if args.smooth else None,
+            progress=_progress,
+        )
+    out["wall_s"]["total"] = time.perf_counter() - t0
+    out["subjects"] = args.subjects
+    out["model"] = str(args.model)
+    report.write_json(Path(args.json), out)
+    print(report.summary_table(out["summary"], methods))
+    print(f"{out['valid_frames']} valid frames of {out['sequences']} sequences -> {args.json}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
     p = argparse.ArgumentParser(prog="jaxproj", description=__doc__.splitlines()[0])
@@ -226,8 +299,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     pb = sub.add_parser("build", help="build a projector (landmarks + ELM kernels)")
     pb.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
-    pb.add_argument("--subjects", type=_parse_ints, default=[1, 3, 5, 7, 9],
-                    help="training subjects, e.g. 1,3,5,7,9 (default)")  # fmt: skip
+    pb.add_argument(
+        "--subjects",
+        type=_parse_ints,
+        default=[1, 3, 5, 7, 9],
+        help="training subjects, e.g. 1,3,5,7,9 (default)",
+    )
     size = pb.add_mutually_exclusive_group(required=True)
     size.add_argument("--landmarks", type=int, help="target landmark count (bisection)")
     size.add_argument("--bandwidth", type=float, help="mean-shift bandwidth, used as is")
@@ -239,6 +316,18 @@ def build_parser() -> argparse.ArgumentParser:
     pb.add_argument("--mirror", action="store_true", help="mirror imitation")
     pb.add_argument("--out", required=True, help="output projector .npz")
     pb.set_defaults(func=_build)
+
+    pe = sub.add_parser("evaluate", help="batch evaluation against the IK, with baselines")
+    pe.add_argument("--model", required=True, help="projector file from `jaxproj build`")
+    pe.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
+    pe.add_argument("--subjects", type=_parse_ints, default=[2, 4, 6, 8, 10])
+    pe.add_argument("--objective", default="all", choices=("relaxed", "full", "all"))
+    pe.add_argument("--L", type=int, default=10)
+    pe.add_argument("--M", type=int, default=10)
+    pe.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True)
+    pe.add_argument("--devices", type=int, default=1, help="JAX devices to shard batches over")
+    pe.add_argument("--json", required=True, help="output report JSON")
+    pe.set_defaults(func=_evaluate)
     return p
 
 

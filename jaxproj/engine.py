@@ -162,6 +162,41 @@ def check_neighbours(model_or_projector: Model | Projector, n_l: int, n_m: int) 
             raise ConfigError(f"{name}={v} must lie in [1, number of landmarks={p.n_landmarks}]")
 
 
+_DEVICES: list[jax.Device] | None = None
+
+
+class use_devices:  # noqa: N801 - used as a context manager, reads like a function
+    """Within the block, ``project`` shards each batch over the first ``n`` JAX devices.
+
+    Batches are split along the query axis (projections are independent); ``batch_size`` must
+    be a multiple of ``n``. ``n = 1`` (default) keeps everything on the default device.
+    """
+
+    def __init__(self, n: int = 1):
+        devices = jax.devices()
+        if not 1 <= n <= len(devices):
+            raise ConfigError(f"asked for {n} devices, {len(devices)} available")
+        self.devices = devices[:n] if n > 1 else None
+
+    def __enter__(self) -> use_devices:
+        global _DEVICES
+        self._saved, _DEVICES = _DEVICES, self.devices
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        global _DEVICES
+        _DEVICES = self._saved
+
+
+def _place(chunk: np.ndarray) -> jax.Array:
+    if _DEVICES is None:
+        return jnp.asarray(chunk)
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    mesh = Mesh(np.array(_DEVICES), ("batch",))
+    return jax.device_put(chunk, NamedSharding(mesh, PartitionSpec("batch")))
+
+
 def project(
     model: Model | Projector,
     descriptors: np.ndarray,
@@ -197,13 +232,15 @@ def project(
     h = np.asarray(descriptors, np.float32)
     if h.ndim != 2 or h.shape[1] != p.human.shape[1]:
         raise ConfigError(f"descriptors must be (B, {p.human.shape[1]}), got {h.shape}")
+    if _DEVICES is not None and batch_size % len(_DEVICES):
+        raise ConfigError(f"batch_size={batch_size} must be a multiple of {len(_DEVICES)} devices")
     outs, vals = [], []
     for start in range(0, len(h), batch_size):
         chunk = h[start : start + batch_size]
         pad = batch_size - len(chunk)
         if pad:
             chunk = np.concatenate([chunk, np.repeat(p_first(p), pad, axis=0)], axis=0)
-        r, v = project_chunk(p, jnp.asarray(chunk), objective, n_l, n_m, full)
+        r, v = project_chunk(p, _place(chunk), objective, n_l, n_m, full)
         outs.append(np.asarray(r)[: batch_size - pad])
         vals.append(np.asarray(v)[: batch_size - pad])
     if not outs:

@@ -1,0 +1,312 @@
+"""Batch offline evaluation: project recorded motions, compare with the IK ground truth.
+
+Metrics (paper section IV), per frame, over ``robot.DRIVEN_JOINTS`` (``n = 10``), in degrees:
+``M_max = max_j |r*_j - r_gt_j|`` and ``M_avg = mean_j |r*_j - r_gt_j|``, where ``r_gt`` is the
+analytic IK of the frame (``jaxproj.ik``). Only valid frames are scored.
+
+Methods, all on the same landmarks:
+
+* ``relaxed`` / ``full``: the paper's projection (``jaxproj.projection``);
+* ``nearest_landmark``: the robot pose of the nearest human landmark;
+* ``knn_average``: inverse-distance average of the ``L`` nearest landmarks' robot poses;
+* ``global_elm``: one regularised ELM (sigmoid, ``GLOBAL_HIDDEN`` hidden units) fitted to all
+  landmark pairs ``h -> r``.
+
+With smoothing, each motion's per-frame answers (invalid frames filled as in
+``jaxproj.retarget``) go through the double exponential smoother before scoring, and the mean
+squared joint jerk (third difference at the recording rate, rad/s^3) is reported before and after.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj import ik, robot
+from jaxproj.datasets import ACTION_NAMES, MotionSequence
+from jaxproj.engine import Model, project
+from jaxproj.exceptions import ConfigError
+from jaxproj.projection import FullConfig, Projector
+from jaxproj.retarget import fill_invalid
+from jaxproj.search import nearest
+from jaxproj.skeleton import descriptor
+from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_batch
+
+METHODS: tuple[str, ...] = ("relaxed", "full", "nearest_landmark", "knn_average", "global_elm")
+GLOBAL_HIDDEN = 1024
+FPS = 15.0
+"""MSR Action3D frame rate (frames/s), used for the jerk in physical units."""
+
+
+@dataclass(frozen=True)
+class EvalData:
+    """Frames of the evaluated motions, concatenated.
+
+    Attributes:
+      descriptors: ``(F, m)`` descriptors of every frame (zeros where invalid).
+      valid: ``(F,)`` bool.
+      truth: ``(F, n)`` IK of every frame (driven joints, rad).
+      offsets: ``(S + 1,)`` sequence ``s`` is frames ``offsets[s]:offsets[s + 1]``.
+      names, actions, subjects: ``(S,)`` per-sequence metadata.
+    """
+
+    descriptors: np.ndarray
+    valid: np.ndarray
+    truth: np.ndarray
+    offsets: np.ndarray
+    names: list[str]
+    actions: np.ndarray
+    subjects: np.ndarray
+
+
+def prepare(
+    sequences: Sequence[MotionSequence], bones: str = "upper", mirror: bool = False
+) -> EvalData:
+    """Descriptors, validity and IK truth of every frame of ``sequences``."""
+    if not sequences:
+        raise ConfigError("no sequences to evaluate")
+    pos = np.concatenate([s.positions for s in sequences])
+    ok_in = np.concatenate([s.valid for s in sequences])
+    d, ok = descriptor(pos, bones=bones, mirror=mirror)
+    d, ok = np.asarray(d), np.asarray(ok) & ok_in
+    truth = np.asarray(ik.solve_driven(d, bones))
+    lengths = [len(s.valid) for s in sequences]
+    return EvalData(
+        descriptors=d,
+        valid=ok,
+        truth=truth,
+        offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+        names=[s.name for s in sequences],
+        actions=np.array([s.action for s in sequences]),
+        subjects=np.array([s.subject for s in sequences]),
+    )
+
+
+# ------------------------------------------------------------------------------- baselines
+
+
+@jax.jit
+def _nearest_landmark(p: Projector, h: jax.Array) -> jax.Array:
+    idx = jax.vmap(lambda x: nearest(p.human, p.human_sq, x, 1)[0][0])(h)
+    return p.robot[idx]
+
+
+def _knn_average(p: Projector, h: jax.Array, n_l: int) -> jax.Array:
+    def one(x: jax.Array) -> jax.Array:
+        idx, d2 = nearest(p.human, p.human_sq, x, n_l)
+        w = 1.0 / (jnp.sqrt(d2) + 1e-6)
+        return (w / jnp.sum(w)) @ p.robot[idx]
+
+    return jax.vmap(one)(h)
+
+
+_knn_average_jit = jax.jit(_knn_average, static_argnums=2)
+
+
+@dataclass(frozen=True)
+class GlobalELM:
+    """One regularised ELM over all landmarks: ``r = sigmoid(W h + b) B``."""
+
+    w: jax.Array  # (hidden, m)
+    b: jax.Array  # (hidden,)
+    out: jax.Array  # (hidden, n)
+
+    def __call__(self, h: jax.Array) -> jax.Array:
+        """``(B, m) -> (B, n)``."""
+        return _global_elm_apply(self.w, self.b, self.out, jnp.asarray(h, jnp.float32))
+
+
+@jax.jit
+def _global_elm_apply(w, b, out, h):
+    return jax.nn.sigmoid(h @ w.T + b[None]) @ out
+
+
+def fit_global_elm(
+    p: Projector, key: jax.Array, hidden: int = GLOBAL_HIDDEN, lam: float = 1e-3
+) -> GlobalELM:
+    """Fit the ``global_elm`` baseline on the landmark pairs of ``p`` (ridge, closed form)."""
+    kw, kb = jax.random.split(key)
+    m = p.human.shape[1]
+    w = jax.random.normal(kw, (hidden, m), jnp.float32) * 2.0
+    b = jax.random.uniform(kb, (hidden,), jnp.float32, -1.0, 1.0)
+    h = jax.nn.sigmoid(p.human @ w.T + b[None])  # (K, hidden)
+    a = h.T @ h + lam * jnp.eye(hidden, dtype=h.dtype)
+    out = jax.scipy.linalg.solve(a, h.T @ p.robot, assume_a="pos")
+    return GlobalELM(w, b, out)
+
+
+def _batched(fn: Callable[[jax.Array], jax.Array], h: np.ndarray, batch: int = 4096):
+    """Apply ``fn`` in fixed-size padded batches (one compile)."""
+    outs = []
+    for s in range(0, len(h), batch):
+        chunk = h[s : s + batch]
+        pad = batch - len(chunk)
+        if pad:
+            chunk = np.concatenate([chunk, np.repeat(chunk[:1], pad, axis=0)])
+        outs.append(np.asarray(fn(jnp.asarray(chunk)))[: batch - pad])
+    return np.concatenate(outs) if outs else np.zeros((0, 10), np.float32)
+
+
+def predict_method(
+    model: Model,
+    method: str,
+    h: np.ndarray,
+    *,
+    n_l: int = 10,
+    n_m: int = 10,
+    full: FullConfig | None = None,
+    seed: int = 0,
+) -> np.ndarray:
+    """``(F, m)`` valid descriptors -> ``(F, n)`` driven angles by ``method`` (see module doc)."""
+    p = model.projector
+    if method in ("relaxed", "full"):
+        return project(model, h, method, n_l=n_l, n_m=n_m, full=full)[0]
+    if method == "nearest_landmark":
+        return _batched(lambda x: _nearest_landmark(p, x), h)
+    if method == "knn_average":
+        return _batched(lambda x: _knn_average_jit(p, x, n_l), h)
+    if method == "global_elm":
+        elm = fit_global_elm(p, jax.random.PRNGKey(seed))
+        lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
+        return np.clip(_batched(elm, h), lo[None], hi[None])
+    raise ConfigError(f"unknown method {method!r}; use one of {METHODS}")
+
+
+# --------------------------------------------------------------------------------- metrics
+
+
+def frame_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, n)`` x2 -> ``(M_max (F,), M_avg (F,))`` in degrees."""
+    err = np.degrees(np.abs(np.asarray(pred, np.float64) - np.asarray(truth, np.float64)))
+    return err.max(axis=1), err.mean(axis=1)
+
+
+def describe(x: np.ndarray) -> dict[str, float]:
+    """mean / median / p95 / max of a 1-D array (NaN-free; empty -> NaN-free zeros)."""
+    if len(x) == 0:
+        return {"mean": 0.0, "median": 0.0, "p95": 0.0, "max": 0.0, "n": 0}
+    return {
+        "mean": float(np.mean(x)),
+        "median": float(np.median(x)),
+        "p95": float(np.percentile(x, 95)),
+        "max": float(np.max(x)),
+        "n": int(len(x)),
+    }
+
+
+def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS) -> float:
+    """Mean squared third difference (rad/s^3)^2 over all joints and valid time steps.
+
+    Args:
+      motions: ``(S, T, n)`` padded motions.
+      lengths: ``(S,)``.
+    """
+    total, count = 0.0, 0
+    for x, n in zip(motions, lengths, strict=True):
+        if n >= 4:
+            j = np.diff(np.asarray(x[:n], np.float64), n=3, axis=0) * fps**3
+            total += float(np.sum(j**2))
+            count += j.size
+    return total / max(count, 1)
+
+
+def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Scatter valid-frame answers into ``(S, T_max, n)`` motions with invalid frames filled."""
+    n_seq = len(data.names)
+    lengths = np.diff(data.offsets)
+    t_max = int(lengths.max())
+    full = np.zeros((len(data.valid), per_frame.shape[1]), np.float32)
+    full[data.valid] = per_frame
+    out = np.zeros((n_seq, t_max, per_frame.shape[1]), np.float32)
+    for s in range(n_seq):
+        a, b = data.offsets[s], data.offsets[s + 1]
+        v = data.valid[a:b]
+        if v.any():
+            out[s, : b - a] = np.asarray(fill_invalid(jnp.asarray(full[a:b]), jnp.asarray(v)))
+        else:
+            out[s, : b - a] = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
+    return out, lengths
+
+
+def evaluate(
+    model: Model,
+    data: EvalData,
+    methods: Sequence[str] = METHODS,
+    *,
+    n_l: int = 10,
+    n_m: int = 10,
+    smoothing: SmoothingParams | None = PAPER_SMOOTHING,
+    full: FullConfig | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> dict:
+    """Evaluate ``methods`` on ``data``; returns the JSON-ready report (see README)."""
+    lengths = np.diff(data.offsets)
+    h = data.descriptors[data.valid]
+    truth_v = data.truth[data.valid]
+    truth_motion, _ = _per_motion(data, truth_v)
+    seq_of_frame = np.repeat(np.arange(len(data.names)), lengths)[data.valid]
+    out: dict = {
+        "landmarks": model.n_landmarks,
+        "L": n_l,
+        "M": n_m,
+        "frames": int(len(data.valid)),
+        "valid_frames": int(data.valid.sum()),
+        "sequences": len(data.names),
+        "driven_joints": list(robot.DRIVEN_JOINTS),
+        "smoothing": None if smoothing is None else dict(smoothing._asdict()),
+        "devices": [str(d) for d in jax.devices()],
+        "summary": {},
+        "unsmoothed": {},
+        "smoothness": {},
+        "per_action": {},
+        "per_sequence": {n: {} for n in data.names},
+        "wall_s": {},
+    }
+    predictions: dict[str, np.ndarray] = {}
+    for i, method in enumerate(methods):
+        t0 = time.perf_counter()
+        pred = predict_method(model, method, h, n_l=n_l, n_m=n_m, full=full)
+        wall = time.perf_counter() - t0
+        out["wall_s"][method] = wall
+        out["wall_s"][f"{method}_us_per_frame"] = 1e6 * wall / max(len(h), 1)
+        m_max, m_avg = frame_errors(pred, truth_v)
+        out["unsmoothed"][method] = {"M_max": describe(m_max), "M_avg": describe(m_avg)}
+        motions, _ = _per_motion(data, pred)
+        jerk_raw = mean_squared_jerk(motions, lengths)
+        if smoothing is not None:
+            sm = np.asarray(smooth_batch(motions, lengths, smoothing))
+            lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
+            sm = np.clip(sm, lo, hi)
+            flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
+            m_max, m_avg = frame_errors(flat, truth_v)
+            out["smoothness"][method] = {
+                "jerk_raw": jerk_raw,
+                "jerk_smoothed": mean_squared_jerk(sm, lengths),
+            }
+            motions = sm
+        else:
+            out["smoothness"][method] = {"jerk_raw": jerk_raw}
+        predictions[method] = np.concatenate([motions[s, :n] for s, n in enumerate(lengths)])
+        out["summary"][method] = {"M_max": describe(m_max), "M_avg": describe(m_avg)}
+        for a in np.unique(data.actions):
+            sel = data.actions[seq_of_frame] == a
+            out["per_action"].setdefault(f"a{a:02d} {ACTION_NAMES[a - 1]}", {})[method] = {
+                "M_max": describe(m_max[sel]),
+                "M_avg": describe(m_avg[sel]),
+            }
+        for s, name in enumerate(data.names):
+            sel = seq_of_frame == s
+            out["per_sequence"][name][method] = {
+                "M_max_mean": float(m_max[sel].mean()) if sel.any() else 0.0,
+                "M_avg_mean": float(m_avg[sel].mean()) if sel.any() else 0.0,
+            }
+        if progress is not None:
+            progress("evaluating methods", i + 1, len(methods))
+    out["_predictions"] = predictions  # (F, n) per method, dropped before writing JSON
+    out["_truth"] = np.concatenate([truth_motion[s, :n] for s, n in enumerate(lengths)])
+    return out
