@@ -267,6 +267,17 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _demo(args: argparse.Namespace) -> int:
+    from jaxproj import report
+    from jaxproj.demo import run_demo
+
+    out = run_demo(Path(args.out), quick=args.quick, progress=_progress)
+    print(report.summary_table(out["summary"]))
+    t = out["timings"]
+    print(f"report: {Path(args.out) / 'report.md'} ({t['total_s']:.0f} s)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
     p = argparse.ArgumentParser(prog="jaxproj", description=__doc__.splitlines()[0])
@@ -328,6 +339,11 @@ def build_parser() -> argparse.ArgumentParser:
     pe.add_argument("--devices", type=int, default=1, help="JAX devices to shard batches over")
     pe.add_argument("--json", required=True, help="output report JSON")
     pe.set_defaults(func=_evaluate)
+
+    pd = sub.add_parser("demo", help="the main job: build, evaluate, roll out, report")
+    pd.add_argument("--out", default="jaxproj-report", help="report folder")
+    pd.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
+    pd.set_defaults(func=_demo)
     return p
 
 
