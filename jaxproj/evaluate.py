@@ -30,7 +30,7 @@ import numpy as np
 from jaxproj import ik, robot
 from jaxproj.datasets import ACTION_NAMES, MotionSequence
 from jaxproj.engine import Model, project
-from jaxproj.exceptions import ConfigError
+from jaxproj.exceptions import ConfigError, JaxprojError
 from jaxproj.projection import FullConfig, Projector
 from jaxproj.retarget import fill_invalid
 from jaxproj.search import nearest
@@ -129,14 +129,25 @@ def _global_elm_apply(w, b, out, h):
 def fit_global_elm(
     p: Projector, key: jax.Array, hidden: int = GLOBAL_HIDDEN, lam: float = 1e-3
 ) -> GlobalELM:
-    """Fit the ``global_elm`` baseline on the landmark pairs of ``p`` (ridge, closed form)."""
+    """Fit the ``global_elm`` baseline on the landmark pairs of ``p`` (ridge, closed form).
+
+    ``lam`` is relative to the mean diagonal of the Gram matrix (see the code comment).
+    """
     kw, kb = jax.random.split(key)
     m = p.human.shape[1]
     w = jax.random.normal(kw, (hidden, m), jnp.float32) * 2.0
     b = jax.random.uniform(kb, (hidden,), jnp.float32, -1.0, 1.0)
     h = jax.nn.sigmoid(p.human @ w.T + b[None])  # (K, hidden)
-    a = h.T @ h + lam * jnp.eye(hidden, dtype=h.dtype)
-    out = jax.scipy.linalg.solve(a, h.T @ p.robot, assume_a="pos")
+    # The ridge is relative to the Gram matrix's mean diagonal: saturated sigmoids make the
+    # Gram entries ~hidden/4, and an absolute 1e-3 drowns in its float32 round-off.
+    if h.shape[0] <= hidden:  # dual form: B = H^T (lam I + H H^T)^-1 T, a K x K system
+        g = h @ h.T
+        a = g + lam * jnp.mean(jnp.diag(g)) * jnp.eye(h.shape[0], dtype=h.dtype)
+        out = h.T @ jax.scipy.linalg.solve(a, p.robot, assume_a="pos")
+    else:  # primal form: B = (lam I + H^T H)^-1 H^T T, a hidden x hidden system
+        g = h.T @ h
+        a = g + lam * jnp.mean(jnp.diag(g)) * jnp.eye(hidden, dtype=h.dtype)
+        out = jax.scipy.linalg.solve(a, h.T @ p.robot, assume_a="pos")
     return GlobalELM(w, b, out)
 
 
@@ -162,7 +173,21 @@ def predict_method(
     full: FullConfig | None = None,
     seed: int = 0,
 ) -> np.ndarray:
-    """``(F, m)`` valid descriptors -> ``(F, n)`` driven angles by ``method`` (see module doc)."""
+    """``(F, m)`` valid descriptors -> ``(F, n)`` driven angles by ``method`` (see module doc).
+
+    Raises ``JaxprojError`` rather than return a non-finite answer.
+    """
+    pred = _predict(model, method, h, n_l=n_l, n_m=n_m, full=full, seed=seed)
+    bad = ~np.isfinite(pred).all(axis=1)
+    if bad.any():
+        raise JaxprojError(
+            f"method {method!r} produced non-finite angles for {int(bad.sum())} of {len(pred)} "
+            f"frames (first: valid frame {int(np.argmax(bad))})"
+        )
+    return pred
+
+
+def _predict(model, method, h, *, n_l, n_m, full, seed) -> np.ndarray:
     p = model.projector
     if method in ("relaxed", "full"):
         return project(model, h, method, n_l=n_l, n_m=n_m, full=full)[0]
