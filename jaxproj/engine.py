@@ -239,7 +239,7 @@ def project(
         chunk = h[start : start + batch_size]
         pad = batch_size - len(chunk)
         if pad:
-            chunk = np.concatenate([chunk, np.repeat(p_first(p), pad, axis=0)], axis=0)
+            chunk = np.concatenate([chunk, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
         r, v = project_chunk(p, _place(chunk), objective, n_l, n_m, full)
         outs.append(np.asarray(r)[: batch_size - pad])
         vals.append(np.asarray(v)[: batch_size - pad])
@@ -248,7 +248,7 @@ def project(
     return np.concatenate(outs), np.concatenate(vals)
 
 
-def p_first(p: Projector) -> np.ndarray:
+def _padding_query(p: Projector) -> np.ndarray:
     """``(1, m)``: a harmless padding query (the first landmark)."""
     return np.asarray(p.human[:1])
 

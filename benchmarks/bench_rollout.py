@@ -1,0 +1,189 @@
+"""Throughput of the MJX rollout (``jaxproj.rollout.simulate``) in NAO physics steps per second.
+
+Synthetic arm/head motions (sinusoids around the standing posture, inside the joint limits) are
+played on the fixed-torso NAO at 15 frames/s (33 physics steps of 2 ms per frame). Before timing,
+the script checks correctness: every simulated angle is finite, and motion 0 (contact-free by
+construction) agrees with the same protocol run through CPU MuJoCo ``mj_step`` (max |dq| printed;
+exit status 1 above 1e-3 rad). Per batch size it then times the first call (compile + run) and
+the best of ``--repeat`` further calls (``block_until_ready``), and reports
+``batch * frames * substeps / run time``; the CPU MuJoCo ``mj_step`` loop on motion 0 is the
+same-run baseline (one core, one motion).
+
+    python benchmarks/bench_rollout.py [--batch 1,64,1024] [--frames 30] [--device cpu|gpu]
+                                       [--repeat 3] [--json OUT]
+
+``--device`` sets ``JAX_PLATFORMS`` before JAX is imported (MJX puts the model on
+``jax.devices()[0]``), so ``gpu`` needs a CUDA build of jaxlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+PLATFORMS = {"cpu": "cpu", "gpu": "cuda"}
+
+
+def _args() -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--batch", default="1,64,1024", help="comma-separated batch sizes")
+    ap.add_argument("--frames", type=int, default=30, help="frames per motion (15 frames/s)")
+    ap.add_argument("--device", choices=sorted(PLATFORMS), default="cpu")
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs per batch size (best kept)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", default=None, help="write the results here")
+    args = ap.parse_args()
+    args.batch = [int(b) for b in args.batch.split(",") if b.strip()]
+    if not args.batch or min(args.batch) < 1 or args.frames < 1 or args.repeat < 1:
+        ap.error("batch sizes, --frames and --repeat must be positive")
+    return args
+
+
+ARGS = _args() if __name__ == "__main__" else None
+if ARGS is not None:
+    os.environ["JAX_PLATFORMS"] = PLATFORMS[ARGS.device]
+
+import jax  # noqa: E402  (after JAX_PLATFORMS)
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+try:
+    from jaxproj import robot, rollout
+except ImportError:  # run from a checkout without installing
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from jaxproj import robot, rollout
+
+
+def motions(batch: int, frames: int, seed: int) -> np.ndarray:
+    """(batch, frames, 26) float32: driven joints swing around the standing posture.
+
+    Motion 0 only raises / lowers the arms in front (ShoulderPitch, ElbowRoll, shoulders rolled
+    outward) and nods: no self-contact, so it can be compared with CPU MuJoCo. The others move
+    all 10 driven joints with random amplitudes (up to 0.8 rad), frequencies and phases.
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames, dtype=np.float64) / 15.0
+    q = np.tile(robot.STANDING_POSTURE.astype(np.float64), (batch, frames, 1))
+    drv = robot.DRIVEN_INDEX
+    amp = rng.uniform(0.1, 0.8, (batch, 1, drv.size))
+    freq = rng.uniform(0.3, 1.5, (batch, 1, drv.size))
+    phase = rng.uniform(0.0, 2 * np.pi, (batch, 1, drv.size))
+    q[..., drv] += amp * np.sin(2 * np.pi * freq * t[None, :, None] + phase)
+    i = robot.IDX
+    swing = np.sin(2 * np.pi * 0.8 * t)
+    q[0] = robot.STANDING_POSTURE
+    q[0, :, i["HeadPitch"]] = 0.3 * swing
+    for side, s in (("L", 1.0), ("R", -1.0)):
+        q[0, :, i[f"{side}ShoulderPitch"]] = 0.9 + 0.6 * swing
+        q[0, :, i[f"{side}ShoulderRoll"]] = s * 0.4
+        q[0, :, i[f"{side}ElbowRoll"]] = -s * (0.8 + 0.4 * swing)
+    margin = 0.02
+    return np.clip(q, robot.LOWER + margin, robot.UPPER - margin).astype(np.float32)
+
+
+def cpu_rollout(targets: np.ndarray, substeps: int) -> tuple[np.ndarray, int, float]:
+    """The rollout protocol with CPU MuJoCo mj_step: (T, 26) qpos, contacts seen, seconds."""
+    model = robot.load_model("fixed")
+    data = mujoco.MjData(model)
+    qi = robot.joint_qpos_index(model)
+    act = robot.actuator_index(model)
+    src = np.empty(model.nu, dtype=np.int64)
+    for j, a in enumerate(act):
+        if robot.JOINT_NAMES[j] != robot.COUPLED_JOINTS[1]:
+            src[a] = j
+    lo, hi = model.actuator_ctrlrange.T
+    ctrl = np.clip(targets.astype(np.float64)[:, src], lo, hi)
+    data.qpos[:] = robot.config_to_qpos(model, np.clip(targets[0], robot.LOWER, robot.UPPER))
+    out = np.empty((len(targets), robot.N_JOINTS))
+    ncon = 0
+    t0 = time.perf_counter()
+    for f in range(len(targets)):
+        data.ctrl[:] = ctrl[f]
+        for _ in range(substeps):
+            mujoco.mj_step(model, data)
+            ncon += data.ncon
+        out[f] = data.qpos[qi]
+    return out, ncon, time.perf_counter() - t0
+
+
+def bench(batch: int, frames: int, seed: int, repeat: int, substeps: int) -> dict:
+    q = motions(batch, frames, seed)
+    n = np.full(batch, frames, dtype=np.int32)
+    t0 = time.perf_counter()
+    res = jax.block_until_ready(rollout.simulate(q, n))
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        res = jax.block_until_ready(rollout.simulate(q, n))
+        runs.append(time.perf_counter() - t0)
+    run = min(runs)
+    qpos = np.asarray(res.qpos)
+    steps = batch * frames * substeps
+    return {
+        "batch": batch,
+        "first_call_s": first,
+        "compile_s": max(first - run, 0.0),
+        "run_s": run,
+        "steps": steps,
+        "steps_per_s": steps / run,
+        "finite": bool(np.all(np.isfinite(qpos))),
+        "qpos0": qpos[0],
+    }
+
+
+def main(args: argparse.Namespace) -> int:
+    substeps = round((1.0 / 15.0) / robot.load_model("fixed").opt.timestep)
+    dev = jax.devices()[0]
+    print(f"device: {dev.platform} {dev.device_kind} | jax {jax.__version__} | mujoco "
+          f"{mujoco.__version__} | {platform.processor() or platform.machine()}, "
+          f"{os.cpu_count()} cpus")  # fmt: skip
+    print(f"motions: {args.frames} frames at 15 frames/s, {substeps} steps/frame")
+
+    # CPU MuJoCo baseline: motion 0, same protocol (warm-up run first, then timed)
+    ref = motions(1, args.frames, args.seed)[0]
+    cpu_rollout(ref[:2], substeps)
+    cpu_q, cpu_ncon, cpu_s = cpu_rollout(ref, substeps)
+    cpu_steps = args.frames * substeps
+    print(f"CPU MuJoCo mj_step loop (1 motion): {cpu_steps / cpu_s:,.0f} steps/s")
+
+    rows, ok = [], True
+    for b in args.batch:
+        r = bench(b, args.frames, args.seed, args.repeat, substeps)
+        dq = float(np.abs(r.pop("qpos0") - cpu_q).max())
+        r["mjx_vs_cpu_max_dq_rad"] = dq
+        r["speedup_vs_cpu_mj_step"] = r["steps_per_s"] * cpu_s / cpu_steps
+        good = r["finite"] and (dq <= 1e-3 or cpu_ncon > 0)
+        ok &= good
+        print(f"batch {b:6d}: compile {r['compile_s']:6.1f} s | run {r['run_s']:8.3f} s | "
+              f"{r['steps_per_s']:12,.0f} steps/s | x{r['speedup_vs_cpu_mj_step']:.2f} vs CPU "
+              f"mj_step | finite {r['finite']} | motion 0 vs CPU max |dq| {dq:.2e} rad"
+              + ("" if good else "  <-- CHECK FAILED"))  # fmt: skip
+        rows.append(r)
+    if cpu_ncon > 0:
+        print("note: motion 0 touched itself on CPU MuJoCo; the MJX/CPU comparison is not exact")
+
+    out = {
+        "device": f"{dev.platform} {dev.device_kind}",
+        "jax": jax.__version__,
+        "mujoco": mujoco.__version__,
+        "cpus": os.cpu_count(),
+        "frames": args.frames,
+        "substeps": substeps,
+        "cpu_mj_step": {"steps": cpu_steps, "run_s": cpu_s, "steps_per_s": cpu_steps / cpu_s},
+        "mjx": rows,
+        "correct": bool(ok),
+    }
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(ARGS))

@@ -1,0 +1,307 @@
+"""MJX rollouts of retargeted motions (jaxproj.rollout) against CPU MuJoCo and known answers.
+
+MJX compiles are slow on CPU (~15 s for one rollout program on 2 cores), so every ``simulate``
+test reads one module-scoped batch of six 10-frame motions, compiled once; ``hand_error_cm`` is
+compiled once for N = 8.
+"""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import mujoco
+import numpy as np
+import pytest
+
+from jaxproj import robot, rollout
+from jaxproj.exceptions import ConfigError
+
+T = 10  # frames per motion (15 frames/s: 0.67 s)
+SUBSTEPS = 33  # round((1/15) / 0.002)
+STAND = robot.STANDING_POSTURE
+IDX = robot.IDX
+ARM_TORSO = rollout.CONTACT_GROUPS.index("arm_torso")
+
+# rows of the batch
+STANDING, STEP, COLLIDE, JUMP, PAD_NAN, PAD_WILD = range(6)
+PAD_LEN = 5
+STEP_FRAME = 1  # LShoulderPitch 1.4 -> 0.4 (hanging -> raised) from this frame on
+JUMP_FRAME = 3  # RShoulderPitch 1.4 -> 0.4 from this frame on
+OUT_OF_RANGE_FRAME = 6  # JUMP: LShoulderRoll target -0.6 (< -0.3142) from this frame on
+
+
+def _pose(base: np.ndarray = STAND, **angles: float) -> np.ndarray:
+    q = np.array(base, dtype=np.float32)
+    for name, value in angles.items():
+        q[IDX[name]] = value
+    return q
+
+
+def _motions() -> tuple[np.ndarray, np.ndarray]:
+    hold = np.tile(STAND, (T, 1))
+    step = hold.copy()
+    step[STEP_FRAME:] = _pose(LShoulderPitch=0.4)
+    # tests/test_robot_model.py: left arm hanging, rolled inward, elbow fully flexed with
+    # ElbowYaw = 0 swings the forearm through the torso
+    collide = hold.copy()
+    collide[2:] = _pose(LShoulderRoll=-0.3142, LElbowYaw=0.0, LElbowRoll=-1.5446)
+    jump = hold.copy()
+    jump[JUMP_FRAME:] = _pose(RShoulderPitch=0.4)
+    jump[OUT_OF_RANGE_FRAME:, IDX["LShoulderRoll"]] = -0.6
+    pad_nan = jump.copy()
+    pad_nan[PAD_LEN:] = np.nan
+    pad_wild = jump.copy()
+    pad_wild[PAD_LEN:] = np.random.default_rng(0).uniform(-100.0, 100.0, (T - PAD_LEN, 26))
+    targets = np.stack([hold, step, collide, jump, pad_nan, pad_wild]).astype(np.float32)
+    lengths = np.array([T, T, T, T, PAD_LEN, PAD_LEN], dtype=np.int32)
+    return targets, lengths
+
+
+@pytest.fixture(scope="module")
+def batch() -> tuple[np.ndarray, np.ndarray, rollout.RolloutResult]:
+    targets, lengths = _motions()
+    with jax.numpy_dtype_promotion("strict"), jax.numpy_rank_promotion("raise"):
+        result = rollout.simulate(targets, lengths)
+    result = rollout.RolloutResult(*(np.asarray(x) for x in result))
+    return targets, lengths, result
+
+
+@pytest.fixture(scope="module")
+def fixed() -> mujoco.MjModel:
+    return robot.load_model("fixed")
+
+
+def _cpu_rollout(model: mujoco.MjModel, targets: np.ndarray) -> dict[str, np.ndarray]:
+    """The rollout protocol of jaxproj.rollout written out with CPU MuJoCo (float64) mj_step."""
+    qi, di = robot.joint_qpos_index(model), robot.joint_dof_index(model)
+    act = robot.actuator_index(model)
+    src = np.empty(model.nu, dtype=np.int64)  # joint driven by each actuator
+    for i, a in enumerate(act):
+        if robot.JOINT_NAMES[i] != "RHipYawPitch":
+            src[a] = i
+    lo, hi = model.actuator_ctrlrange.T
+    groups = {("l", "torso"): ARM_TORSO, ("r", "torso"): ARM_TORSO}
+    data = mujoco.MjData(model)
+    data.qpos[:] = robot.config_to_qpos(model, np.clip(targets[0], robot.LOWER, robot.UPPER))
+    qpos, contact, peak = [], [], np.zeros(26)
+    for target in targets:
+        data.ctrl[:] = np.clip(target[src], lo, hi)
+        hit = np.zeros(3, dtype=bool)
+        for _ in range(SUBSTEPS):
+            mujoco.mj_step(model, data)
+            peak = np.maximum(peak, np.abs(data.qvel[di]))
+            for c in data.contact[: data.ncon]:
+                names = sorted(model.geom(g).name.split("_")[0] for g in (c.geom1, c.geom2))
+                if tuple(names) in groups:
+                    hit[groups[tuple(names)]] = True
+        qpos.append(data.qpos[qi].copy())
+        contact.append(hit)
+    return {"qpos": np.array(qpos), "contact": np.array(contact), "max_speed": peak}
+
+
+# --- physics ------------------------------------------------------------------------------------
+
+
+def test_result_shapes(batch) -> None:
+    targets, lengths, r = batch
+    b = len(lengths)
+    assert r.qpos.shape == r.qvel.shape == (b, T, 26) and r.qpos.dtype == np.float32
+    assert r.contact.shape == (b, T, 3) and r.contact.dtype == bool
+    assert r.penetration.shape == (b, T)
+    assert r.max_speed.shape == r.tracking_rms.shape == (b, 26)
+    assert r.contact_frames.shape == (b, 3)
+    valid = np.arange(T)[None, :] < lengths[:, None]
+    assert np.all(np.isfinite(r.qpos[valid])) and np.all(np.isfinite(r.max_speed))
+
+
+@pytest.mark.parametrize("row", [STANDING, STEP])
+def test_mjx_matches_cpu_mujoco(batch, fixed: mujoco.MjModel, row: int) -> None:
+    # No contact in these motions (JUMP's first frames: test_padding_is_ignored); STEP saturates
+    # the shoulder servo (20 N m/rad * 1 rad >> the 1.329 N m effort), the case where plain
+    # mjx.step drifts ~0.02 rad from CPU MuJoCo.
+    # Float32 MJX vs float64 CPU over 330 steps: agreement within 1e-4 rad, 1e-2 rad/s.
+    targets, _, r = batch
+    cpu = _cpu_rollout(fixed, targets[row])
+    np.testing.assert_allclose(r.qpos[row], cpu["qpos"], atol=1e-4)
+    np.testing.assert_allclose(r.max_speed[row], cpu["max_speed"], atol=1e-2)
+    assert not r.contact[row].any() and not cpu["contact"].any()
+
+
+def test_standing_posture_is_held(batch) -> None:
+    targets, _, r = batch
+    assert np.abs(r.qpos[STANDING] - STAND).max() < 0.05
+    assert r.max_speed[STANDING].max() < 0.5  # rad/s: only the initial gravity sag
+
+
+def test_step_is_followed(batch) -> None:
+    targets, _, r = batch
+    j = IDX["LShoulderPitch"]
+    err = np.abs(r.qpos[STEP, :, j] - 0.4)
+    assert err[STEP_FRAME] > 0.3  # a physical lag: one frame (67 ms) is not enough for 1 rad
+    settled = STEP_FRAME + 8  # frame end >= 0.5 s after the step
+    assert np.all(err[settled:] < 0.1), err
+    others = [k for k in range(26) if k != j]
+    assert np.abs(r.qpos[STEP][:, others] - STAND[others]).max() < 0.05
+
+
+def test_self_collision_detected(batch, fixed: mujoco.MjModel) -> None:
+    targets, _, r = batch
+    assert r.contact_frames[COLLIDE, ARM_TORSO] > 0
+    assert r.contact_frames[COLLIDE].tolist()[1:] == [0, 0]  # no arm-head / arm-arm
+    assert not r.contact[COLLIDE, :2].any()  # the forearm needs > 2 frames to swing in
+    assert r.penetration[COLLIDE].max() > 0.0
+    assert r.contact_frames[STANDING].tolist() == [0, 0, 0]
+    assert r.penetration[STANDING].max() == 0.0
+    # CPU MuJoCo finds arm-torso contact in about as many frames (MJX's capsule-box collider
+    # returns one contact point where CPU MuJoCo returns two, so the motions differ slightly)
+    cpu = _cpu_rollout(fixed, targets[COLLIDE])
+    assert abs(int(cpu["contact"][:, ARM_TORSO].sum()) - r.contact_frames[COLLIDE, ARM_TORSO]) <= 1
+
+
+def test_padding_is_ignored(batch, fixed: mujoco.MjModel) -> None:
+    targets, lengths, r = batch
+    # NaN and +-100 rad padding give identical results on the valid frames and statistics
+    for field in ("qpos", "qvel", "contact", "penetration"):
+        a, b = getattr(r, field)[PAD_NAN, :PAD_LEN], getattr(r, field)[PAD_WILD, :PAD_LEN]
+        np.testing.assert_array_equal(a, b, err_msg=field)
+    for field in ("max_speed", "contact_frames", "tracking_rms"):
+        np.testing.assert_array_equal(getattr(r, field)[PAD_NAN], getattr(r, field)[PAD_WILD])
+    assert np.all(np.isfinite(r.qpos[PAD_NAN])) and not r.contact[PAD_NAN].any()
+    # ... and the same as the unpadded 5-frame motion (CPU MuJoCo reference)
+    cpu = _cpu_rollout(fixed, targets[JUMP, :PAD_LEN])
+    np.testing.assert_allclose(r.qpos[PAD_NAN, :PAD_LEN], cpu["qpos"], atol=1e-4)
+    np.testing.assert_allclose(r.max_speed[PAD_NAN], cpu["max_speed"], atol=1e-2)
+    rms = np.sqrt(np.mean((cpu["qpos"] - targets[JUMP, :PAD_LEN]) ** 2, axis=0))
+    np.testing.assert_allclose(r.tracking_rms[PAD_NAN], rms, atol=1e-4)
+    # the full JUMP motion goes on to push the left arm into the torso: not counted when padded
+    assert r.contact_frames[JUMP, ARM_TORSO] > 0 and r.contact_frames[PAD_NAN].sum() == 0
+    # the summary of a padded motion = summary of the same motion cut to its length
+    sub = rollout.RolloutResult(*(x[[PAD_NAN, PAD_WILD]] for x in r))
+    s_pad = rollout.summarize(sub, lengths[[PAD_NAN, PAD_WILD]], targets[[PAD_NAN, PAD_WILD]])
+    rows = [PAD_NAN, PAD_WILD]
+    cut = rollout.RolloutResult(
+        *(x[rows, :PAD_LEN] for x in (r.qpos, r.qvel, r.contact, r.penetration)),
+        *(x[rows] for x in (r.max_speed, r.contact_frames, r.tracking_rms)),
+    )
+    s_cut = rollout.summarize(cut, np.array([PAD_LEN, PAD_LEN]), targets[[JUMP, JUMP], :PAD_LEN])
+    assert s_pad == s_cut
+    assert s_pad["frames"] == 2 * PAD_LEN and s_pad["joint_limit_violations"]["target_frames"] == 0
+
+
+# --- summary ------------------------------------------------------------------------------------
+
+
+def test_summary_of_batch(batch) -> None:
+    targets, lengths, r = batch
+    s = rollout.summarize(r, lengths, targets)
+    json.dumps(s)  # plain numbers only
+    assert s["motions"] == 6 and s["frames"] == 4 * T + 2 * PAD_LEN
+    # JUMP asks for LShoulderRoll = -0.6 (limit -0.3142) in frames 6..9; the servo target is
+    # clipped to the range, so the simulated arm stays inside it
+    assert s["joint_limit_violations"]["target_frames"] == T - OUT_OF_RANGE_FRAME
+    assert s["joint_limit_violations"]["achieved_frames"] == 0
+    coll = s["self_collision_frames"]
+    assert coll["arm_torso"] == int(r.contact_frames[:, ARM_TORSO].sum()) > 0
+    assert coll["any"] == coll["arm_torso"] and coll["motions"] == 2  # COLLIDE and JUMP
+    # a 1 rad jump in one frame drives RShoulderPitch to more than half its no-load speed
+    j = IDX["RShoulderPitch"]
+    assert r.max_speed[JUMP, j] / robot.VELOCITY_LIMITS[j] > 0.5
+    assert r.max_speed[STANDING, j] / robot.VELOCITY_LIMITS[j] < 0.05
+    assert 0.5 < s["speed"]["max_ratio"] < 1.0 and s["speed"]["joints_over_limit"] == 0
+    err = s["tracking_error_deg"]
+    assert 0.0 < err["mean"] < err["p95"] <= err["max"]
+    assert set(err["per_joint_p95"]) == set(robot.DRIVEN_JOINTS)
+
+
+def test_summary_known_answers() -> None:
+    # a hand-made result: every number below is counted by hand
+    b, t = 2, 4
+    q = np.tile(STAND, (b, t, 1)).astype(np.float32)
+    targets = q.copy()
+    q[0, 1, IDX["HeadYaw"]] += np.radians(10.0)  # 10 deg tracking error, one joint, one frame
+    q[0, 2, IDX["LElbowRoll"]] = robot.UPPER[IDX["LElbowRoll"]] + 0.01  # outside by 0.01 rad
+    q[0, 3, IDX["LElbowRoll"]] = robot.UPPER[IDX["LElbowRoll"]] + 5e-4  # within tolerance
+    q[1, 3] = 99.0  # padding of motion 1 (length 3): must not count anywhere
+    targets[1, 0, IDX["HeadPitch"]] = robot.LOWER[IDX["HeadPitch"]] - 0.1  # target out of range
+    targets[1, 3] = np.nan
+    contact = np.zeros((b, t, 3), dtype=bool)
+    contact[0, 1, 0] = contact[0, 1, 2] = True  # one frame, two groups
+    contact[1, 0, 1] = True
+    contact[1, 3, :] = True  # padding
+    speed = np.zeros((b, 26), dtype=np.float32)
+    speed[0, IDX["LWristYaw"]] = 1.5 * robot.VELOCITY_LIMITS[IDX["LWristYaw"]]
+    speed[0, IDX["HeadYaw"]] = 1.2 * robot.VELOCITY_LIMITS[IDX["HeadYaw"]]
+    speed[1, IDX["RElbowRoll"]] = 0.5 * robot.VELOCITY_LIMITS[IDX["RElbowRoll"]]
+    result = rollout.RolloutResult(
+        qpos=q, qvel=np.zeros_like(q), contact=contact, penetration=np.zeros((b, t), np.float32),
+        max_speed=speed, contact_frames=contact.sum(axis=1), tracking_rms=np.zeros((b, 26)),
+    )  # fmt: skip
+    lengths = np.array([4, 3])
+    s = rollout.summarize(result, lengths, targets)
+    json.dumps(s)
+    assert s["frames"] == 7
+    err = s["tracking_error_deg"]
+    elbow = np.degrees(0.01 + robot.UPPER[IDX["LElbowRoll"]] - STAND[IDX["LElbowRoll"]])  # 27 deg
+    head = np.degrees(STAND[IDX["HeadPitch"]] - robot.LOWER[IDX["HeadPitch"]] + 0.1)  # 44 deg
+    assert err["max"] == pytest.approx(max(10.0, elbow, head), abs=1e-3)
+    # 4 nonzero errors among 7 frames x 10 driven joints (the padded frame has 99 rad, unused)
+    assert err["mean"] == pytest.approx(
+        (10.0 + elbow + np.degrees(5e-4 + robot.UPPER[IDX["LElbowRoll"]] - STAND[IDX["LElbowRoll"]])
+         + head) / 70.0, abs=1e-3)  # fmt: skip
+    assert s["self_collision_frames"] == {
+        "arm_torso": 1, "arm_head": 1, "arm_arm": 1, "any": 2, "motions": 2,
+        "max_penetration_mm": 0.0,
+    }  # fmt: skip
+    lim = s["joint_limit_violations"]
+    assert lim["achieved_frames"] == 1 and lim["target_frames"] == 1
+    assert lim["achieved_max_excess_deg"] == pytest.approx(np.degrees(0.01), abs=1e-3)
+    sp = s["speed"]
+    assert sp["max_ratio"] == pytest.approx(1.5, rel=1e-6) and sp["worst_joint"] == "LWristYaw"
+    assert sp["joints_over_limit"] == 2 and sp["motions_over_limit"] == 1
+
+
+# --- kinematics ---------------------------------------------------------------------------------
+
+
+def test_hand_error_cm(fixed: mujoco.MjModel) -> None:
+    rng = np.random.default_rng(1)
+    a = rng.uniform(robot.LOWER, robot.UPPER, (8, 26)).astype(np.float32)
+    b = rng.uniform(robot.LOWER, robot.UPPER, (8, 26)).astype(np.float32)
+    b[0] = a[0]
+    b[1] = a[1]
+    b[1, IDX["LShoulderPitch"]] += 0.3  # left arm only
+    err = np.asarray(rollout.hand_error_cm(a, b))
+    assert err.shape == (8, 2) and err.dtype == np.float32
+    sites = list(rollout.HAND_SITES)
+    pa = robot.site_positions(fixed, a.astype(np.float64), sites)
+    pb = robot.site_positions(fixed, b.astype(np.float64), sites)
+    ref = 100.0 * np.linalg.norm(pa - pb, axis=-1)
+    np.testing.assert_allclose(err, ref, atol=1e-3)
+    assert err[0].tolist() == [0.0, 0.0]
+    assert err[1, 0] > 1.0 and err[1, 1] == 0.0
+    same = np.asarray(rollout.hand_error_cm(b, b))  # same N: no recompile
+    assert np.all(same == 0.0)
+
+
+# --- validation ---------------------------------------------------------------------------------
+
+
+def test_bad_inputs() -> None:
+    q = np.tile(STAND, (1, 3, 1))
+    with pytest.raises(ConfigError):
+        rollout.simulate(q[0])  # (T, 26): no batch axis
+    with pytest.raises(ConfigError):
+        rollout.simulate(q, np.array([4]))  # longer than T
+    with pytest.raises(ConfigError):
+        rollout.simulate(q, np.array([0]))
+    with pytest.raises(ConfigError):
+        rollout.simulate(q, np.array([2.0]))  # not integers
+    bad = q.copy()
+    bad[0, 1, 0] = np.nan
+    with pytest.raises(ConfigError, match="frame 1"):
+        rollout.simulate(bad)  # NaN inside the valid frames
+    with pytest.raises(ConfigError):
+        rollout.simulate(q, config=rollout.RolloutConfig(frame_dt=0.0))
+    with pytest.raises(ConfigError):
+        rollout.hand_error_cm(np.zeros((2, 26)), np.zeros((3, 26)))
