@@ -29,14 +29,16 @@ What it drives (``robot.DRIVEN_JOINTS``), from the descriptor bones of ``skeleto
 Singular configurations, resolved by deterministic per-frame rules (no history, so the IK is a
 pure function of one descriptor and the same input always gives the same output):
 
-* straight elbow (``sin e -> 0``, ElbowYaw undefined): ElbowYaw is blended towards
-  ``ELBOW_YAW_NEUTRAL`` (0) with a smoothstep weight of ``sin e`` that is 0 for ``e <= 2 deg``
-  and 1 for ``e >= 30 deg``. Why so wide: the yaw of a nearly straight elbow is set by the small
-  sideways part of the forearm, i.e. by Kinect noise (1-2 cm on a 25 cm forearm, ~5 deg of
-  direction, is ~30 deg of yaw at 10 deg of flexion). An exact yaw there makes the ground truth
-  jump between neighbouring poses. Measured on held-out MSR subjects (arm actions): the robot
-  forearm then deviates from the human's by at most ``2 e`` inside the band (median over all arm
-  bones 0.0 deg, p90 11.7 deg), and the relaxed projection's p95 M_max drops from 141 to 86 deg;
+* straight elbow (ElbowYaw undefined or ill-conditioned): ElbowYaw is blended towards
+  ``ELBOW_YAW_NEUTRAL`` (0) with a smoothstep weight of the *human* elbow flexion (the angle
+  between upper arm and forearm) that is 0 at <= 2 deg and 1 at >= 30 deg. Two reasons: (a) the
+  yaw of a nearly straight elbow is set by the small sideways part of the forearm, i.e. by
+  Kinect noise (3.7 mm per joint coordinate, measured; ~5 deg of forearm direction is ~30 deg of
+  yaw at 10 deg of flexion); (b) because of the 8.13 deg ElbowOffsetY, a straight human arm puts
+  the NAO forearm on the ``atan2`` branch cut of ElbowYaw (+-180 deg, outside the +-119.5 deg
+  range), where the clipped yaw flips sign with round-off. Weighting by the human flexion makes
+  straight arms map to yaw 0 continuously. Inside the band the robot forearm deviates from the
+  human's by at most ~16 deg (2 x 8.13 deg for a straight arm);
 * upper arm along the shoulder axis (``hypot(u_x, u_z) -> 0``, ShoulderPitch undefined):
   ShoulderPitch is blended towards 0 (arm horizontal) with a smoothstep weight that is 0 below
   ``sin(1 deg)`` and 1 above ``sin(4 deg)`` (every reachable arm has ``hypot >= sin(5.9 deg)``:
@@ -71,7 +73,7 @@ the bundled MSR Action3D recordings (5th..95th percentile -51..-3.5 deg)."""
 ELBOW_YAW_NEUTRAL = 0.0
 """rad: ElbowYaw taken when the elbow is straight (where yaw does not move the forearm)."""
 
-_ELBOW_BLEND = (math.sin(math.radians(2.0)), math.sin(math.radians(30.0)))
+_ELBOW_BLEND = (math.radians(2.0), math.radians(30.0))
 _PITCH_BLEND = (math.sin(math.radians(1.0)), math.sin(math.radians(4.0)))
 _REQUIRED = ("neck", "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right")
 
@@ -116,7 +118,10 @@ def _arm(u: jax.Array, f: jax.Array, side: str) -> tuple[jax.Array, ...]:
     flex = jnp.arctan2(lateral, fx)  # >= 0
     yaw_raw = jnp.arctan2(-s * fz, -s * fy)
     yaw_raw = jnp.clip(yaw_raw, _LO[f"{side}ElbowYaw"], _HI[f"{side}ElbowYaw"])
-    w_e = _smoothstep(lateral, *_ELBOW_BLEND)
+    # the human elbow's own flexion (angle between upper arm and forearm) decides the blend
+    cross = jnp.cross(u, f)
+    human_flex = jnp.arctan2(jnp.sqrt(jnp.sum(cross * cross, axis=-1)), jnp.sum(u * f, axis=-1))
+    w_e = _smoothstep(human_flex, *_ELBOW_BLEND)
     yaw = w_e * yaw_raw + (1.0 - w_e) * ELBOW_YAW_NEUTRAL
     elbow_roll = jnp.clip(-s * flex, _LO[f"{side}ElbowRoll"], _HI[f"{side}ElbowRoll"])
     return pitch, roll, yaw, elbow_roll
