@@ -13,8 +13,9 @@ timed apart):
   trained landmarks and kernels, in float64 -- the baseline a Python user would write. It is
   timed per query over ``ref_queries`` queries in the same run, and it is the "exact mode" every
   projection record is checked against before timing: ``max_abs_diff_deg`` is the largest
-  ``|engine - reference|`` over the driven joints of the first ``min(batch, n_check)`` queries
-  (``n_checked``), in degrees.
+  ``|engine - reference|`` over the driven joints of the first ``n_checked`` queries (at least
+  ``n_check`` = 64: a smaller batch is run again on the next queries; up to ``ref_queries``), in
+  degrees, with ``n_disagree`` queries beyond the tolerance (0.1 deg relaxed, 1 deg full).
 * **build** records, one per landmark count: descriptors -> landmarks (mean shift with the
   bandwidth search) -> both ELM kernel banks, timed on a second build so that compilation is
   excluded (``compile_s`` = first build minus second); ``banks_s`` times the two kernel banks
@@ -22,8 +23,10 @@ timed apart):
 * the **streaming** record: latency of one frame, a ``(20, 3)`` host array of joint positions ->
   descriptor -> relaxed projection (batch 1) -> one double-exponential smoothing step -> a host
   array of 10 angles (one jitted call, host <-> device transfers included); median and p99.
-* the **rollout** record: MJX rollout steps per second, from ``jaxproj.rollout.benchmark`` when
-  that exists (else marked ``skipped``).
+* **rollout** records: MJX rollout (``jaxproj.rollout.simulate``) NAO physics steps per second
+  per batch size, through ``bench`` of ``benchmarks/bench_rollout.py`` (found next to the package
+  in a checkout; a ``jaxproj.rollout.benchmark`` function is preferred when one exists), with
+  motion 0 checked against CPU MuJoCo; marked ``skipped`` when neither is available.
 
 Landmark sets: N = 86, 961, 1644 are real models, ``engine.build(train, BuildConfig(landmarks=N))``
 on the valid upper-body descriptors of MSR Action3D subjects 1, 3, 5, 7, 9 (the count reached by
@@ -45,8 +48,10 @@ a record with ``skipped`` saying why.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import importlib
+import importlib.util
 import json
 import os
 import platform
@@ -95,6 +100,8 @@ class Plan:
     stream_frames: int
     max_call_s: float
     memory_fraction: float = 0.5
+    subsample_all: bool = False
+    """Build every N by subsampling training frames (fast; for tests), not by mean shift."""
 
 
 def make_plan(
@@ -142,7 +149,8 @@ def make_plan(
             max_call_s=300.0,
         )
     if device == "gpu":
-        plan = _replace(plan, batches=(*plan.batches, 65536))
+        # a GPU's memory is the process's own: let a run take most of what is free
+        plan = dataclasses.replace(plan, batches=(*plan.batches, 65536), memory_fraction=0.85)
     over: dict[str, Any] = {}
     if landmarks is not None:
         over["landmarks"] = tuple(landmarks)
@@ -157,11 +165,7 @@ def make_plan(
         over["ref_queries"] = {"relaxed": ref_queries, "full": ref_queries}
     if stream_frames is not None:
         over["stream_frames"] = stream_frames
-    return _replace(plan, **over)
-
-
-def _replace(plan: Plan, **kw: Any) -> Plan:
-    return Plan(**{**plan.__dict__, **kw})
+    return dataclasses.replace(plan, **over)
 
 
 # ----------------------------------------------------------------------------------- data
@@ -198,28 +202,32 @@ def subsample_projector(train: np.ndarray, n: int, config: engine.BuildConfig) -
 
 
 def build_models(
-    train: np.ndarray, landmarks: Sequence[int], device: jax.Device, log: Callable[[str], None]
+    train: np.ndarray,
+    landmarks: Sequence[int],
+    device: jax.Device,
+    log: Callable[[str], None],
+    subsample_all: bool = False,
 ) -> tuple[dict[int, Projector], list[dict]]:
     """Build one projector per landmark count; also return their build records."""
     models: dict[int, Projector] = {}
     records = []
     for n in landmarks:
-        cfg = engine.BuildConfig(landmarks=n) if n != SYNTHETIC_N else engine.BuildConfig()
+        sub = subsample_all or n == SYNTHETIC_N
+        cfg = engine.BuildConfig() if sub else engine.BuildConfig(landmarks=n)
         times = []
-        with jax.default_device(device):
-            for _ in range(2):
-                t0 = time.perf_counter()
-                if n == SYNTHETIC_N:
-                    p = subsample_projector(train, n, cfg)
-                else:
-                    p = engine.build(train, cfg).projector
-                jax.block_until_ready(p)
-                times.append(time.perf_counter() - t0)
+        for _ in range(2):
             t0 = time.perf_counter()
-            jax.block_until_ready(
-                engine.build_from_landmarks(np.asarray(p.human), np.asarray(p.robot), cfg)
-            )
-            banks_s = time.perf_counter() - t0
+            if sub:
+                p = subsample_projector(train, n, cfg)
+            else:
+                p = engine.build(train, cfg).projector
+            jax.block_until_ready(p)
+            times.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        jax.block_until_ready(
+            engine.build_from_landmarks(np.asarray(p.human), np.asarray(p.robot), cfg)
+        )
+        banks_s = time.perf_counter() - t0
         models[n] = jax.device_put(p, device)
         rec = _record(
             "build",
@@ -231,7 +239,7 @@ def build_models(
             build_s=times[1],
             first_build_s=times[0],
             banks_s=banks_s,
-            landmarks_source="subsample" if n == SYNTHETIC_N else "mean_shift",
+            landmarks_source="subsample" if sub else "mean_shift",
         )
         records.append(rec)
         log(
@@ -470,19 +478,18 @@ def bench_streaming(
 ) -> dict:
     """Per-frame latency of ``stream_step`` over ``positions (T, 20, 3)`` (cycled)."""
     frames = np.asarray(positions, np.float32)
-    with jax.default_device(device):
-        state = jax.device_put(stream_init(p), device)
+    state = jax.device_put(stream_init(p), device)
+    t0 = time.perf_counter()
+    compiled = stream_step.lower(p, frames[0], state, params, n_l, n_m).compile()
+    compile_s = time.perf_counter() - t0
+    lat = []
+    for i in range(warmup + n_frames):
         t0 = time.perf_counter()
-        compiled = stream_step.lower(p, frames[0], state, params, n_l, n_m).compile()
-        compile_s = time.perf_counter() - t0
-        lat = []
-        for i in range(warmup + n_frames):
-            t0 = time.perf_counter()
-            out, state = compiled(p, frames[i % len(frames)], state, params)
-            a = np.asarray(out)
-            dt = time.perf_counter() - t0
-            if i >= warmup:
-                lat.append(dt)
+        out, state = compiled(p, frames[i % len(frames)], state, params)
+        a = np.asarray(out)
+        dt = time.perf_counter() - t0
+        if i >= warmup:
+            lat.append(dt)
     if not np.isfinite(a).all():
         raise RuntimeError("streaming produced non-finite angles")
     lat_us = np.asarray(lat) * 1e6
@@ -544,6 +551,13 @@ def _available_bytes(device: jax.Device) -> int | None:
         return None
     limit = stats.get("bytes_limit")
     return None if limit is None else int(limit) - int(stats.get("bytes_in_use", 0))
+
+
+def _total_memory() -> int:
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return 0
 
 
 def _needed_bytes(compiled: Any) -> int | None:
@@ -614,10 +628,17 @@ def bench_projection(
     t0 = time.perf_counter()
     r, v = jax.block_until_ready(compiled(p, h))
     rec["first_call_s"] = time.perf_counter() - t0
-    r = np.asarray(r)
-    if not (np.isfinite(r).all() and np.isfinite(np.asarray(v)).all()):
+    r, v = np.asarray(r), np.asarray(v)
+    # a batch smaller than the check is run again on the next queries until it is covered
+    start = batch
+    while len(r) < min(plan.n_check, len(ref_answers)):
+        more = jax.device_put(queries(np.roll(h_all, -start, axis=0), batch), device)
+        r2, v2 = compiled(p, more)
+        r, v = np.concatenate([r, np.asarray(r2)]), np.concatenate([v, np.asarray(v2)])
+        start += batch
+    if not (np.isfinite(r).all() and np.isfinite(v).all()):
         raise RuntimeError(f"non-finite engine output for {objective} L={n_l} M={n_m}")
-    n = min(batch, len(ref_answers))
+    n = min(len(r), len(ref_answers), max(plan.n_check, batch))
     diff = np.degrees(np.abs(r[:n] - ref_answers[:n]))
     per_query = diff.max(axis=1)
     tol = RELAXED_TOL_DEG if objective == "relaxed" else FULL_TOL_DEG
@@ -642,29 +663,69 @@ def bench_projection(
 # -------------------------------------------------------------------------------- rollout
 
 
-def bench_rollout(quick: bool, device: jax.Device) -> dict:
-    """MJX rollout steps/s from ``jaxproj.rollout.benchmark`` when that exists."""
+def _rollout_bench_module() -> Any:
+    """``jaxproj.rollout.benchmark``'s module if it has one, else ``benchmarks/bench_rollout.py``
+    of the checkout this package runs from; ``None`` when neither exists."""
+    mod = importlib.import_module("jaxproj.rollout")  # ImportError when MJX is missing
+    if callable(getattr(mod, "benchmark", None)):
+        return mod
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_rollout.py"
+    if not script.is_file():
+        return None
+    spec = importlib.util.spec_from_file_location("_jaxproj_bench_rollout", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def bench_rollout(quick: bool, device: jax.Device, frames: int = 30) -> list[dict]:
+    """MJX rollout steps/s (``benchmarks/bench_rollout.py``'s ``bench``: synthetic arm motions,
+    15 frames/s, 33 physics steps per frame), one record per batch size; motion 0 is checked
+    against CPU MuJoCo ``mj_step`` (``mjx_vs_cpu_max_dq_rad``)."""
     rec = _record("rollout", objective="rollout", device=device.platform)
     try:
-        mod = importlib.import_module("jaxproj.rollout")
+        mod = _rollout_bench_module()
     except ImportError as e:
-        rec["skipped"] = f"rollout module not available ({e})"
-        return rec
-    fn = getattr(mod, "benchmark", None)
-    if not callable(fn):
-        rec["skipped"] = "rollout module not available (no jaxproj.rollout.benchmark)"
-        return rec
+        return [rec | {"skipped": f"rollout module not available ({e})"}]
+    if mod is None:
+        return [rec | {"skipped": "rollout module not available (no rollout benchmark found)"}]
+    if device.platform == "cpu":
+        batches = (64,) if quick else (64, 256)
+    else:
+        batches = (4096,) if quick else (1024, 4096, 16384)
+    out = []
     try:
-        out = fn(quick=quick, device=device)
+        if hasattr(mod, "benchmark"):
+            res = mod.benchmark(quick=quick, device=device)
+            return [rec | (dict(res) if isinstance(res, dict) else {"steps_per_s": float(res)})]
+        from jaxproj import robot
+
+        substeps = round((1.0 / 15.0) / robot.load_model("fixed").opt.timestep)
+        ref = mod.motions(1, frames, 0)[0]
+        cpu_q, cpu_ncon, _ = mod.cpu_rollout(ref, substeps)
+        with jax.default_device(device):
+            for b in batches:
+                r = mod.bench(b, frames, 0, 1 if quick else 3, substeps)
+                dq = float(np.abs(np.asarray(r.pop("qpos0")) - cpu_q).max())
+                out.append(
+                    rec
+                    | dict(
+                        batch=b,
+                        throughput=r["steps_per_s"],
+                        compile_s=r["compile_s"],
+                        steps_per_s=r["steps_per_s"],
+                        run_s=r["run_s"],
+                        steps=r["steps"],
+                        frames=frames,
+                        substeps=substeps,
+                        finite=r["finite"],
+                        mjx_vs_cpu_max_dq_rad=dq,
+                        cpu_contacts=int(cpu_ncon),
+                    )
+                )
     except Exception as e:  # noqa: BLE001 - report, do not lose the projection numbers
-        rec["skipped"] = f"rollout benchmark failed: {type(e).__name__}: {e}"
-        return rec
-    out = dict(out) if isinstance(out, dict) else {"steps_per_s": float(out)}
-    rec.update(out)
-    if "steps_per_s" in rec and rec.get("throughput") is None:
-        rec["throughput"] = rec["steps_per_s"]
-    rec["kind"] = "rollout"
-    return rec
+        return out + [rec | {"skipped": f"rollout benchmark failed: {type(e).__name__}: {e}"}]
+    return out
 
 
 # -------------------------------------------------------------------------------- targets
@@ -768,7 +829,8 @@ def header(device: jax.Device) -> dict:
         cpu_model=cpu_model,
         cpu_count=os.cpu_count(),
         cpu_usable=usable,
-        memory_gib=round((_available_bytes(jax.devices("cpu")[0]) or 0) / 2**30, 1),
+        memory_gib=round(_total_memory() / 2**30, 1),
+        memory_available_gib=round((_available_bytes(jax.devices("cpu")[0]) or 0) / 2**30, 1),
         device=device.platform,
         device_kind=getattr(device, "device_kind", str(device)),
         device_count=len(jax.devices(device.platform)),
@@ -811,7 +873,7 @@ def run(
     log(f"bench on {records[0]['device_kind']} ({records[0]['cpu_usable']} usable CPU cores)")
     train = descriptors(TRAIN_SUBJECTS)
     test = shuffled(descriptors(TEST_SUBJECTS))
-    models, builds = build_models(train, plan.landmarks, dev, log)
+    models, builds = build_models(train, plan.landmarks, dev, log, plan.subsample_all)
     records += builds
     full = FullConfig()
     for n in plan.landmarks:
@@ -847,7 +909,10 @@ def run(
         records.append(rec)
         log(f"streaming N={n_stream}: median {rec['median_us']:.0f} us, p99 {rec['p99_us']:.0f} us")
     if rollout:
-        records.append(bench_rollout(quick, dev))
+        for rec in bench_rollout(quick, dev):
+            records.append(rec)
+            if rec.get("steps_per_s"):
+                log(f"rollout batch {rec['batch']}: {rec['steps_per_s']:.4g} steps/s")
     records += target_checks(records, device)
     return records
 
@@ -888,7 +953,7 @@ def format_table(records: list[dict]) -> str:
         lines.append(f"{'N':>5} {'K':>5} {'build_s':>8} {'banks_s':>8} {'compile_s':>9}  source")
         for r in builds:
             lines.append(
-                f"{r['N']:>5} {r['n_landmarks']:>5} {r['build_s']:8.2f} {r['banks_s']:8.2f} "
+                f"{r['N']:>5} {r['n_landmarks']:>5} {r['build_s']:8.2f} {r['banks_s']:8.3f} "
                 f"{r['compile_s']:9.2f}  {r['landmarks_source']}"
             )
     proj = [r for r in records if r["kind"] == "projection"]
@@ -910,7 +975,12 @@ def format_table(records: list[dict]) -> str:
             if r.get("skipped"):
                 lines.append(f"\nMJX rollout: skipped ({r['skipped']})")
             else:
-                lines.append(f"\nMJX rollout: {_fmt(r.get('steps_per_s'), '.4g')} steps/s")
+                lines.append(
+                    f"\nMJX rollout (batch {r.get('batch')}): "
+                    f"{_fmt(r.get('steps_per_s'), '.4g')} NAO steps/s, compile "
+                    f"{_fmt(r.get('compile_s'), '.1f')} s, motion 0 vs CPU MuJoCo max |dq| "
+                    f"{_fmt(r.get('mjx_vs_cpu_max_dq_rad'), '.1e')} rad"
+                )
     targets = [r for r in records if r["kind"] == "target"]
     if targets:
         lines.append("\ntargets")
