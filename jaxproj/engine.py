@@ -109,8 +109,9 @@ def build_from_landmarks(
     if not 2 <= config.k <= len(human):
         raise ConfigError(f"k={config.k} must lie in [2, number of landmarks={len(human)}]")
     opts = dict(k=config.k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
-    forward = train_bank(human, robot_poses, k_fwd, **opts)
-    backward = train_bank(robot_poses, human, k_bwd, **opts)
+    with jax.default_matmul_precision("highest"):  # same banks on CPU and GPU (no TF32)
+        forward = train_bank(human, robot_poses, k_fwd, **opts)
+        backward = train_bank(robot_poses, human, k_bwd, **opts)
     return make_projector(human, robot_poses, forward, backward)
 
 
@@ -129,9 +130,10 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
     d = np.asarray(descriptors, np.float32)
     if d.ndim != 2 or len(d) < 2 or not np.isfinite(d).all():
         raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
-    lm = landmarks.build_landmarks(
-        d, target=config.landmarks, bandwidth=config.bandwidth, bones=config.bones, **mean_shift
-    )
+    with jax.default_matmul_precision("highest"):  # same landmarks on CPU and GPU (no TF32)
+        lm = landmarks.build_landmarks(
+            d, target=config.landmarks, bandwidth=config.bandwidth, bones=config.bones, **mean_shift
+        )
     projector = build_from_landmarks(lm.human, lm.robot, config)
     return Model(projector, config, float(lm.bandwidth), np.asarray(lm.counts), int(lm.n_frames))
 
@@ -139,13 +141,40 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
 Objective = Literal["relaxed", "full"]
 
 
+def sub_batch(p: Projector, objective: str, n_l: int, n_m: int, batch: int) -> int:
+    """Queries vmapped together inside one jitted batch (the rest is a ``lax.map`` loop).
+
+    Each query gathers ``L * M`` backward kernels (``L * M * hidden * (m + 2)`` floats); a
+    sub-batch is sized so that this stays within a cache-sized (CPU, 16 MiB) or memory-sized
+    (accelerators, 4 GiB) budget, and divides ``batch``.
+    """
+    per_query = 4 * n_l * n_m * p.backward.hidden * (p.backward.d_out + 2)
+    if objective == "full":
+        per_query *= 3  # values, gradients and optimiser state
+    budget = 16 * 2**20 if jax.default_backend() == "cpu" else 4 * 2**30
+    sub = 1
+    while sub * 2 * per_query <= budget and sub * 2 <= batch:
+        sub *= 2
+    while batch % sub:
+        sub //= 2
+    return max(sub, 1)
+
+
 def _project_chunk(
     p: Projector, h: jax.Array, objective: str, n_l: int, n_m: int, full: FullConfig
 ) -> tuple[jax.Array, jax.Array]:
-    if objective == "relaxed":
-        return jax.vmap(project_relaxed_one, in_axes=(None, 0, None, None))(p, h, n_l, n_m)
-    r, f, _ = jax.vmap(project_full_one, in_axes=(None, 0, None, None, None))(p, h, n_l, n_m, full)
-    return r, f
+    sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
+
+    def one(x: jax.Array) -> tuple[jax.Array, jax.Array]:
+        if objective == "relaxed":
+            return project_relaxed_one(p, x, n_l, n_m)
+        r, f, _ = project_full_one(p, x, n_l, n_m, full)
+        return r, f
+
+    with jax.default_matmul_precision("highest"):
+        if sub >= h.shape[0]:
+            return jax.vmap(one)(h)
+        return jax.lax.map(one, h, batch_size=sub)
 
 
 project_chunk = jax.jit(_project_chunk, static_argnums=(2, 3, 4, 5))

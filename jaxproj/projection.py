@@ -27,7 +27,7 @@ import optax
 from optax.projections import projection_simplex
 
 from jaxproj import robot
-from jaxproj.kernels import ELMBank, predict
+from jaxproj.kernels import ELMBank, predict, predict_slice, project_inputs, take
 from jaxproj.search import nearest, sq_norms
 
 
@@ -150,6 +150,7 @@ def _solve_cluster(
     is never worse than the start.
     """
     rk = p.robot[idx]  # (M, n)
+    kernels = take(p.backward, idx)  # gathered once, evaluated at every step
     if cfg.include_candidate:
         verts = jnp.concatenate([r_c[None], rk], axis=0)  # (M + 1, n)
         w0 = jnp.zeros((verts.shape[0],), rk.dtype).at[0].set(1.0)
@@ -160,7 +161,9 @@ def _solve_cluster(
         w0 = w0 / jnp.sum(w0)
 
     def objective(w: jax.Array) -> jax.Array:
-        dev = back_deviation(p, w @ verts, h, idx)  # (M,)
+        r = jnp.einsum("m,mn->n", w, verts, precision=jax.lax.Precision.HIGHEST)
+        back = predict_slice(kernels, project_inputs(p.backward, r))  # (M, m)
+        dev = jnp.sum((back - h[None]) ** 2, axis=-1)
         if cfg.objective == "min":
             return jnp.min(dev)
         wk = w[1:] / jnp.maximum(jnp.sum(w[1:]), 1e-12) if cfg.include_candidate else w
@@ -188,7 +191,8 @@ def _solve_cluster(
     better = f_last < final.best_f
     w_best = jnp.where(better, final.w, final.best_w)
     f_best = jnp.where(better, f_last, final.best_f)
-    return w_best @ verts, f_best, f0
+    r_best = jnp.einsum("m,mn->n", w_best, verts, precision=jax.lax.Precision.HIGHEST)
+    return r_best, f_best, f0
 
 
 def project_full_one(

@@ -1,14 +1,24 @@
 """Nearest-neighbour search over landmark sets.
 
 Exact brute force, written for ONE query point (callers vmap). It is the single place the
-projection engine asks "which landmarks are nearest", so a faster search (neighbour lists,
-clustered search) can replace it without touching the projection code.
+projection engine asks "which landmarks are nearest", so a faster search can replace it without
+touching the projection code.
+
+Selection is two-stage and still exact: the ``K`` distances are cut into blocks of ``BLOCK``,
+the ``n`` blocks with the smallest minima are kept, and ``top_k`` runs over those ``n * BLOCK``
+distances only. The ``n`` nearest always lie in those blocks (a block holding one of them has a
+minimum no larger than the ``n``-th distance, and at most ``n - 1`` other blocks can have a
+smaller minimum). ``lax.top_k`` sorts whole rows; a min-reduction over blocks is far cheaper
+(measured on an H200: robot search 1.10 -> 0.3 us per query at K = 1635, batch 65536).
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+
+BLOCK = 16
+"""Landmarks per block of the two-stage exact selection."""
 
 
 def sq_norms(points: jax.Array) -> jax.Array:
@@ -28,11 +38,25 @@ def nearest(
       n: how many (static), ``n <= K``.
 
     Returns:
-      ``(idx, d2)``: ``(..., n)`` int32 indices, nearest first (ties by lower index), and their
-      squared Euclidean distances.
+      ``(idx, d2)``: ``(..., n)`` int32 indices, nearest first, and their squared Euclidean
+      distances. Exactly tied distances may be ordered differently from a full sort.
     """
-    cross = jnp.einsum("...d,kd->...k", x, points)
+    cross = jnp.einsum("...d,kd->...k", x, points, precision=jax.lax.Precision.HIGHEST)
     d2 = jnp.broadcast_to(points_sq, cross.shape) - 2.0 * cross
     d2 = d2 + jnp.sum(x * x, axis=-1, keepdims=True)
-    neg, idx = jax.lax.top_k(-d2, n)
+    k = d2.shape[-1]
+    if k < 4 * n * BLOCK:  # small sets: one top_k is as cheap
+        neg, idx = jax.lax.top_k(-d2, n)
+        return idx.astype(jnp.int32), jnp.maximum(-neg, 0.0)
+    pad = (-k) % BLOCK
+    if pad:
+        inf = jnp.full((*d2.shape[:-1], pad), jnp.inf, d2.dtype)
+        d2 = jnp.concatenate([d2, inf], axis=-1)
+    blocks = d2.reshape(*d2.shape[:-1], -1, BLOCK)  # (..., K / BLOCK, BLOCK)
+    _, best_blocks = jax.lax.top_k(-jnp.min(blocks, axis=-1), n)  # (..., n)
+    cand = jnp.take_along_axis(blocks, best_blocks[..., None], axis=-2)  # (..., n, BLOCK)
+    cand = cand.reshape(*cand.shape[:-2], n * BLOCK)
+    neg, pos = jax.lax.top_k(-cand, n)
+    block_of = jnp.take_along_axis(best_blocks, pos // BLOCK, axis=-1)
+    idx = block_of * BLOCK + pos % BLOCK
     return idx.astype(jnp.int32), jnp.maximum(-neg, 0.0)

@@ -107,3 +107,14 @@ def test_bad_settings_are_config_errors(kw, word):
     x, y = _data()
     with pytest.raises(ConfigError, match=word):
         train_bank(x, y, jax.random.PRNGKey(0), **kw)
+
+
+@pytest.mark.parametrize(("k", "n"), [(2000, 10), (1637, 50), (8192, 3)])
+def test_two_stage_nearest_is_exact_on_large_sets(k, n):
+    rng = np.random.default_rng(k)
+    pts = rng.normal(size=(k, 10)).astype(np.float32)
+    q = rng.normal(size=(40, 10)).astype(np.float32)
+    idx, d2 = nearest(pts, sq_norms(pts), q, n)
+    ref = ((q[:, None].astype(np.float64) - pts[None]) ** 2).sum(-1)
+    np.testing.assert_array_equal(np.asarray(idx), np.argsort(ref, axis=1)[:, :n])
+    np.testing.assert_allclose(np.asarray(d2), np.sort(ref, axis=1)[:, :n], rtol=1e-4, atol=1e-4)
