@@ -137,12 +137,11 @@ def plot_motion(
         for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
             sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
             ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
-            flip = -1.0 if view == "front" else 1.0  # front view: the person's left on the right
-            _draw_human(ax_h, hp * np.array([1.0, flip, 1.0]), axes)
-            _draw_nao(ax_r, {k: v * np.array([1.0, flip, 1.0]) for k, v in ik_p.items()},
-                      axes, "tab:green")  # fmt: skip
-            _draw_nao(ax_r, {k: v * np.array([1.0, flip, 1.0]) for k, v in proj.items()},
-                      axes, "tab:blue")  # fmt: skip
+            # front view: seen from in front, so the person's left (+y, red) is on the right;
+            # side view: seen from the person's right, forward (+x) to the right
+            _draw_human(ax_h, hp, axes)
+            _draw_nao(ax_r, ik_p, axes, "tab:green")
+            _draw_nao(ax_r, proj, axes, "tab:blue")
             for ax in (ax_h, ax_r):
                 ax.set_aspect("equal")
                 ax.set_xticks([])
