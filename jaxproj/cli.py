@@ -133,37 +133,11 @@ def _progress(label: str, done: int, total: int) -> None:
 
 
 def training_descriptors(data: str, subjects: list[int] | None, bones: str, mirror: bool):
-    """Descriptors of the valid frames of the bundled data (or of a folder of recordings)."""
-    import numpy as np
+    """``(N, m)`` descriptors of the valid training frames, and the number of frames read."""
+    from jaxproj.landmarks import training_descriptors as valid_descriptors
 
-    from jaxproj import datasets
-    from jaxproj.readers import read_skeleton
-    from jaxproj.skeleton import descriptor
-
-    if data == "bundled":
-        positions = [(s.positions, s.valid) for s in datasets.msr_action3d(subjects=subjects)]
-    else:
-        folder = Path(data)
-        if not folder.is_dir():
-            raise JaxprojError(f"{folder}: --data must be 'bundled' or a folder of recordings")
-        files = sorted(f for f in folder.iterdir() if f.is_file())
-        if subjects is not None:
-            import re
-
-            keep = {f"s{s:02d}" for s in subjects}
-            files = [f for f in files if (m := re.search(r"s\d{2}", f.name)) and m.group() in keep]
-        if not files:
-            raise JaxprojError(f"{folder}: no recordings found (for subjects {subjects})")
-        positions = []
-        for i, f in enumerate(files):
-            rec = read_skeleton(f)
-            positions.append((rec.positions, rec.valid))
-            _progress("reading recordings", i + 1, len(files))
-    pos = np.concatenate([p for p, _ in positions])
-    ok_in = np.concatenate([v for _, v in positions])
-    d, ok = descriptor(pos, bones=bones, mirror=mirror)
-    ok = np.asarray(ok) & ok_in
-    return np.asarray(d)[ok], int(len(ok))
+    seqs = load_sequences(data, subjects)
+    return valid_descriptors(seqs, bones=bones, mirror=mirror), sum(len(s.valid) for s in seqs)
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -198,32 +172,40 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
-def evaluation_sequences(data: str, subjects: list[int] | None):
-    """Sequences to evaluate: the bundled MSR Action3D (filtered by subject) or a folder."""
-    from jaxproj import datasets
+def load_sequences(data: str, subjects: list[int] | None):
+    """The bundled MSR Action3D sequences, or every recording in a folder.
 
-    if data == "bundled":
-        return datasets.msr_action3d(subjects=subjects)
+    Folder files are read with ``readers.read_skeleton`` (format by extension / content); a name
+    with ``sNN`` gives the subject (``aNN_`` the action), and with ``subjects`` given, files whose
+    subject is another are skipped (files with no subject in their name are kept).
+    """
     import re
 
     import numpy as np
 
+    from jaxproj import datasets
     from jaxproj.readers import read_skeleton
 
+    if data == "bundled":
+        return datasets.msr_action3d(subjects=subjects)
     folder = Path(data)
     if not folder.is_dir():
         raise JaxprojError(f"{folder}: --data must be 'bundled' or a folder of recordings")
+    files = sorted(p for p in folder.iterdir() if p.is_file())
     seqs = []
-    for f in sorted(p for p in folder.iterdir() if p.is_file()):
-        m = re.search(r"a(\d{2})_s(\d{2})_e(\d{2})", f.name)
-        action, subject, take = (int(g) for g in m.groups()) if m else (0, 0, 0)
-        if subjects is not None and m and subject not in subjects:
+    for i, f in enumerate(files):
+        subj = re.search(r"s(\d{2})", f.name)
+        act = re.search(r"a(\d{2})_", f.name)
+        subject = int(subj.group(1)) if subj else 0
+        if subjects is not None and subj and subject not in subjects:
             continue
         rec = read_skeleton(f)
         conf = np.ones(rec.valid.shape + (20,), np.float32)
+        action = int(act.group(1)) if act else 0
         seqs.append(
-            datasets.MotionSequence(f.stem, action, subject, take, rec.positions, conf, rec.valid)
+            datasets.MotionSequence(f.stem, action, subject, 0, rec.positions, conf, rec.valid)
         )
+        _progress("reading recordings", i + 1, len(files))
     if not seqs:
         raise JaxprojError(f"{folder}: no recordings found (for subjects {subjects})")
     return seqs
@@ -246,7 +228,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
-    seqs = evaluation_sequences(args.data, args.subjects)
+    seqs = load_sequences(args.data, args.subjects)
     data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
     with engine.use_devices(args.devices):
         out = evaluate.evaluate(

@@ -320,7 +320,8 @@ def evaluate(
         out["summary"][method] = {"M_max": describe(m_max), "M_avg": describe(m_avg)}
         for a in np.unique(data.actions):
             sel = data.actions[seq_of_frame] == a
-            out["per_action"].setdefault(f"a{a:02d} {ACTION_NAMES[a - 1]}", {})[method] = {
+            label = ACTION_NAMES[a - 1] if 1 <= a <= len(ACTION_NAMES) else "unknown action"
+            out["per_action"].setdefault(f"a{a:02d} {label}", {})[method] = {
                 "M_max": describe(m_max[sel]),
                 "M_avg": describe(m_avg[sel]),
             }

@@ -84,22 +84,6 @@ def project_inputs(bank: ELMBank, x: jax.Array) -> jax.Array:
     return jnp.einsum("...d,hd->...h", x, bank.w, precision=_HIGHEST)
 
 
-def features(bank: ELMBank, wx: jax.Array, idx: jax.Array) -> jax.Array:
-    """Hidden outputs of kernels ``idx`` at a point whose ``W x`` is ``wx``.
-
-    Args:
-      bank: the kernel bank.
-      wx: ``(hidden,)`` from ``project_inputs`` (one point).
-      idx: ``(...,)`` int kernel indices.
-
-    Returns:
-      ``(..., hidden)`` sigmoid features.
-    """
-    bias = bank.bias[idx]
-    scale = bank.inv_scale[idx][..., None]
-    return jax.nn.sigmoid(jnp.broadcast_to(wx, bias.shape) * scale + bias)
-
-
 def predict(bank: ELMBank, x: jax.Array, idx: jax.Array) -> jax.Array:
     """Evaluate kernels ``idx`` at one point.
 

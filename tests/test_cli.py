@@ -141,3 +141,53 @@ def test_build_then_retarget_with_the_model(tmp_path, capsys):
         capsys, "retarget", str(src), "--out", str(tmp_path / "x.npz"), "--method", "relaxed"
     )
     assert code == 2 and "--model" in err
+
+
+def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    for s in datasets.msr_action3d(subjects=[1, 2], actions=[1, 2, 5]):
+        _write_msr(folder / f"{s.name}_skeleton3D.txt", s.positions)
+    np.savez(folder / "unnamed.npz", positions=datasets.msr_action3d(subjects=[3])[0].positions)
+    model = tmp_path / "p.npz"
+    code, out, _ = _run(
+        capsys,
+        "build",
+        "--data",
+        str(folder),
+        "--subjects",
+        "1",
+        "--landmarks",
+        "60",
+        "--k",
+        "8",
+        "--out",
+        str(model),
+    )
+    assert code == 0 and "target 60" in out
+    report = tmp_path / "r.json"
+    code, out, _ = _run(
+        capsys,
+        "evaluate",
+        "--model",
+        str(model),
+        "--data",
+        str(folder),
+        "--subjects",
+        "2",
+        "--objective",
+        "relaxed",
+        "--json",
+        str(report),
+    )
+    assert code == 0
+    r = json.loads(report.read_text())
+    names = set(r["per_sequence"])
+    assert any(n.startswith("a01_s02") for n in names) and "unnamed" in names
+    assert not any("_s01_" in n for n in names)
+    assert any(k.endswith("unknown action") for k in r["per_action"])
+    assert r["summary"]["relaxed"]["M_avg"]["median"] > 0
+    code, _, err = _run(
+        capsys, "build", "--data", str(tmp_path / "nope"), "--landmarks", "5", "--out", str(model)
+    )
+    assert code == 2 and "nope" in err
