@@ -240,6 +240,9 @@ def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS
     return total / max(count, 1)
 
 
+_fill_batch = jax.jit(jax.vmap(fill_invalid))
+
+
 def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Scatter valid-frame answers into ``(S, T_max, n)`` motions with invalid frames filled."""
     n_seq = len(data.names)
@@ -248,13 +251,15 @@ def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.n
     full = np.zeros((len(data.valid), per_frame.shape[1]), np.float32)
     full[data.valid] = per_frame
     out = np.zeros((n_seq, t_max, per_frame.shape[1]), np.float32)
+    valid = np.zeros((n_seq, t_max), bool)
     for s in range(n_seq):
         a, b = data.offsets[s], data.offsets[s + 1]
-        v = data.valid[a:b]
-        if v.any():
-            out[s, : b - a] = np.asarray(fill_invalid(jnp.asarray(full[a:b]), jnp.asarray(v)))
-        else:
-            out[s, : b - a] = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
+        out[s, : b - a] = full[a:b]
+        valid[s, : b - a] = data.valid[a:b]
+    # one padded call (padding frames are invalid, so they never feed a real frame)
+    out = np.array(_fill_batch(jnp.asarray(out), jnp.asarray(valid)))
+    out[~valid.any(axis=1)] = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
+    out[np.arange(t_max)[None, :] >= lengths[:, None]] = 0.0
     return out, lengths
 
 
