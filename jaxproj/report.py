@@ -52,6 +52,12 @@ def _plt():
     return plt
 
 
+def _save(plt, fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def to_jsonable(obj: Any) -> Any:
     """Drop private keys (leading ``_``) and turn numpy values into plain Python."""
     if isinstance(obj, dict):
@@ -163,9 +169,7 @@ def plot_motion(
     ax.legend(fontsize=7, ncol=3)
     ax.grid(alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def plot_distributions(path: Path, predictions: dict[str, np.ndarray], truth: np.ndarray) -> None:
@@ -184,9 +188,7 @@ def plot_distributions(path: Path, predictions: dict[str, np.ndarray], truth: np
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle("Error distributions on held-out subjects (valid frames)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def plot_landmark_size(path: Path, study: dict) -> None:
@@ -205,9 +207,7 @@ def plot_landmark_size(path: Path, study: dict) -> None:
     ax.grid(alpha=0.3)
     ax.legend()
     ax.set_title("Landmark-set size (relaxed, held-out subjects)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def plot_efficiency(path: Path, study: dict) -> None:
@@ -224,9 +224,7 @@ def plot_efficiency(path: Path, study: dict) -> None:
     ax2.set_ylabel("median M_avg (deg)", color="tab:orange")
     ax.grid(alpha=0.3)
     ax.set_title(f"Efficiency vs neighbourhood size ({study.get('device', '')})")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def summary_table(summary: dict, methods: list[str] | None = None) -> str:
