@@ -273,7 +273,7 @@ class _Bank:
         self.w = np.asarray(bank.w, np.float64)
         self.inv = np.asarray(bank.inv_scale, np.float64)
         self.bias = np.asarray(bank.bias, np.float64)
-        self.out = np.asarray(bank.out, np.float64)
+        self.out = np.swapaxes(np.asarray(bank.out, np.float64), -1, -2)  # (K, hidden, d_out)
         self.offset = np.asarray(bank.offset, np.float64)
 
     def predict(self, x: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

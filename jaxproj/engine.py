@@ -34,7 +34,8 @@ from jaxproj.projection import (
 )
 
 FORMAT = "jaxproj-projector"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""2: kernel output weights stored ``(n_kernels, d_out, hidden)`` (1 had ``hidden, d_out``)."""
 
 
 @dataclass(frozen=True)
@@ -351,9 +352,9 @@ def load(path: str | Path) -> Model:
             banks[name] = ELMBank(
                 **{f: jnp.asarray(v) for f, v in a.items()},
                 n_kernels=int(a["out"].shape[0]),
-                hidden=int(a["out"].shape[1]),
+                hidden=int(a["out"].shape[2]),
                 d_in=int(a["w"].shape[1]),
-                d_out=int(a["out"].shape[2]),
+                d_out=int(a["out"].shape[1]),
                 k=int(a["neighbours"].shape[1]),
             )
         projector = make_projector(

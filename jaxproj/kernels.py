@@ -24,6 +24,10 @@ target ``t_i``::
 
     B_i = H^T (lambda I + H H^T)^{-1} (T - t_i)           # (hidden, d_out)
 
+``B_i`` is stored transposed, ``(d_out, hidden)`` per kernel: the contraction over ``hidden``
+then runs along contiguous memory of each gathered kernel (measured: 78 -> 51 us per relaxed
+projection on 2 CPU cores, 0.49 -> 0.41 us on an H200, answers bit-identical).
+
 ``hidden >= k`` so that, for small ``lambda``, each kernel can interpolate its ``k`` training
 pairs. A regularised ELM reproduces its training pairs only approximately, which breaks the
 paper's identity property (its Remark). With ``anchor=True`` (default) each kernel is made exact
@@ -59,7 +63,8 @@ class ELMBank:
       w: ``(hidden, d_in)`` shared random input weights.
       inv_scale: ``(n_kernels,)`` ``1 / rho_i``.
       bias: ``(n_kernels, hidden)`` ``beta_i = b - W c_i / rho_i``.
-      out: ``(n_kernels, hidden, d_out)`` output weights ``B_i``.
+      out: ``(n_kernels, d_out, hidden)`` output weights ``B_i^T`` (transposed, see the module
+        doc).
       offset: ``(n_kernels, d_out)`` constant term: ``t_i`` (the target of the kernel's own
         landmark), minus ``Q_i(c_i) B_i`` for anchored kernels.
       neighbours: ``(n_kernels, k)`` int32 indices of the training landmarks of each kernel.
@@ -103,7 +108,7 @@ class KernelSlice(NamedTuple):
 
     inv_scale: jax.Array  # (...,)
     bias: jax.Array  # (..., hidden)
-    out: jax.Array  # (..., hidden, d_out)
+    out: jax.Array  # (..., d_out, hidden)
     offset: jax.Array  # (..., d_out)
 
 
@@ -116,7 +121,7 @@ def predict_slice(ks: KernelSlice, wx: jax.Array) -> jax.Array:
     """Evaluate gathered kernels at a point whose ``W x`` is ``wx (hidden,)``: ``(..., d_out)``."""
     pre = jnp.broadcast_to(wx, ks.bias.shape) * ks.inv_scale[..., None] + ks.bias
     q = jax.nn.sigmoid(pre)
-    return ks.offset + jnp.einsum("...h,...ho->...o", q, ks.out, precision=_HIGHEST)
+    return ks.offset + jnp.einsum("...h,...oh->...o", q, ks.out, precision=_HIGHEST)
 
 
 def knn_indices(points: jax.Array, k: int) -> jax.Array:
@@ -164,10 +169,10 @@ def _train_one(
         h = h - h[0][None]  # features relative to the kernel's own landmark (row 0)
     gram = h @ h.T + lam * jnp.eye(h.shape[0], dtype=h.dtype)
     coef = jax.scipy.linalg.solve(gram, t - t[0][None], assume_a="pos")
-    out = h.T @ coef
+    out = h.T @ coef  # (hidden, d_out)
     q0 = jax.nn.sigmoid((w @ c) * inv + beta)  # Q_i(c_i)
     offset = t[0] - q0 @ out if anchor else t[0]
-    return inv, beta, out, offset
+    return inv, beta, out.T, offset
 
 
 def train_bank(
