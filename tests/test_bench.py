@@ -124,3 +124,24 @@ def test_cli_arguments_parse():
     bench.add_arguments(ap)
     a = ap.parse_args(["--quick", "--device", "cpu", "--json", "x.json", "--landmarks", "86"])
     assert a.quick and a.device == "cpu" and a.landmarks == [86] and a.json == "x.json"
+
+
+def test_reference_full_with_fewer_clusters_matches_the_engine(projector):
+    p, train = projector
+    ref = bench.Reference(p)
+    cfg = FullConfig(objective="min", include_candidate=True, clusters=2)
+    h = train[::97][:24]
+    got, _ = bench.engine.project(p, h, "full", n_l=5, n_m=5, full=cfg, batch_size=32)
+    want = np.stack([ref.full(x, 5, 5, cfg)[0] for x in h])
+    assert np.degrees(np.abs(got - want)).max() <= bench.FULL_TOL_DEG
+
+
+def test_full_cli_options_reach_the_config():
+    ap = argparse.ArgumentParser()
+    bench.add_arguments(ap)
+    a = ap.parse_args(["--full-clusters", "2", "--full-iterations", "10"])
+    assert bench._full_config(a.full_clusters, a.full_iterations) == FullConfig(
+        clusters=2, iterations=10
+    )
+    with pytest.raises(bench.engine.ConfigError):
+        bench._full_config(-1, None)

@@ -142,3 +142,46 @@ def test_bad_neighbour_counts_are_config_errors(model):
         engine.project(model, d, n_m=10_000)
     with pytest.raises(ConfigError, match="objective"):
         engine.project(model, d, "exact")
+
+
+def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
+    import jax
+
+    from jaxproj.projection import _solve_cluster, _start_value, candidates
+    from jaxproj.search import nearest
+
+    p = model.projector
+    d = _descriptors([2], actions=[1, 5])[:200]
+    cfg = FullConfig(objective="min", include_candidate=True)
+    exact, _ = engine.project(model, d, "full", full=cfg)
+    all_l, _ = engine.project(model, d, "full", full=cfg._replace(clusters=10))
+    np.testing.assert_array_equal(all_l, exact)  # clusters >= L is the exact objective
+    one, f_one = engine.project(model, d, "full", full=cfg._replace(clusters=1))
+
+    def by_hand(h):  # solve only the cluster whose warm start is best
+        cand = candidates(p, h, 10)
+        ridx, _ = nearest(p.robot, p.robot_sq, cand, 10)
+        start = jax.vmap(_start_value, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
+        j = np.argmin(start)
+        r, f, _ = _solve_cluster(p, h, cand[j], ridx[j], cfg)
+        return np.clip(r, p.lower, p.upper), f
+
+    for i in range(0, 200, 40):
+        r, f = by_hand(d[i])
+        np.testing.assert_allclose(one[i], r, atol=1e-5)
+        np.testing.assert_allclose(f_one[i], f, rtol=1e-5, atol=1e-8)
+    assert np.abs(one - exact).max() > 1e-3  # a different (cheaper) answer on some queries
+    got, _ = engine.project(model, np.asarray(p.human), "full", full=cfg._replace(clusters=2))
+    assert _deg(got, p.robot).max() < 0.01  # identity survives the pruning
+
+
+def test_bad_full_configs_are_config_errors(model):
+    d = np.zeros((2, 15), np.float32)
+    for bad, match in (
+        (FullConfig(clusters=-1), "clusters"),
+        (FullConfig(iterations=-2), "iterations"),
+        (FullConfig(learning_rate=0.0), "learning_rate"),
+        (FullConfig(objective="max"), "objective"),
+    ):
+        with pytest.raises(ConfigError, match=match):
+            engine.project(model, d, "full", full=bad)
