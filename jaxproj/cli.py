@@ -149,7 +149,7 @@ def _build(args: argparse.Namespace) -> int:
         landmarks=args.landmarks,
         bandwidth=args.bandwidth,
         k=args.k,
-        hidden=args.hidden if args.hidden is not None else max(2 * args.k, 2),
+        hidden=args.hidden if args.hidden is not None else max(args.k, 96),
         lam=args.lam,
         input_scale=args.input_scale,
         seed=args.seed,
@@ -301,8 +301,8 @@ def build_parser() -> argparse.ArgumentParser:
     size = pb.add_mutually_exclusive_group(required=True)
     size.add_argument("--landmarks", type=int, help="target landmark count (bisection)")
     size.add_argument("--bandwidth", type=float, help="mean-shift bandwidth, used as is")
-    pb.add_argument("--k", type=int, default=48, help="training neighbours per ELM kernel")
-    pb.add_argument("--hidden", type=int, default=None, help="hidden units (default 2k)")
+    pb.add_argument("--k", type=int, default=96, help="training neighbours per ELM kernel")
+    pb.add_argument("--hidden", type=int, default=None, help="hidden units (default max(k, 96))")
     pb.add_argument("--lam", type=float, default=1e-3, help="ELM ridge regulariser")
     pb.add_argument("--input-scale", type=float, default=0.5, help="hidden-weight std")
     pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")

@@ -58,7 +58,7 @@ class BuildConfig:
     bandwidth: float | None = None
     bones: str = "upper"
     mirror: bool = False
-    k: int = 48
+    k: int = 96
     hidden: int = 96
     lam: float = 1e-3
     input_scale: float = 0.5
