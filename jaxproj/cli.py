@@ -166,7 +166,8 @@ def _build(args: argparse.Namespace) -> int:
     target = f" (target {cfg.landmarks})" if cfg.landmarks else ""
     print(
         f"built {model.n_landmarks} landmarks{target} from {model.n_train} valid frames "
-        f"(of {n_frames}), bandwidth {model.bandwidth:.4f}, k={cfg.k}, hidden={cfg.hidden}, "
+        f"(of {n_frames}), bandwidth {model.bandwidth:.4f}, k={model.projector.forward.k}, "
+        f"hidden={cfg.hidden}, "
         f"seed={cfg.seed} in {dt:.1f} s -> {args.out}"
     )
     return 0

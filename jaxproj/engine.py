@@ -47,7 +47,9 @@ class BuildConfig:
       bandwidth: mean-shift bandwidth, used as is.
       bones: descriptor bone subset (``skeleton.descriptor``); the IK needs ``"upper"`` bones.
       mirror: mirror imitation (human left drives robot right).
-      k: training neighbours per ELM kernel (the landmark itself included).
+      k: training neighbours per ELM kernel (the landmark itself included), capped at the
+        number of landmarks ``K``: a small set (the paper's 86) trains every kernel on all its
+        landmarks. The ``k`` used is the kernel banks' ``k``.
       hidden: hidden units per kernel (``>= k``).
       lam: ridge regulariser of the ELMs.
       input_scale: standard deviation of the random hidden weights.
@@ -104,12 +106,16 @@ class Model:
 def build_from_landmarks(
     human: np.ndarray, robot_poses: np.ndarray, config: BuildConfig
 ) -> Projector:
-    """Train both kernel banks on given landmark pairs ``(K, m)``, ``(K, n)``."""
+    """Train both kernel banks on given landmark pairs ``(K, m)``, ``(K, n)``.
+
+    Each kernel trains on ``min(config.k, K)`` neighbours (see ``BuildConfig.k``).
+    """
     key = jax.random.PRNGKey(config.seed)
     k_fwd, k_bwd = jax.random.split(key)
-    if not 2 <= config.k <= len(human):
-        raise ConfigError(f"k={config.k} must lie in [2, number of landmarks={len(human)}]")
-    opts = dict(k=config.k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
+    if config.k < 2 or len(human) < 2:
+        raise ConfigError(f"k={config.k} and the number of landmarks={len(human)} must be >= 2")
+    k = min(config.k, len(human))
+    opts = dict(k=k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
     with jax.default_matmul_precision("highest"):  # same banks on CPU and GPU (no TF32)
         forward = train_bank(human, robot_poses, k_fwd, **opts)
         backward = train_bank(robot_poses, human, k_bwd, **opts)

@@ -185,3 +185,16 @@ def test_bad_full_configs_are_config_errors(model):
     ):
         with pytest.raises(ConfigError, match=match):
             engine.project(model, d, "full", full=bad)
+
+
+def test_k_is_capped_at_a_small_landmark_set():
+    d = _descriptors([1], actions=[1])
+    human = d[np.random.default_rng(2).choice(len(d), 40, replace=False)]
+    robot_poses = np.asarray(ik.solve_driven(human))
+    cfg = engine.BuildConfig()  # default k (96) > 40 landmarks
+    p = engine.build_from_landmarks(human, robot_poses, cfg)
+    assert p.forward.k == p.backward.k == 40 and cfg.k > 40
+    got, _ = engine.project(p, human, "relaxed", batch_size=64)
+    assert _deg(got, robot_poses).max() < 0.01  # still exact at the landmarks
+    with pytest.raises(ConfigError, match="k=1"):
+        engine.build_from_landmarks(human, robot_poses, engine.BuildConfig(k=1))
