@@ -182,16 +182,20 @@ def _objective(p: Projector, h: jax.Array, c: _Cluster, cfg: FullConfig, w: jax.
     return jnp.sum(wk * dev)
 
 
+def _start_value(p: Projector, h: jax.Array, c: _Cluster, cfg: FullConfig) -> jax.Array:
+    """``f(w0)``: the objective of one cluster at its warm start."""
+    return _objective(p, h, c, cfg, c.w0)
+
+
 def _solve_cluster(
-    p: Projector, h: jax.Array, r_c: jax.Array, idx: jax.Array, cfg: FullConfig
-) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """Projected gradient on the simplex for one candidate; returns (r(w*), f(w*), f(w0)).
+    p: Projector, h: jax.Array, c: _Cluster, f0: jax.Array, cfg: FullConfig
+) -> tuple[jax.Array, jax.Array]:
+    """Projected gradient on the simplex of one cluster (``_cluster``) whose warm-start value
+    is ``f0``; returns (r(w*), f(w*)).
 
     Every step is an Adam update followed by ``optax.projections.projection_simplex``; the
-    best iterate is kept, so the returned value is never worse than the start (``_cluster``
-    says what the simplex and the warm start are).
+    best iterate is kept, so the returned value is never worse than ``f0``.
     """
-    c = _cluster(p, r_c, idx, cfg)
 
     def objective(w: jax.Array) -> jax.Array:
         return _objective(p, h, c, cfg, w)
@@ -212,7 +216,6 @@ def _solve_cluster(
         return _PGState(w, opt_state, best_w, best_f), None
 
     w0 = c.w0
-    f0 = objective(w0)
     init = _PGState(w0, opt.init(w0), w0, f0)
     final, _ = jax.lax.scan(step, init, None, length=cfg.iterations)
     f_last = objective(final.w)
@@ -220,15 +223,7 @@ def _solve_cluster(
     w_best = jnp.where(better, final.w, final.best_w)
     f_best = jnp.where(better, f_last, final.best_f)
     r_best = jnp.einsum("m,mn->n", w_best, c.verts, precision=jax.lax.Precision.HIGHEST)
-    return r_best, f_best, f0
-
-
-def _start_value(
-    p: Projector, h: jax.Array, r_c: jax.Array, idx: jax.Array, cfg: FullConfig
-) -> jax.Array:
-    """``f(w0)`` of one candidate's cluster (used to choose the clusters worth optimising)."""
-    c = _cluster(p, r_c, idx, cfg)
-    return _objective(p, h, c, cfg, c.w0)
+    return r_best, f_best
 
 
 def project_full_one(
@@ -248,10 +243,12 @@ def project_full_one(
     """
     cand = candidates(p, h, n_l)  # (L, n)
     ridx, _ = nearest(p.robot, p.robot_sq, cand, n_m)  # (L, M)
+    clusters = jax.vmap(_cluster, in_axes=(None, 0, 0, None))(p, cand, ridx, cfg)
+    f0 = jax.vmap(_start_value, in_axes=(None, None, 0, None))(p, h, clusters, cfg)  # (L,)
     if 0 < cfg.clusters < n_l:  # optimise only the clusters that start best
-        start = jax.vmap(_start_value, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
-        _, keep = jax.lax.top_k(-start, cfg.clusters)
-        cand, ridx = cand[keep], ridx[keep]
-    r, f, f0 = jax.vmap(_solve_cluster, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
+        _, keep = jax.lax.top_k(-f0, cfg.clusters)
+        clusters = jax.tree.map(lambda a: a[keep], clusters)
+        f0 = f0[keep]
+    r, f = jax.vmap(_solve_cluster, in_axes=(None, None, 0, 0, None))(p, h, clusters, f0, cfg)
     j = jnp.argmin(f)
     return jnp.clip(r[j], p.lower, p.upper), f[j], f0[j]

@@ -145,9 +145,8 @@ def test_bad_neighbour_counts_are_config_errors(model):
 
 
 def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
-    import jax
 
-    from jaxproj.projection import _solve_cluster, _start_value, candidates
+    from jaxproj.projection import _cluster, _solve_cluster, _start_value, candidates
     from jaxproj.search import nearest
 
     p = model.projector
@@ -161,9 +160,10 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
     def by_hand(h):  # solve only the cluster whose warm start is best
         cand = candidates(p, h, 10)
         ridx, _ = nearest(p.robot, p.robot_sq, cand, 10)
-        start = jax.vmap(_start_value, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
-        j = np.argmin(start)
-        r, f, _ = _solve_cluster(p, h, cand[j], ridx[j], cfg)
+        start = [_start_value(p, h, _cluster(p, cand[i], ridx[i], cfg), cfg) for i in range(10)]
+        j = int(np.argmin(start))
+        c = _cluster(p, cand[j], ridx[j], cfg)
+        r, f = _solve_cluster(p, h, c, start[j], cfg)
         return np.clip(r, p.lower, p.upper), f
 
     for i in range(0, 200, 40):
