@@ -36,6 +36,15 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--device", choices=sorted(PLATFORMS), default="cpu")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per batch size (best kept)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--solver-iterations", type=int, default=None,
+                    help="RolloutConfig.solver_iterations (default: the library default)")
+    ap.add_argument("--ls-iterations", type=int, default=None,
+                    help="RolloutConfig.ls_iterations (default: the library default)")
+    ap.add_argument("--frictionless", action="store_true",
+                    help="RolloutConfig(contact_friction=False): frictionless self-contacts")
+    ap.add_argument("--check-solver", type=int, default=64,
+                    help="motions re-run with MuJoCo's own caps (100 / 50) to check the solver "
+                    "caps change nothing (0: skip)")
     ap.add_argument("--json", default=None, help="write the results here")
     args = ap.parse_args()
     args.batch = [int(b) for b in args.batch.split(",") if b.strip()]
@@ -111,16 +120,40 @@ def cpu_rollout(targets: np.ndarray, substeps: int) -> tuple[np.ndarray, int, fl
     return out, ncon, time.perf_counter() - t0
 
 
-def bench(batch: int, frames: int, seed: int, repeat: int, substeps: int) -> dict:
+def config(args: argparse.Namespace) -> rollout.RolloutConfig:
+    """The rollout config of this run (library defaults unless the flags override them)."""
+    base = rollout.RolloutConfig()
+    return rollout.RolloutConfig(
+        solver_iterations=args.solver_iterations or base.solver_iterations,
+        ls_iterations=args.ls_iterations or base.ls_iterations,
+        contact_friction=not args.frictionless,
+    )
+
+
+def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int) -> float:
+    """Max |qpos difference| (rad) between ``cfg`` and MuJoCo's own solver caps (100 / 50) on
+    the first ``batch`` benchmark motions (random, many with self-contact)."""
+    q = motions(batch, frames, seed)
+    ref = rollout.RolloutConfig(
+        solver_iterations=100, ls_iterations=50, contact_friction=cfg.contact_friction
+    )
+    a = np.asarray(rollout.simulate(q, config=cfg).qpos)
+    b = np.asarray(rollout.simulate(q, config=ref).qpos)
+    return float(np.abs(a - b).max())
+
+
+def bench(
+    batch: int, frames: int, seed: int, repeat: int, substeps: int, cfg: rollout.RolloutConfig
+) -> dict:
     q = motions(batch, frames, seed)
     n = np.full(batch, frames, dtype=np.int32)
     t0 = time.perf_counter()
-    res = jax.block_until_ready(rollout.simulate(q, n))
+    res = jax.block_until_ready(rollout.simulate(q, n, cfg))
     first = time.perf_counter() - t0
     runs = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        res = jax.block_until_ready(rollout.simulate(q, n))
+        res = jax.block_until_ready(rollout.simulate(q, n, cfg))
         runs.append(time.perf_counter() - t0)
     run = min(runs)
     qpos = np.asarray(res.qpos)
@@ -143,7 +176,15 @@ def main(args: argparse.Namespace) -> int:
     print(f"device: {dev.platform} {dev.device_kind} | jax {jax.__version__} | mujoco "
           f"{mujoco.__version__} | {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} cpus")  # fmt: skip
-    print(f"motions: {args.frames} frames at 15 frames/s, {substeps} steps/frame")
+    cfg = config(args)
+    print(f"motions: {args.frames} frames at 15 frames/s, {substeps} steps/frame | solver caps "
+          f"{cfg.solver_iterations} iterations / {cfg.ls_iterations} line-search | contact "
+          f"friction {cfg.contact_friction}")  # fmt: skip
+    solver_dq = None
+    if args.check_solver:
+        solver_dq = solver_check(cfg, args.check_solver, args.frames, args.seed)
+        print(f"solver caps vs MuJoCo's 100 / 50 on {args.check_solver} motions: max |dq| "
+              f"{solver_dq:.2e} rad")  # fmt: skip
 
     # CPU MuJoCo baseline: motion 0, same protocol (warm-up run first, then timed)
     ref = motions(1, args.frames, args.seed)[0]
@@ -154,7 +195,7 @@ def main(args: argparse.Namespace) -> int:
 
     rows, ok = [], True
     for b in args.batch:
-        r = bench(b, args.frames, args.seed, args.repeat, substeps)
+        r = bench(b, args.frames, args.seed, args.repeat, substeps, cfg)
         dq = float(np.abs(r.pop("qpos0") - cpu_q).max())
         r["mjx_vs_cpu_max_dq_rad"] = dq
         r["speedup_vs_cpu_mj_step"] = r["steps_per_s"] * cpu_s / cpu_steps
@@ -175,6 +216,10 @@ def main(args: argparse.Namespace) -> int:
         "cpus": os.cpu_count(),
         "frames": args.frames,
         "substeps": substeps,
+        "solver_iterations": cfg.solver_iterations,
+        "ls_iterations": cfg.ls_iterations,
+        "contact_friction": cfg.contact_friction,
+        "solver_check": {"motions": args.check_solver, "max_dq_rad": solver_dq},
         "cpu_mj_step": {"steps": cpu_steps, "run_s": cpu_s, "steps_per_s": cpu_steps / cpu_s},
         "mjx": rows,
         "correct": bool(ok),

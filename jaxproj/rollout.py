@@ -75,20 +75,28 @@ class RolloutConfig:
       solver_iterations: cap on the Newton constraint-solver iterations per step (MJX only; the
         MJCF keeps MuJoCo's 100, with early exit).
       ls_iterations: cap on the line-search iterations per solver iteration (MJX only; MJCF 50).
+      contact_friction: self-contacts with friction (the MJCF's ``condim=3``, pyramidal cone: 4
+        constraint rows per contact slot). ``False`` makes every contact frictionless
+        (``condim=1``, one row per slot: 80 constraint rows instead of 239), a speed option that
+        changes the physics only while parts touch; contact detection, penetration depth and
+        every contact-free frame are unaffected. Measured effect in ``benchmarks/RESULTS.md``.
 
     Why the caps: under ``vmap`` MJX's line search (a ``lax.cond`` per iteration inside a scan)
     evaluates every one of its ``ls_iterations`` and the solver loop runs until the slowest motion
-    of the batch stops, so the caps set the cost (4 / 8 runs ~5x faster than 100 / 50 on CPU).
+    of the batch stops, so the caps set the cost (8 / 4 runs ~4x faster than 100 / 50 on CPU).
     On this model (equality, joint limits, arm-body contacts) the solver converges within them:
-    32 random motions plus forearm-into-torso motions gave bit-identical rollouts with 4 / 8 and
-    with 100 / 50.
+    64 random benchmark motions (many with self-contact) give bit-identical rollouts with 8 / 4
+    and with 100 / 50 on CPU (max |dq| 1.5e-5 rad on an H200); 4 / 8, the caps before, gave
+    2.6e-3 rad on three of them (the solver needed a 5th iteration), 8 / 3 gives 8.4e-4 rad
+    (``python benchmarks/bench_rollout.py --check-solver 64``).
     """
 
     frame_dt: float = 1.0 / 15.0
     kp_scale: float = 1.0
     gravity: bool = True
-    solver_iterations: int = 4
-    ls_iterations: int = 8
+    solver_iterations: int = 8
+    ls_iterations: int = 4
+    contact_friction: bool = True
 
 
 class RolloutResult(NamedTuple):
@@ -182,6 +190,8 @@ def _fixed_model(config: RolloutConfig) -> mujoco.MjModel:
         model.actuator_biasprm[:, 1] *= config.kp_scale
     if not config.gravity:
         model.opt.gravity[:] = 0.0
+    if not config.contact_friction:
+        model.geom_condim[:] = 1
     model.opt.iterations = config.solver_iterations
     model.opt.ls_iterations = config.ls_iterations
     return model
@@ -202,6 +212,8 @@ def _check_config(config: RolloutConfig) -> None:
         raise ConfigError(f"frame_dt must be a positive number of seconds, got {config.frame_dt}")
     if not (np.isfinite(config.kp_scale) and config.kp_scale > 0):
         raise ConfigError(f"kp_scale must be positive, got {config.kp_scale}")
+    if not isinstance(config.contact_friction, bool):
+        raise ConfigError(f"contact_friction must be a bool, got {config.contact_friction!r}")
     for name in ("solver_iterations", "ls_iterations"):
         value = getattr(config, name)
         if not (isinstance(value, int) and value >= 1):

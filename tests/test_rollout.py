@@ -159,6 +159,21 @@ def test_self_collision_detected(batch, fixed: mujoco.MjModel) -> None:
     assert abs(int(cpu["contact"][:, ARM_TORSO].sum()) - r.contact_frames[COLLIDE, ARM_TORSO]) <= 1
 
 
+def test_frictionless_contacts(batch) -> None:
+    # contact_friction=False (condim 1): one constraint row per contact slot instead of four;
+    # contact-free motions are bit-identical, the colliding one still reports its contact
+    model = rollout._fixed_model(rollout.RolloutConfig(contact_friction=False))
+    assert np.all(model.geom_condim == 1)
+    assert np.all(rollout._fixed_model(rollout.RolloutConfig()).geom_condim == 3)
+    targets, lengths, r = batch
+    rows = [STANDING, STEP, COLLIDE]
+    cfg = rollout.RolloutConfig(contact_friction=False)
+    f = rollout.simulate(targets[rows], lengths[rows], cfg)
+    np.testing.assert_array_equal(np.asarray(f.qpos)[:2], r.qpos[[STANDING, STEP]])
+    assert np.asarray(f.contact_frames)[2, ARM_TORSO] > 0
+    assert np.asarray(f.contact_frames)[:2].sum() == 0
+
+
 def test_padding_is_ignored(batch, fixed: mujoco.MjModel) -> None:
     targets, lengths, r = batch
     # NaN and +-100 rad padding give identical results on the valid frames and statistics
@@ -303,5 +318,7 @@ def test_bad_inputs() -> None:
         rollout.simulate(bad)  # NaN inside the valid frames
     with pytest.raises(ConfigError):
         rollout.simulate(q, config=rollout.RolloutConfig(frame_dt=0.0))
+    with pytest.raises(ConfigError, match="contact_friction"):
+        rollout.simulate(q, config=rollout.RolloutConfig(contact_friction=1))  # type: ignore[arg-type]
     with pytest.raises(ConfigError):
         rollout.hand_error_cm(np.zeros((2, 26)), np.zeros((3, 26)))
