@@ -36,15 +36,30 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--device", choices=sorted(PLATFORMS), default="cpu")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per batch size (best kept)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--solver-iterations", type=int, default=None,
-                    help="RolloutConfig.solver_iterations (default: the library default)")
-    ap.add_argument("--ls-iterations", type=int, default=None,
-                    help="RolloutConfig.ls_iterations (default: the library default)")
-    ap.add_argument("--frictionless", action="store_true",
-                    help="RolloutConfig(contact_friction=False): frictionless self-contacts")
-    ap.add_argument("--check-solver", type=int, default=64,
-                    help="motions re-run with MuJoCo's own caps (100 / 50) to check the solver "
-                    "caps change nothing (0: skip)")
+    ap.add_argument(
+        "--solver-iterations",
+        type=int,
+        default=None,
+        help="RolloutConfig.solver_iterations (default: the library default)",
+    )
+    ap.add_argument(
+        "--ls-iterations",
+        type=int,
+        default=None,
+        help="RolloutConfig.ls_iterations (default: the library default)",
+    )
+    ap.add_argument(
+        "--frictionless",
+        action="store_true",
+        help="RolloutConfig(contact_friction=False): frictionless self-contacts",
+    )
+    ap.add_argument(
+        "--check-solver",
+        type=int,
+        default=64,
+        help="motions re-run with MuJoCo's own caps (100 / 50) to check the solver "
+        "caps change nothing (0: skip)",
+    )
     ap.add_argument("--json", default=None, help="write the results here")
     args = ap.parse_args()
     args.batch = [int(b) for b in args.batch.split(",") if b.strip()]
