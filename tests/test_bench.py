@@ -126,10 +126,11 @@ def test_cli_arguments_parse():
     assert a.quick and a.device == "cpu" and a.landmarks == [86] and a.json == "x.json"
 
 
-def test_reference_full_with_fewer_clusters_matches_the_engine(projector):
+@pytest.mark.parametrize("clusters", [1, 2])
+def test_reference_full_with_fewer_clusters_matches_the_engine(projector, clusters):
     p, train = projector
     ref = bench.Reference(p)
-    cfg = FullConfig(objective="min", include_candidate=True, clusters=2)
+    cfg = FullConfig(objective="min", include_candidate=True, clusters=clusters)
     h = train[::97][:24]
     got, _ = bench.engine.project(p, h, "full", n_l=5, n_m=5, full=cfg, batch_size=32)
     want = np.stack([ref.full(x, 5, 5, cfg)[0] for x in h])
