@@ -145,21 +145,42 @@ def config(args: argparse.Namespace) -> rollout.RolloutConfig:
     )
 
 
-def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int) -> float:
-    """Max |qpos difference| (rad) between ``cfg`` and MuJoCo's own solver caps (100 / 50) on
-    the first ``batch`` benchmark motions (random, many with self-contact)."""
+def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int) -> dict:
+    """What the speed settings of ``cfg`` change, on the first ``batch`` benchmark motions
+    (random, many with self-contact): max |qpos difference| (rad) against MuJoCo's own solver
+    caps (100 / 50) and, for frictionless contacts, against the default (friction) contacts."""
     q = motions(batch, frames, seed)
     ref = rollout.RolloutConfig(
         solver_iterations=100, ls_iterations=50, contact_friction=cfg.contact_friction
     )
-    a = np.asarray(rollout.simulate(q, config=cfg).qpos)
-    b = np.asarray(rollout.simulate(q, config=ref).qpos)
-    return float(np.abs(a - b).max())
+    a = rollout.simulate(q, config=cfg)
+    qa = np.asarray(a.qpos)
+    out = {
+        "motions": batch,
+        "max_dq_rad": float(np.abs(qa - rollout.simulate(q, config=ref).qpos).max()),
+    }
+    if not cfg.contact_friction:
+        f = rollout.simulate(q, config=rollout.RolloutConfig())
+        dq = np.abs(qa - np.asarray(f.qpos)).max(axis=(1, 2))
+        touched = np.asarray(f.contact_frames).sum(axis=1) > 0
+        out["vs_friction"] = {
+            "max_dq_rad": float(dq.max()),
+            "motions_with_contact": int(touched.sum()),
+            "contact_free_max_dq_rad": float(dq[~touched].max()) if (~touched).any() else None,
+        }
+    return out
 
 
 def bench(
-    batch: int, frames: int, seed: int, repeat: int, substeps: int, cfg: rollout.RolloutConfig
+    batch: int,
+    frames: int,
+    seed: int,
+    repeat: int,
+    substeps: int,
+    cfg: rollout.RolloutConfig | None = None,
 ) -> dict:
+    """Time ``rollout.simulate`` on ``batch`` benchmark motions (``cfg`` None: the defaults)."""
+    cfg = cfg or rollout.RolloutConfig()
     q = motions(batch, frames, seed)
     n = np.full(batch, frames, dtype=np.int32)
     t0 = time.perf_counter()
@@ -195,11 +216,16 @@ def main(args: argparse.Namespace) -> int:
     print(f"motions: {args.frames} frames at 15 frames/s, {substeps} steps/frame | solver caps "
           f"{cfg.solver_iterations} iterations / {cfg.ls_iterations} line-search | contact "
           f"friction {cfg.contact_friction}")  # fmt: skip
-    solver_dq = None
+    check = None
     if args.check_solver:
-        solver_dq = solver_check(cfg, args.check_solver, args.frames, args.seed)
+        check = solver_check(cfg, args.check_solver, args.frames, args.seed)
         print(f"solver caps vs MuJoCo's 100 / 50 on {args.check_solver} motions: max |dq| "
-              f"{solver_dq:.2e} rad")  # fmt: skip
+              f"{check['max_dq_rad']:.2e} rad")  # fmt: skip
+        if "vs_friction" in check:
+            v = check["vs_friction"]
+            print(f"frictionless vs friction contacts: max |dq| {v['max_dq_rad']:.3g} rad over the "
+                  f"{v['motions_with_contact']} motions with contact, "
+                  f"{v['contact_free_max_dq_rad']} on the contact-free ones")  # fmt: skip
 
     # CPU MuJoCo baseline: motion 0, same protocol (warm-up run first, then timed)
     ref = motions(1, args.frames, args.seed)[0]
@@ -234,7 +260,7 @@ def main(args: argparse.Namespace) -> int:
         "solver_iterations": cfg.solver_iterations,
         "ls_iterations": cfg.ls_iterations,
         "contact_friction": cfg.contact_friction,
-        "solver_check": {"motions": args.check_solver, "max_dq_rad": solver_dq},
+        "solver_check": check,
         "cpu_mj_step": {"steps": cpu_steps, "run_s": cpu_s, "steps_per_s": cpu_steps / cpu_s},
         "mjx": rows,
         "correct": bool(ok),

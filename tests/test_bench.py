@@ -146,3 +146,14 @@ def test_full_cli_options_reach_the_config():
     )
     with pytest.raises(bench.engine.ConfigError):
         bench._full_config(-1, None)
+
+
+def test_rollout_benchmark_runs():
+    # the rollout records come from benchmarks/bench_rollout.py: a signature change there once
+    # turned every rollout record into "skipped" without failing anything
+    import jax
+
+    (rec,) = bench.bench_rollout(True, jax.devices("cpu")[0], frames=2)
+    assert rec.get("skipped") is None, rec.get("skipped")
+    assert rec["batch"] == 64 and rec["steps"] == 64 * 2 * 33 and rec["steps_per_s"] > 0
+    assert rec["mjx_vs_cpu_max_dq_rad"] < 1e-3
