@@ -86,8 +86,8 @@ class RolloutConfig:
     of the batch stops, so the caps set the cost (8 / 4 runs ~4x faster than 100 / 50 on CPU).
     On this model (equality, joint limits, arm-body contacts) the solver converges within them:
     64 random benchmark motions (many with self-contact) give bit-identical rollouts with 8 / 4
-    and with 100 / 50 on CPU (max |dq| 1.5e-5 rad on an H200); 4 / 8, the caps before, gave
-    2.6e-3 rad on three of them (the solver needed a 5th iteration), 8 / 3 gives 8.4e-4 rad
+    and with 100 / 50 on CPU (1.5e-5 and 6.2e-4 rad in two H200 runs); 4 / 8, the caps before, gave
+    2.6e-3 rad on three of them (the solver needed a 5th iteration), 8 / 3 gave 8.4e-4 rad (H200)
     (``python benchmarks/bench_rollout.py --check-solver 64``).
     """
 
