@@ -19,6 +19,7 @@ same-run baseline (one core, one motion).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -148,11 +149,9 @@ def config(args: argparse.Namespace) -> rollout.RolloutConfig:
 def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int) -> dict:
     """What the speed settings of ``cfg`` change, on the first ``batch`` benchmark motions
     (random, many with self-contact): max |qpos difference| (rad) against MuJoCo's own solver
-    caps (100 / 50) and, for frictionless contacts, against the default (friction) contacts."""
+    caps (100 / 50) and, for frictionless contacts, against the same config with friction."""
     q = motions(batch, frames, seed)
-    ref = rollout.RolloutConfig(
-        solver_iterations=100, ls_iterations=50, contact_friction=cfg.contact_friction
-    )
+    ref = dataclasses.replace(cfg, solver_iterations=100, ls_iterations=50)
     a = rollout.simulate(q, config=cfg)
     qa = np.asarray(a.qpos)
     out = {
@@ -160,7 +159,7 @@ def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int)
         "max_dq_rad": float(np.abs(qa - rollout.simulate(q, config=ref).qpos).max()),
     }
     if not cfg.contact_friction:
-        f = rollout.simulate(q, config=rollout.RolloutConfig())
+        f = rollout.simulate(q, config=dataclasses.replace(cfg, contact_friction=True))
         dq = np.abs(qa - np.asarray(f.qpos)).max(axis=(1, 2))
         touched = np.asarray(f.contact_frames).sum(axis=1) > 0
         out["vs_friction"] = {
