@@ -340,7 +340,7 @@ class Reference:
         cand = self.candidates(h, n_l)  # (L, n)
         ridx = self._knn(self.tree_r, cand, n_m)  # (L, M)
         if 0 < cfg.clusters < n_l:
-            start = self._full(h, cand, ridx, cfg._replace(iterations=0))[2]
+            start = self._full(h, cand, ridx, dataclasses.replace(cfg, iterations=0))[2]
             keep = np.argsort(start, kind="stable")[: cfg.clusters]
             cand, ridx = cand[keep], ridx[keep]
         r, f, _ = self._full(h, cand, ridx, cfg)
@@ -492,12 +492,12 @@ def bench_streaming(
     frames = np.asarray(positions, np.float32)
     state = jax.device_put(stream_init(p), device)
     t0 = time.perf_counter()
-    compiled = stream_step.lower(p, frames[0], state, params, n_l, n_m).compile()
+    compiled = stream_step.lower(p, frames[0], state, params.gains(), n_l, n_m).compile()
     compile_s = time.perf_counter() - t0
     lat = []
     for i in range(warmup + n_frames):
         t0 = time.perf_counter()
-        out, state = compiled(p, frames[i % len(frames)], state, params)
+        out, state = compiled(p, frames[i % len(frames)], state, params.gains())
         a = np.asarray(out)
         dt = time.perf_counter() - t0
         if i >= warmup:
@@ -921,7 +921,7 @@ def run(
                 )
                 rec.update(N=n, reference_us_per_projection=ref_us, reference_queries=nq)
                 if objective == "full":
-                    rec["full_config"] = full._asdict()
+                    rec["full_config"] = dataclasses.asdict(full)
                 if rec.get("us_per_projection"):
                     rec["speedup"] = ref_us / rec["us_per_projection"]
                     estimate = rec["us_per_projection"]
@@ -1057,8 +1057,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _full_config(clusters: int, iterations: int | None) -> FullConfig:
     cfg = FullConfig(clusters=clusters)
     if iterations is not None:
-        cfg = cfg._replace(iterations=iterations)
-    return engine.check_full(cfg)
+        cfg = dataclasses.replace(cfg, iterations=iterations)
+    return cfg
 
 
 def main(args: argparse.Namespace) -> int:

@@ -198,19 +198,6 @@ def check_neighbours(model_or_projector: Model | Projector, n_l: int, n_m: int) 
             raise ConfigError(f"{name}={v} must lie in [1, number of landmarks={p.n_landmarks}]")
 
 
-def check_full(full: FullConfig) -> FullConfig:
-    """Raise ``ConfigError`` on an invalid ``FullConfig``; returns it."""
-    if full.objective not in ("weighted", "min"):
-        raise ConfigError(f"full objective must be 'weighted' or 'min', got {full.objective!r}")
-    if full.iterations < 0:
-        raise ConfigError(f"full iterations={full.iterations} must be >= 0")
-    if not full.learning_rate > 0:
-        raise ConfigError(f"full learning_rate={full.learning_rate} must be > 0")
-    if full.clusters < 0:
-        raise ConfigError(f"full clusters={full.clusters} must be >= 0 (0: all L)")
-    return full
-
-
 _DEVICES: list[jax.Device] | None = None
 
 
@@ -278,7 +265,6 @@ def project(
     if objective not in ("relaxed", "full"):
         raise ConfigError(f"objective must be 'relaxed' or 'full', got {objective!r}")
     check_neighbours(p, n_l, n_m)
-    check_full(full)
     h = np.asarray(descriptors, np.float32)
     if h.ndim != 2 or h.shape[1] != p.human.shape[1]:
         raise ConfigError(f"descriptors must be (B, {p.human.shape[1]}), got {h.shape}")

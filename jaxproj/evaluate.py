@@ -19,6 +19,7 @@ squared joint jerk (third difference at the recording rate, rad/s^3) is reported
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -288,7 +289,7 @@ def evaluate(
         "valid_frames": int(data.valid.sum()),
         "sequences": len(data.names),
         "driven_joints": list(robot.DRIVEN_JOINTS),
-        "smoothing": None if smoothing is None else dict(smoothing._asdict()),
+        "smoothing": None if smoothing is None else dataclasses.asdict(smoothing),
         "devices": [str(d) for d in jax.devices()],
         "summary": {},
         "unsmoothed": {},

@@ -27,6 +27,7 @@ import optax
 from optax.projections import projection_simplex
 
 from jaxproj import robot
+from jaxproj.exceptions import ConfigError
 from jaxproj.kernels import ELMBank, KernelSlice, predict, predict_slice, project_inputs, take
 from jaxproj.search import nearest, sq_norms
 
@@ -112,16 +113,19 @@ def project_relaxed_one(
 Objective = Literal["weighted", "min"]
 
 
-class FullConfig(NamedTuple):
-    """Settings of the full (simplex-weighted) objective. All static.
+@dataclass(frozen=True)
+class FullConfig:
+    """Settings of the full (simplex-weighted) objective. Static (hashable) under ``jax.jit``.
+
+    Validated when constructed: a bad value raises ``ConfigError``.
 
     Attributes:
       objective: ``"weighted"`` (default) ``f(w) = sum_k w_k ||kappa^r_{j,k}(r(w)) - h||^2``;
         ``"min"`` ``f(w) = min_k ||kappa^r_{j,k}(r(w)) - h||^2`` (the paper's eq. 2 read
         literally as the best kernel of the cluster).
-      iterations: projected-gradient steps per candidate (fixed; no early exit).
-      learning_rate: Adam step size on the weights (the weights live on the simplex, so the
-        scale is absolute: 0.05 moves at most ~5% of mass per step).
+      iterations: projected-gradient steps per candidate (fixed; no early exit), ``>= 0``.
+      learning_rate: Adam step size on the weights, ``> 0`` (the weights live on the simplex, so
+        the scale is absolute: 0.05 moves at most ~5% of mass per step).
       include_candidate: add the candidate ``r_j`` itself as vertex 0 of its simplex (warm start
         ``w0 = e_0``, i.e. the relaxed answer).
       clusters: optimise only the ``clusters`` candidates whose objective is smallest at their
@@ -135,6 +139,18 @@ class FullConfig(NamedTuple):
     learning_rate: float = 0.05
     include_candidate: bool = False
     clusters: int = 0
+
+    def __post_init__(self) -> None:
+        if self.objective not in ("weighted", "min"):
+            raise ConfigError(
+                f"full objective must be 'weighted' or 'min', got {self.objective!r}"
+            )
+        if self.iterations < 0:
+            raise ConfigError(f"full iterations={self.iterations} must be >= 0")
+        if not self.learning_rate > 0:
+            raise ConfigError(f"full learning_rate={self.learning_rate} must be > 0")
+        if self.clusters < 0:
+            raise ConfigError(f"full clusters={self.clusters} must be >= 0 (0: all L)")
 
 
 class _PGState(NamedTuple):

@@ -20,7 +20,7 @@ are returned as the input.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -28,30 +28,35 @@ import jax.numpy as jnp
 from jaxproj.exceptions import ConfigError
 
 
-class SmoothingParams(NamedTuple):
-    """Smoother gains (traced, so changing them does not recompile)."""
+@dataclass(frozen=True)
+class SmoothingParams:
+    """Smoother gains, validated when constructed (``ConfigError`` unless ``0 <= alpha, gamma <=
+    1`` and ``eta >= 0``). They enter the jitted smoother as traced values: changing them does
+    not recompile."""
 
     alpha: float = 0.75
     gamma: float = 0.3
     eta: float = 0.15
 
-    def check(self) -> SmoothingParams:
-        """Raise ``ConfigError`` unless 0 <= alpha, gamma <= 1 and eta >= 0."""
+    def __post_init__(self) -> None:
         for name in ("alpha", "gamma"):
             v = float(getattr(self, name))
             if not 0.0 <= v <= 1.0:
                 raise ConfigError(f"smoothing {name}={v} must lie in [0, 1]")
         if not float(self.eta) >= 0.0:
             raise ConfigError(f"smoothing eta={self.eta} must be >= 0")
-        return self
+
+    def gains(self) -> jax.Array:
+        """``(3,)`` float32 ``(alpha, gamma, eta)``: the traced argument of the smoother."""
+        return jnp.asarray((self.alpha, self.gamma, self.eta), jnp.float32)
 
 
 PAPER_SMOOTHING = SmoothingParams()
 """The paper's gains: alpha 0.75, gamma 0.3, eta 0.15."""
 
 
-def _smooth_one(y: jax.Array, length: jax.Array, params: SmoothingParams) -> jax.Array:
-    alpha, gamma, eta = (jnp.asarray(v, y.dtype) for v in params)
+def _smooth_one(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
+    alpha, gamma, eta = (gains[i].astype(y.dtype) for i in range(3))
 
     def step(carry, inp):
         s_prev, b_prev = carry
@@ -72,8 +77,8 @@ def _smooth_one(y: jax.Array, length: jax.Array, params: SmoothingParams) -> jax
 
 
 @jax.jit
-def _smooth_batch(y: jax.Array, lengths: jax.Array, params: SmoothingParams) -> jax.Array:
-    return jax.vmap(_smooth_one, in_axes=(0, 0, None))(y, lengths, params)
+def _smooth_batch(y: jax.Array, lengths: jax.Array, gains: jax.Array) -> jax.Array:
+    return jax.vmap(_smooth_one, in_axes=(0, 0, None))(y, lengths, gains)
 
 
 def smooth(y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING) -> jax.Array:
@@ -89,8 +94,7 @@ def smooth(y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING) -> jax.Array
     y = jnp.asarray(y)
     if y.ndim != 2 or y.shape[0] < 1:
         raise ConfigError(f"smooth expects a (T, n) motion with T >= 1, got shape {y.shape}")
-    params.check()
-    return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), params)[0]
+    return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), params.gains())[0]
 
 
 def smooth_batch(
@@ -109,5 +113,4 @@ def smooth_batch(
     y = jnp.asarray(y)
     if y.ndim != 3:
         raise ConfigError(f"smooth_batch expects (B, T, n) motions, got shape {y.shape}")
-    params.check()
-    return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), params)
+    return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), params.gains())

@@ -1,5 +1,6 @@
 """Projection engine tests on a small real landmark set (fast: no mean shift here)."""
 
+import dataclasses
 import numpy as np
 import pytest
 
@@ -153,9 +154,9 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
     d = _descriptors([2], actions=[1, 5])[:200]
     cfg = FullConfig(objective="min", include_candidate=True)
     exact, _ = engine.project(model, d, "full", full=cfg)
-    all_l, _ = engine.project(model, d, "full", full=cfg._replace(clusters=10))
+    all_l, _ = engine.project(model, d, "full", full=dataclasses.replace(cfg, clusters=10))
     np.testing.assert_array_equal(all_l, exact)  # clusters >= L is the exact objective
-    one, f_one = engine.project(model, d, "full", full=cfg._replace(clusters=1))
+    one, f_one = engine.project(model, d, "full", full=dataclasses.replace(cfg, clusters=1))
 
     def by_hand(h):  # solve only the cluster whose warm start is best
         cand = candidates(p, h, 10)
@@ -171,7 +172,7 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
         np.testing.assert_allclose(one[i], r, atol=1e-5)
         np.testing.assert_allclose(f_one[i], f, rtol=1e-5, atol=1e-8)
     assert np.abs(one - exact).max() > 1e-3  # a different (cheaper) answer on some queries
-    got, _ = engine.project(model, np.asarray(p.human), "full", full=cfg._replace(clusters=2))
+    got, _ = engine.project(model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2))
     assert _deg(got, p.robot).max() < 0.01  # identity survives the pruning
 
 
