@@ -142,9 +142,7 @@ class FullConfig:
 
     def __post_init__(self) -> None:
         if self.objective not in ("weighted", "min"):
-            raise ConfigError(
-                f"full objective must be 'weighted' or 'min', got {self.objective!r}"
-            )
+            raise ConfigError(f"full objective must be 'weighted' or 'min', got {self.objective!r}")
         if self.iterations < 0:
             raise ConfigError(f"full iterations={self.iterations} must be >= 0")
         if not self.learning_rate > 0:

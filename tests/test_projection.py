@@ -1,6 +1,7 @@
 """Projection engine tests on a small real landmark set (fast: no mean shift here)."""
 
 import dataclasses
+
 import numpy as np
 import pytest
 
@@ -172,7 +173,9 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
         np.testing.assert_allclose(one[i], r, atol=1e-5)
         np.testing.assert_allclose(f_one[i], f, rtol=1e-5, atol=1e-8)
     assert np.abs(one - exact).max() > 1e-3  # a different (cheaper) answer on some queries
-    got, _ = engine.project(model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2))
+    got, _ = engine.project(
+        model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2)
+    )
     assert _deg(got, p.robot).max() < 0.01  # identity survives the pruning
 
 
