@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from jaxproj import __version__
-from jaxproj.exceptions import JaxprojError
+from jaxproj.exceptions import ConfigError, InputError, JaxprojError
 
 METHODS = ("ik", "relaxed", "full")
 
@@ -64,32 +64,27 @@ def _info(args: argparse.Namespace) -> int:
 def _retarget(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from jaxproj import robot
+    from jaxproj import engine, robot
     from jaxproj.readers import read_skeleton
-    from jaxproj.retarget import retarget_positions
-    from jaxproj.smoothing import SmoothingParams
+    from jaxproj.retarget import retarget
+    from jaxproj.smoothing import PAPER_SMOOTHING
 
-    mapping, bones, mirror = None, args.bones, args.mirror
+    model = None
     if args.method != "ik":
-        from jaxproj import engine
-
         if args.model is None:
-            raise JaxprojError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
+            raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
         model = engine.load(args.model)
-        engine.check_neighbours(model, args.L, args.M)
-        bones, mirror = model.config.bones, model.config.mirror
-
-        def mapping(d):
-            return engine.project(model, d, args.method, n_l=args.L, n_m=args.M)[0]
-
     rec = read_skeleton(args.input, format=args.format)
-    result = retarget_positions(
+    result = retarget(
         rec.positions,
         rec.valid,
-        mapping=mapping,
-        bones=bones,
-        mirror=mirror,
-        smoothing=SmoothingParams() if args.smooth else None,
+        model=model,
+        method=args.method,
+        n_l=args.L,
+        n_m=args.M,
+        bones=args.bones,
+        mirror=args.mirror,
+        smoothing=PAPER_SMOOTHING if args.smooth else None,
     )
     out = Path(args.out)
     try:
@@ -105,7 +100,7 @@ def _retarget(args: argparse.Namespace) -> int:
                 smoothed=np.array(bool(args.smooth)),
             )
     except OSError as e:
-        raise JaxprojError(f"{out}: cannot write output: {e.strerror or e}") from None
+        raise InputError(out, f"cannot write output: {e.strerror or e}") from None
     n, nv = len(result.valid), int(result.valid.sum())
     print(f"{args.input}: {n} frames ({nv} valid) -> {out} [method={args.method}]")
     return 0
@@ -120,30 +115,23 @@ def _parse_ints(text: str) -> list[int]:
         ) from None
 
 
-def _progress(label: str, done: int, total: int) -> None:
-    width = 24
-    fill = int(width * done / max(total, 1))
-    end = "\n" if done >= total else ""
-    print(
-        f"\r{label:<28s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}",
-        end=end,
-        file=sys.stderr,
-        flush=True,
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _load(data: str, subjects: list[int] | None):
+    from jaxproj import datasets
+    from jaxproj._progress import bar
+
+    return datasets.load_sequences(
+        data, subjects, progress=lambda files: bar(files, "reading recordings")
     )
-
-
-def training_descriptors(data: str, subjects: list[int] | None, bones: str, mirror: bool):
-    """``(N, m)`` descriptors of the valid training frames, and the number of frames read."""
-    from jaxproj.landmarks import training_descriptors as valid_descriptors
-
-    seqs = load_sequences(data, subjects)
-    return valid_descriptors(seqs, bones=bones, mirror=mirror), sum(len(s.valid) for s in seqs)
 
 
 def _build(args: argparse.Namespace) -> int:
     import time
 
-    from jaxproj import engine
+    from jaxproj import datasets, engine
 
     cfg = engine.BuildConfig(
         landmarks=args.landmarks,
@@ -154,13 +142,13 @@ def _build(args: argparse.Namespace) -> int:
         input_scale=args.input_scale,
         seed=args.seed,
         mirror=args.mirror,
-    ).check()
+    )
     t0 = time.perf_counter()
-    d, n_frames = training_descriptors(args.data, args.subjects, cfg.bones, cfg.mirror)
-    _progress("training descriptors", 1, 1)
-    print(f"mean shift over {len(d)} descriptors ...", file=sys.stderr, flush=True)
+    seqs = _load(args.data, args.subjects)
+    d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
+    n_frames = sum(len(s.valid) for s in seqs)
+    _log(f"mean shift over {len(d)} descriptors, then the ELM kernel banks ...")
     model = engine.build(d, cfg)
-    _progress("landmarks + ELM kernel banks", 1, 1)
     engine.save(model, args.out)
     dt = time.perf_counter() - t0
     target = f" (target {cfg.landmarks})" if cfg.landmarks else ""
@@ -173,74 +161,36 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
-def load_sequences(data: str, subjects: list[int] | None):
-    """The bundled MSR Action3D sequences, or every recording in a folder.
-
-    Folder files are read with ``readers.read_skeleton`` (format by extension / content); a name
-    with ``sNN`` gives the subject (``aNN_`` the action), and with ``subjects`` given, files whose
-    subject is another are skipped (files with no subject in their name are kept).
-    """
-    import re
-
-    import numpy as np
-
-    from jaxproj import datasets
-    from jaxproj.readers import read_skeleton
-
-    if data == "bundled":
-        return datasets.msr_action3d(subjects=subjects)
-    folder = Path(data)
-    if not folder.is_dir():
-        raise JaxprojError(f"{folder}: --data must be 'bundled' or a folder of recordings")
-    files = sorted(p for p in folder.iterdir() if p.is_file())
-    seqs = []
-    for i, f in enumerate(files):
-        subj = re.search(r"s(\d{2})", f.name)
-        act = re.search(r"a(\d{2})_", f.name)
-        subject = int(subj.group(1)) if subj else 0
-        if subjects is not None and subj and subject not in subjects:
-            continue
-        rec = read_skeleton(f)
-        conf = np.ones(rec.valid.shape + (20,), np.float32)
-        action = int(act.group(1)) if act else 0
-        seqs.append(
-            datasets.MotionSequence(f.stem, action, subject, 0, rec.positions, conf, rec.valid)
-        )
-        _progress("reading recordings", i + 1, len(files))
-    if not seqs:
-        raise JaxprojError(f"{folder}: no recordings found (for subjects {subjects})")
-    return seqs
-
-
 def _evaluate(args: argparse.Namespace) -> int:
     import time
 
     import jax
 
     from jaxproj import engine, evaluate, report
-    from jaxproj.smoothing import SmoothingParams
+    from jaxproj.smoothing import PAPER_SMOOTHING
 
-    if args.devices < 1 or args.devices > len(jax.devices()):
-        raise JaxprojError(
-            f"--devices {args.devices}: this machine has {len(jax.devices())} JAX device(s)"
+    available = jax.devices()
+    if not 1 <= args.devices <= len(available):
+        raise ConfigError(
+            f"--devices {args.devices}: this machine has {len(available)} JAX device(s)"
         )
     model = engine.load(args.model)
     engine.check_neighbours(model, args.L, args.M)
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
-    seqs = load_sequences(args.data, args.subjects)
+    seqs = _load(args.data, args.subjects)
     data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
-    with engine.use_devices(args.devices):
-        out = evaluate.evaluate(
-            model,
-            data,
-            methods,
-            n_l=args.L,
-            n_m=args.M,
-            smoothing=SmoothingParams() if args.smooth else None,
-            progress=_progress,
-        )
+    out = evaluate.evaluate(
+        model,
+        data,
+        methods,
+        n_l=args.L,
+        n_m=args.M,
+        smoothing=PAPER_SMOOTHING if args.smooth else None,
+        devices=available[: args.devices] if args.devices > 1 else None,
+        progress=True,
+    )
     out["wall_s"]["total"] = time.perf_counter() - t0
     out["subjects"] = args.subjects
     out["model"] = str(args.model)
@@ -254,7 +204,7 @@ def _demo(args: argparse.Namespace) -> int:
     from jaxproj import report
     from jaxproj.demo import run_demo
 
-    out = run_demo(Path(args.out), quick=args.quick, progress=_progress)
+    out = run_demo(Path(args.out), quick=args.quick, progress=True)
     print(report.summary_table(out["summary"]))
     t = out["timings"]
     print(f"report: {Path(args.out) / 'report.md'} ({t['total_s']:.0f} s)")
@@ -263,23 +213,45 @@ def _demo(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
-    p = argparse.ArgumentParser(prog="jaxproj", description=__doc__.splitlines()[0])
+    fmt = argparse.ArgumentDefaultsHelpFormatter
+    p = argparse.ArgumentParser(
+        prog="jaxproj", description=__doc__.splitlines()[0], formatter_class=fmt
+    )
     p.add_argument("--version", action="version", version=f"jaxproj {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
-    pi = sub.add_parser("info", help="versions, devices, robot model and bundled data")
+    pi = sub.add_parser(
+        "info", formatter_class=fmt, help="versions, devices, robot model and bundled data"
+    )
     pi.add_argument("--json", action="store_true", help="print JSON")
     pi.set_defaults(func=_info)
 
-    pr = sub.add_parser("retarget", help="retarget a skeleton recording to NAO joint angles")
+    pr = sub.add_parser(
+        "retarget", formatter_class=fmt, help="retarget a skeleton recording to NAO joint angles"
+    )
     pr.add_argument("input", help="recording: MSR Action3D / UTKinect text, NPZ or CSV")
     pr.add_argument("--out", required=True, help="output .npz (angles, joint_names, valid)")
-    pr.add_argument("--format", default="auto", choices=("auto", "msr", "utkinect", "npz", "csv"))
-    pr.add_argument("--method", default="ik", choices=METHODS)
+    pr.add_argument(
+        "--format",
+        default="auto",
+        choices=("auto", "msr", "utkinect", "npz", "csv"),
+        help="input format (auto: by extension and content)",
+    )
+    pr.add_argument(
+        "--method",
+        default="ik",
+        choices=METHODS,
+        help="ik: the analytic IK; relaxed / full: the projector of --model",
+    )
     pr.add_argument("--model", help="projector file from `jaxproj build` (relaxed / full)")
     pr.add_argument("--L", type=int, default=10, help="human-landmark neighbours (candidates)")
     pr.add_argument("--M", type=int, default=10, help="robot-landmark neighbours per candidate")
-    pr.add_argument("--bones", default="upper", choices=("upper", "full"))
+    pr.add_argument(
+        "--bones",
+        default="upper",
+        choices=("upper", "full"),
+        help="descriptor bones for --method ik (a model fixes its own)",
+    )
     pr.add_argument(
         "--mirror", action="store_true", help="mirror imitation: human left drives robot right"
     )
@@ -291,19 +263,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pr.set_defaults(func=_retarget)
 
-    pb = sub.add_parser("build", help="build a projector (landmarks + ELM kernels)")
+    pb = sub.add_parser(
+        "build", formatter_class=fmt, help="build a projector (landmarks + ELM kernels)"
+    )
     pb.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
     pb.add_argument(
         "--subjects",
         type=_parse_ints,
         default=[1, 3, 5, 7, 9],
-        help="training subjects, e.g. 1,3,5,7,9 (default)",
+        help="training subjects, comma-separated",
     )
     size = pb.add_mutually_exclusive_group(required=True)
     size.add_argument("--landmarks", type=int, help="target landmark count (bisection)")
     size.add_argument("--bandwidth", type=float, help="mean-shift bandwidth, used as is")
     pb.add_argument("--k", type=int, default=96, help="training neighbours per ELM kernel")
-    pb.add_argument("--hidden", type=int, default=None, help="hidden units (default max(k, 96))")
+    pb.add_argument("--hidden", type=int, default=None, help="hidden units (None: max(k, 96))")
     pb.add_argument("--lam", type=float, default=1e-3, help="ELM ridge regulariser")
     pb.add_argument("--input-scale", type=float, default=0.5, help="hidden-weight std")
     pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
@@ -311,19 +285,35 @@ def build_parser() -> argparse.ArgumentParser:
     pb.add_argument("--out", required=True, help="output projector .npz")
     pb.set_defaults(func=_build)
 
-    pe = sub.add_parser("evaluate", help="batch evaluation against the IK, with baselines")
+    pe = sub.add_parser(
+        "evaluate", formatter_class=fmt, help="batch evaluation against the IK, with baselines"
+    )
     pe.add_argument("--model", required=True, help="projector file from `jaxproj build`")
     pe.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
-    pe.add_argument("--subjects", type=_parse_ints, default=[2, 4, 6, 8, 10])
-    pe.add_argument("--objective", default="all", choices=("relaxed", "full", "all"))
-    pe.add_argument("--L", type=int, default=10)
-    pe.add_argument("--M", type=int, default=10)
-    pe.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True)
+    pe.add_argument(
+        "--subjects", type=_parse_ints, default=[2, 4, 6, 8, 10], help="evaluated subjects"
+    )
+    pe.add_argument(
+        "--objective",
+        default="all",
+        choices=("relaxed", "full", "all"),
+        help="projection objective(s); the baselines always run",
+    )
+    pe.add_argument("--L", type=int, default=10, help="human-landmark neighbours (candidates)")
+    pe.add_argument("--M", type=int, default=10, help="robot-landmark neighbours per candidate")
+    pe.add_argument(
+        "--smooth",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="score the smoothed motions (unsmoothed figures are reported too)",
+    )
     pe.add_argument("--devices", type=int, default=1, help="JAX devices to shard batches over")
     pe.add_argument("--json", required=True, help="output report JSON")
     pe.set_defaults(func=_evaluate)
 
-    pd = sub.add_parser("demo", help="the main job: build, evaluate, roll out, report")
+    pd = sub.add_parser(
+        "demo", formatter_class=fmt, help="the main job: build, evaluate, roll out, report"
+    )
     pd.add_argument("--out", default="jaxproj-report", help="report folder")
     pd.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
     pd.set_defaults(func=_demo)

@@ -36,10 +36,12 @@ import os
 import re
 import sys
 import zipfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import jax
 import numpy as np
 
 from jaxproj.exceptions import ConfigError, InputError
@@ -289,6 +291,109 @@ def dataset_summary() -> dict[str, int]:
         "actions": len({s.action for s in seqs}),
         "cvpr12_sequences": sum(bundle.cvpr12),
     }
+
+
+# --- splits, folders and training descriptors -----------------------------------------------------
+
+TRAIN_SUBJECTS: tuple[int, ...] = (1, 3, 5, 7, 9)
+"""The paper's cross-subject protocol: landmarks and kernels come from these subjects ..."""
+TEST_SUBJECTS: tuple[int, ...] = (2, 4, 6, 8, 10)
+"""... and every accuracy figure is measured on these, which the landmarks never saw."""
+
+_SUBJECT_RE = re.compile(r"s(\d{2})")
+_ACTION_RE = re.compile(r"a(\d{2})_")
+
+
+def load_sequences(
+    data: str | os.PathLike[str] = "bundled",
+    subjects: Iterable[int] | None = None,
+    *,
+    progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
+) -> list[MotionSequence]:
+    """The bundled MSR Action3D sequences, or every recording in a folder.
+
+    Args:
+      data: ``"bundled"`` or a folder of recordings. Folder files are read with
+        ``readers.read_skeleton`` (format by extension / content); a file name with ``sNN``
+        gives the subject and ``aNN_`` the action (0 when absent).
+      subjects: keep only these subjects (``None``: all). Folder files with no subject in their
+        name are kept.
+      progress: optional wrapper of the file iterable (e.g. a progress bar).
+
+    Raises:
+      InputError: ``data`` is neither ``"bundled"`` nor a folder, or it holds no recording.
+    """
+    from jaxproj.readers import read_skeleton
+
+    wanted = None if subjects is None else set(subjects)
+    if str(data) == "bundled":
+        return msr_action3d(subjects=wanted)
+    folder = Path(data)
+    if not folder.is_dir():
+        raise InputError(folder, "--data must be 'bundled' or a folder of recordings")
+    files = sorted(p for p in folder.iterdir() if p.is_file())
+    seqs = []
+    for f in files if progress is None else progress(files):
+        subj = _SUBJECT_RE.search(f.name)
+        act = _ACTION_RE.search(f.name)
+        subject = int(subj.group(1)) if subj else 0
+        if wanted is not None and subj and subject not in wanted:
+            continue
+        rec = read_skeleton(f)
+        conf = np.ones(rec.valid.shape + (N_JOINTS,), np.float32)
+        action = int(act.group(1)) if act else 0
+        seqs.append(MotionSequence(f.stem, action, subject, 0, rec.positions, conf, rec.valid))
+    if not seqs:
+        raise InputError(folder, f"no recordings found (for subjects {subjects})")
+    return seqs
+
+
+def valid_descriptors(
+    sequences_or_points: Any,
+    *,
+    bones: str | tuple[str, ...] = "upper",
+    mirror: bool = False,
+) -> np.ndarray:
+    """Descriptors of the valid frames of some recordings (e.g. a training set).
+
+    Args:
+      sequences_or_points: an iterable of sequences (objects with ``positions (T, 20, 3)`` and
+        ``valid (T,)``, e.g. ``msr_action3d()``), or a ``(T, 20, 3)`` position array, or an
+        ``(N, 3 * n_bones)`` array of descriptors (taken as they are, checked finite).
+      bones, mirror: descriptor options (``skeleton.descriptor``); ignored for descriptors.
+
+    Returns:
+      ``(N, 3 * n_bones)`` float32 descriptors of the frames that are valid both in the sequence
+      (``valid``) and for the descriptor (frame and bones not degenerate).
+
+    Raises:
+      ConfigError: no valid frame, or an array of the wrong shape or with non-finite values.
+    """
+    from jaxproj.skeleton import descriptor
+
+    if isinstance(sequences_or_points, (np.ndarray, jax.Array)):
+        a = np.asarray(sequences_or_points, dtype=np.float32)
+        if a.ndim == 2:
+            if len(a) == 0 or a.shape[1] == 0 or not np.isfinite(a).all():
+                raise ConfigError(f"descriptors must be finite (N >= 1, m >= 1), got {a.shape}")
+            return a
+        if a.ndim == 3 and a.shape[1:] == (N_JOINTS, 3):
+            positions, valid = a, np.ones(a.shape[0], bool)
+        else:
+            raise ConfigError(
+                f"expected (N, 3 * n_bones) descriptors or (T, 20, 3) positions, got {a.shape}"
+            )
+    else:
+        seqs = list(sequences_or_points)
+        if not seqs:
+            raise ConfigError("no sequences given")
+        positions = np.concatenate([np.asarray(s.positions, np.float32) for s in seqs])
+        valid = np.concatenate([np.asarray(s.valid, bool) for s in seqs])
+    d, ok = descriptor(positions, bones=bones, mirror=mirror)
+    keep = valid & np.asarray(ok)
+    if not keep.any():
+        raise ConfigError("no valid frame")
+    return np.asarray(d)[keep].astype(np.float32)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

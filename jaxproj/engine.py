@@ -14,15 +14,18 @@ from __future__ import annotations
 
 import json
 import zipfile
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxproj import ik, landmarks, robot
+from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.kernels import ELMBank, train_bank
 from jaxproj.projection import (
@@ -41,6 +44,8 @@ FORMAT_VERSION = 2
 @dataclass(frozen=True)
 class BuildConfig:
     """How a model is built. Exactly one of ``landmarks`` / ``bandwidth`` sets the landmarks.
+
+    Validated when constructed (``ConfigError`` with what to change).
 
     Attributes:
       landmarks: target landmark count (the mean-shift bandwidth is found by bisection).
@@ -66,8 +71,7 @@ class BuildConfig:
     input_scale: float = 0.5
     seed: int = 0
 
-    def check(self) -> BuildConfig:
-        """Raise ``ConfigError`` on an inconsistent configuration."""
+    def __post_init__(self) -> None:
         if (self.landmarks is None) == (self.bandwidth is None):
             raise ConfigError("give exactly one of landmarks (a count) or bandwidth")
         if self.landmarks is not None and self.landmarks < 2:
@@ -76,7 +80,6 @@ class BuildConfig:
             raise ConfigError(f"bandwidth={self.bandwidth} must be > 0")
         if self.hidden < self.k:
             raise ConfigError(f"hidden={self.hidden} must be >= k={self.k}")
-        return self
 
 
 @dataclass(frozen=True)
@@ -116,9 +119,8 @@ def build_from_landmarks(
         raise ConfigError(f"k={config.k} and the number of landmarks={len(human)} must be >= 2")
     k = min(config.k, len(human))
     opts = dict(k=k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
-    with jax.default_matmul_precision("highest"):  # same banks on CPU and GPU (no TF32)
-        forward = train_bank(human, robot_poses, k_fwd, **opts)
-        backward = train_bank(robot_poses, human, k_bwd, **opts)
+    forward = train_bank(human, robot_poses, k_fwd, **opts)
+    backward = train_bank(robot_poses, human, k_bwd, **opts)
     return make_projector(human, robot_poses, forward, backward)
 
 
@@ -133,14 +135,12 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
     Returns:
       The ``Model``.
     """
-    config.check()
     d = np.asarray(descriptors, np.float32)
     if d.ndim != 2 or len(d) < 2 or not np.isfinite(d).all():
         raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
-    with jax.default_matmul_precision("highest"):  # same landmarks on CPU and GPU (no TF32)
-        lm = landmarks.build_landmarks(
-            d, target=config.landmarks, bandwidth=config.bandwidth, bones=config.bones, **mean_shift
-        )
+    lm = landmarks.build_landmarks(
+        d, target=config.landmarks, bandwidth=config.bandwidth, bones=config.bones, **mean_shift
+    )
     projector = build_from_landmarks(lm.human, lm.robot, config)
     return Model(projector, config, float(lm.bandwidth), np.asarray(lm.counts), int(lm.n_frames))
 
@@ -167,9 +167,19 @@ def sub_batch(p: Projector, objective: str, n_l: int, n_m: int, batch: int) -> i
     return max(sub, 1)
 
 
-def _project_chunk(
-    p: Projector, h: jax.Array, objective: str, n_l: int, n_m: int, full: FullConfig
+def project_batch(
+    p: Projector,
+    h: jax.Array,
+    objective: str = "relaxed",
+    n_l: int = 10,
+    n_m: int = 10,
+    full: FullConfig = FullConfig(),  # noqa: B008 - frozen, hashable
 ) -> tuple[jax.Array, jax.Array]:
+    """The traceable core of ``project`` for one batch (call it inside a jitted function).
+
+    ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``: the one-query projection vmapped over
+    sub-batches of ``sub_batch(...)`` queries, the sub-batches looped with ``lax.map``.
+    """
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
 
     def one(x: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -178,14 +188,13 @@ def _project_chunk(
         r, f, _ = project_full_one(p, x, n_l, n_m, full)
         return r, f
 
-    with jax.default_matmul_precision("highest"):
-        if sub >= h.shape[0]:
-            return jax.vmap(one)(h)
-        return jax.lax.map(one, h, batch_size=sub)
+    if sub >= h.shape[0]:
+        return jax.vmap(one)(h)
+    return jax.lax.map(one, h, batch_size=sub)
 
 
-project_chunk = jax.jit(_project_chunk, static_argnums=(2, 3, 4, 5))
-"""Jitted ``(projector, (B, m), objective, L, M, full) -> ((B, n), (B,))``: one batch."""
+project_chunk = jit(project_batch, static_argnames=("objective", "n_l", "n_m", "full"))
+"""Jitted ``project_batch``: ``(projector, (B, m), objective, L, M, full) -> ((B, n), (B,))``."""
 
 
 def check_neighbours(model_or_projector: Model | Projector, n_l: int, n_m: int) -> None:
@@ -198,39 +207,20 @@ def check_neighbours(model_or_projector: Model | Projector, n_l: int, n_m: int) 
             raise ConfigError(f"{name}={v} must lie in [1, number of landmarks={p.n_landmarks}]")
 
 
-_DEVICES: list[jax.Device] | None = None
-
-
-class use_devices:  # noqa: N801 - used as a context manager, reads like a function
-    """Within the block, ``project`` shards each batch over the first ``n`` JAX devices.
-
-    Batches are split along the query axis (projections are independent); ``batch_size`` must
-    be a multiple of ``n``. ``n = 1`` (default) keeps everything on the default device.
-    """
-
-    def __init__(self, n: int = 1):
-        devices = jax.devices()
-        if not 1 <= n <= len(devices):
-            raise ConfigError(f"asked for {n} devices, {len(devices)} available")
-        self.devices = devices[:n] if n > 1 else None
-
-    def __enter__(self) -> use_devices:
-        global _DEVICES
-        self._saved, _DEVICES = _DEVICES, self.devices
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        global _DEVICES
-        _DEVICES = self._saved
-
-
-def _place(chunk: np.ndarray) -> jax.Array:
-    if _DEVICES is None:
-        return jnp.asarray(chunk)
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
-
-    mesh = Mesh(np.array(_DEVICES), ("batch",))
-    return jax.device_put(chunk, NamedSharding(mesh, PartitionSpec("batch")))
+def _placement(devices: Sequence[jax.Device] | None, batch_size: int) -> Any:
+    """Where each padded batch goes: the default device, one device, or split along the query
+    axis over several (``batch_size`` must then be a multiple of their number)."""
+    if devices is None:
+        return None
+    devices = list(devices)
+    if not devices:
+        raise ConfigError("devices must name at least one JAX device (or be None)")
+    if len(devices) == 1:
+        return devices[0]
+    if batch_size % len(devices):
+        raise ConfigError(f"batch_size={batch_size} must be a multiple of {len(devices)} devices")
+    mesh = Mesh(np.array(devices), ("batch",))
+    return NamedSharding(mesh, PartitionSpec("batch"))
 
 
 def project(
@@ -242,6 +232,7 @@ def project(
     n_m: int = 10,
     full: FullConfig | None = None,
     batch_size: int = 4096,
+    devices: Sequence[jax.Device] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Project human descriptors to robot poses.
 
@@ -254,7 +245,10 @@ def project(
       objective: ``"relaxed"`` or ``"full"``.
       n_l, n_m: ``L`` human and ``M`` robot neighbours.
       full: settings of the full objective (default ``FullConfig()``).
-      batch_size: queries per jitted call.
+      batch_size: queries per jitted call (``>= 1``).
+      devices: where to run: ``None`` (default) the default device; one device; or several,
+        over which each batch is split along the query axis (``batch_size`` a multiple of
+        their number).
 
     Returns:
       ``(angles, value)``: ``(B, n)`` float32 driven-joint angles (rad, within limits) and
@@ -268,15 +262,17 @@ def project(
     h = np.asarray(descriptors, np.float32)
     if h.ndim != 2 or h.shape[1] != p.human.shape[1]:
         raise ConfigError(f"descriptors must be (B, {p.human.shape[1]}), got {h.shape}")
-    if _DEVICES is not None and batch_size % len(_DEVICES):
-        raise ConfigError(f"batch_size={batch_size} must be a multiple of {len(_DEVICES)} devices")
+    if batch_size < 1:
+        raise ConfigError(f"batch_size={batch_size} must be >= 1")
+    place = _placement(devices, batch_size)
     outs, vals = [], []
     for start in range(0, len(h), batch_size):
         chunk = h[start : start + batch_size]
         pad = batch_size - len(chunk)
         if pad:
             chunk = np.concatenate([chunk, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
-        r, v = project_chunk(p, _place(chunk), objective, n_l, n_m, full)
+        chunk = jnp.asarray(chunk) if place is None else jax.device_put(chunk, place)
+        r, v = project_chunk(p, chunk, objective=objective, n_l=n_l, n_m=n_m, full=full)
         outs.append(np.asarray(r)[: batch_size - pad])
         vals.append(np.asarray(v)[: batch_size - pad])
     if not outs:

@@ -29,6 +29,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj import ik, robot
+from jaxproj._jit import jit
+from jaxproj._progress import bar
 from jaxproj.datasets import ACTION_NAMES, MotionSequence
 from jaxproj.engine import Model, project
 from jaxproj.exceptions import ConfigError, JaxprojError
@@ -91,10 +93,12 @@ def prepare(
 # ------------------------------------------------------------------------------- baselines
 
 
-@jax.jit
 def _nearest_landmark(p: Projector, h: jax.Array) -> jax.Array:
     idx = jax.vmap(lambda x: nearest(p.human, p.human_sq, x, 1)[0][0])(h)
     return p.robot[idx]
+
+
+_nearest_landmark_jit = jit(_nearest_landmark)
 
 
 def _knn_average(p: Projector, h: jax.Array, n_l: int) -> jax.Array:
@@ -106,7 +110,7 @@ def _knn_average(p: Projector, h: jax.Array, n_l: int) -> jax.Array:
     return jax.vmap(one)(h)
 
 
-_knn_average_jit = jax.jit(_knn_average, static_argnums=2)
+_knn_average_jit = jit(_knn_average, static_argnames=("n_l",))
 
 
 @dataclass(frozen=True)
@@ -122,9 +126,11 @@ class GlobalELM:
         return _global_elm_apply(self.w, self.b, self.out, jnp.asarray(h, jnp.float32))
 
 
-@jax.jit
-def _global_elm_apply(w, b, out, h):
+def _global_elm_apply(w: jax.Array, b: jax.Array, out: jax.Array, h: jax.Array) -> jax.Array:
     return jax.nn.sigmoid(h @ w.T + b[None]) @ out
+
+
+_global_elm_apply = jit(_global_elm_apply)
 
 
 def fit_global_elm(
@@ -133,7 +139,17 @@ def fit_global_elm(
     """Fit the ``global_elm`` baseline on the landmark pairs of ``p`` (ridge, closed form).
 
     ``lam`` is relative to the mean diagonal of the Gram matrix (see the code comment).
+
+    The fit runs op by op, not compiled, under full float32 matmul precision (the jit policy's
+    precision, ``jaxproj._jit``). It is one small solve per evaluation, and its ridge system is
+    ill-conditioned enough that XLA's fused round-off moved the baseline's answers by ~0.5 deg
+    when it was compiled as one program: it stays as it was measured.
     """
+    with jax.default_matmul_precision("highest"):
+        return _fit_global_elm(p, key, lam, hidden)
+
+
+def _fit_global_elm(p: Projector, key: jax.Array, lam: float, hidden: int) -> GlobalELM:
     kw, kb = jax.random.split(key)
     m = p.human.shape[1]
     w = jax.random.normal(kw, (hidden, m), jnp.float32) * 2.0
@@ -173,12 +189,13 @@ def predict_method(
     n_m: int = 10,
     full: FullConfig | None = None,
     seed: int = 0,
+    devices: Sequence[jax.Device] | None = None,
 ) -> np.ndarray:
     """``(F, m)`` valid descriptors -> ``(F, n)`` driven angles by ``method`` (see module doc).
 
     Raises ``JaxprojError`` rather than return a non-finite answer.
     """
-    pred = _predict(model, method, h, n_l=n_l, n_m=n_m, full=full, seed=seed)
+    pred = _predict(model, method, h, n_l=n_l, n_m=n_m, full=full, seed=seed, devices=devices)
     bad = ~np.isfinite(pred).all(axis=1)
     if bad.any():
         raise JaxprojError(
@@ -188,14 +205,14 @@ def predict_method(
     return pred
 
 
-def _predict(model, method, h, *, n_l, n_m, full, seed) -> np.ndarray:
+def _predict(model, method, h, *, n_l, n_m, full, seed, devices) -> np.ndarray:
     p = model.projector
     if method in ("relaxed", "full"):
-        return project(model, h, method, n_l=n_l, n_m=n_m, full=full)[0]
+        return project(model, h, method, n_l=n_l, n_m=n_m, full=full, devices=devices)[0]
     if method == "nearest_landmark":
-        return _batched(lambda x: _nearest_landmark(p, x), h)
+        return _batched(lambda x: _nearest_landmark_jit(p, x), h)
     if method == "knn_average":
-        return _batched(lambda x: _knn_average_jit(p, x, n_l), h)
+        return _batched(lambda x: _knn_average_jit(p, x, n_l=n_l), h)
     if method == "global_elm":
         elm = fit_global_elm(p, jax.random.PRNGKey(seed))
         lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
@@ -241,7 +258,7 @@ def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS
     return total / max(count, 1)
 
 
-_fill_batch = jax.jit(jax.vmap(fill_invalid))
+_fill_batch = jit(jax.vmap(fill_invalid))
 
 
 def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -273,9 +290,14 @@ def evaluate(
     n_m: int = 10,
     smoothing: SmoothingParams | None = PAPER_SMOOTHING,
     full: FullConfig | None = None,
-    progress: Callable[[str, int, int], None] | None = None,
+    devices: Sequence[jax.Device] | None = None,
+    progress: bool = False,
 ) -> dict:
-    """Evaluate ``methods`` on ``data``; returns the JSON-ready report (see README)."""
+    """Evaluate ``methods`` on ``data``; returns the JSON-ready report (see README).
+
+    ``devices`` is passed to ``engine.project`` (``None``: the default device); ``progress``
+    shows a bar over the methods on a terminal.
+    """
     lengths = np.diff(data.offsets)
     h = data.descriptors[data.valid]
     truth_v = data.truth[data.valid]
@@ -290,7 +312,7 @@ def evaluate(
         "sequences": len(data.names),
         "driven_joints": list(robot.DRIVEN_JOINTS),
         "smoothing": None if smoothing is None else dataclasses.asdict(smoothing),
-        "devices": [str(d) for d in jax.devices()],
+        "devices": [str(d) for d in (devices or jax.devices()[:1])],
         "summary": {},
         "unsmoothed": {},
         "smoothness": {},
@@ -299,9 +321,9 @@ def evaluate(
         "wall_s": {},
     }
     predictions: dict[str, np.ndarray] = {}
-    for i, method in enumerate(methods):
+    for method in bar(methods, "evaluating methods", enabled=progress):
         t0 = time.perf_counter()
-        pred = predict_method(model, method, h, n_l=n_l, n_m=n_m, full=full)
+        pred = predict_method(model, method, h, n_l=n_l, n_m=n_m, full=full, devices=devices)
         wall = time.perf_counter() - t0
         out["wall_s"][method] = wall
         out["wall_s"][f"{method}_us_per_frame"] = 1e6 * wall / max(len(h), 1)
@@ -337,8 +359,6 @@ def evaluate(
                 "M_max_mean": float(m_max[sel].mean()) if sel.any() else 0.0,
                 "M_avg_mean": float(m_avg[sel].mean()) if sel.any() else 0.0,
             }
-        if progress is not None:
-            progress("evaluating methods", i + 1, len(methods))
     out["_predictions"] = predictions  # (F, n) per method, dropped before writing JSON
     out["_truth"] = np.concatenate([truth_motion[s, :n] for s, n in enumerate(lengths)])
     return out

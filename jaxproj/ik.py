@@ -60,6 +60,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj import robot
+from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
 from jaxproj.skeleton import resolve_bones
 
@@ -127,7 +128,16 @@ def _arm(u: jax.Array, f: jax.Array, side: str) -> tuple[jax.Array, ...]:
     return pitch, roll, yaw, elbow_roll
 
 
-def _solve_driven(d: jax.Array, bone_index: tuple[int, ...]) -> jax.Array:
+def driven_angles(d: jax.Array, bone_index: tuple[int, ...]) -> jax.Array:
+    """The traceable core of ``solve_driven`` (call it inside a jitted function).
+
+    Args:
+      d: ``(..., 3 * n_bones)`` descriptors.
+      bone_index: ``bone_index(bones)``: positions of the neck, upper arms and forearms.
+
+    Returns:
+      ``(..., 10)`` driven angles (see ``solve_driven``).
+    """
     d = jnp.asarray(d, dtype=jnp.float32)
     vec = d.reshape(*d.shape[:-1], d.shape[-1] // 3, 3)
     neck, lu, lf, ru, rf = (vec[..., i, :] for i in bone_index)
@@ -148,7 +158,12 @@ def _standing_driven() -> np.ndarray:
     return robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
 
 
-def _bone_index(bones: str | tuple[str, ...]) -> tuple[int, ...]:
+def bone_index(bones: str | tuple[str, ...]) -> tuple[int, ...]:
+    """Where the IK's bones (neck, upper arms, forearms) sit in a ``bones`` descriptor.
+
+    Raises:
+      ConfigError: an unknown subset, or one without the bones the IK needs.
+    """
     names = resolve_bones(bones)
     missing = [b for b in _REQUIRED if b not in names]
     if missing:
@@ -156,7 +171,7 @@ def _bone_index(bones: str | tuple[str, ...]) -> tuple[int, ...]:
     return tuple(names.index(b) for b in _REQUIRED)
 
 
-_solve_driven_jit = jax.jit(_solve_driven, static_argnums=1)
+_solve_driven_jit = jit(driven_angles, static_argnames=("bone_index",))
 
 
 def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
@@ -171,7 +186,7 @@ def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Ar
     Returns:
       ``(..., 10)`` float32 radians in ``robot.DRIVEN_JOINTS`` order, within limits, finite.
     """
-    return _solve_driven_jit(d, _bone_index(bones))
+    return _solve_driven_jit(d, bone_index=bone_index(bones))
 
 
 def driven_to_full(q_driven: jax.Array) -> jax.Array:

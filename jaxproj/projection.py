@@ -187,7 +187,7 @@ def _cluster(p: Projector, r_c: jax.Array, idx: jax.Array, cfg: FullConfig) -> _
 
 def _objective(p: Projector, h: jax.Array, c: _Cluster, cfg: FullConfig, w: jax.Array) -> jax.Array:
     """The full objective ``f(w)`` of one cluster (see ``FullConfig.objective``)."""
-    r = jnp.einsum("m,mn->n", w, c.verts, precision=jax.lax.Precision.HIGHEST)
+    r = jnp.einsum("m,mn->n", w, c.verts)
     back = predict_slice(c.kernels, project_inputs(p.backward, r))  # (M, m)
     dev = jnp.sum((back - h[None]) ** 2, axis=-1)
     if cfg.objective == "min":
@@ -236,7 +236,7 @@ def _solve_cluster(
     better = f_last < final.best_f
     w_best = jnp.where(better, final.w, final.best_w)
     f_best = jnp.where(better, f_last, final.best_f)
-    r_best = jnp.einsum("m,mn->n", w_best, c.verts, precision=jax.lax.Precision.HIGHEST)
+    r_best = jnp.einsum("m,mn->n", w_best, c.verts)
     return r_best, f_best
 
 

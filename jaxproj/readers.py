@@ -152,7 +152,8 @@ def _detect(path: str | os.PathLike[str], data: bytes) -> str:
     raise InputError(
         path,
         f"cannot detect the format: first line has {n} columns, expected {_MSR_COLUMNS} "
-        f"(MSR Action3D) or {_UTK_COLUMNS} (UTKinect); pass format= explicitly",
+        f"(MSR Action3D) or {_UTK_COLUMNS} (UTKinect); give the format "
+        "(--format on the command line, format= in Python)",
     )
 
 

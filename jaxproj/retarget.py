@@ -1,29 +1,42 @@
-"""Whole-motion retargeting: skeleton positions -> NAO joint trajectories.
+"""Whole-motion retargeting: skeleton positions -> NAO joint trajectories, in one jitted call.
 
-The per-frame mapping (analytic IK here; the projection engine adds learned methods) runs on the
-valid frames; invalid frames (lost tracking, non-finite values) are kept and filled by a
+``retarget`` takes a recording's ``(T, 20, 3)`` joint positions and a mapping — the analytic IK
+(``model=None``) or a projector ``Model`` with its objective — and runs, inside ONE compiled
+function (``_motion``): descriptor -> per-frame mapping -> fill invalid frames -> smoothing ->
+clip to the joint limits -> the full 26-joint configuration. A recording's length is padded to a
+bucket (``_bucket``) so recordings of similar length share one compilation.
+
+Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
 documented rule, so a motion never dies halfway and never contains NaN:
 
 * an invalid frame holds the last valid frame's angles;
 * leading invalid frames take the first valid frame's angles;
 * a motion with no valid frame at all takes ``robot.STANDING_POSTURE`` throughout.
 
-Smoothing (``jaxproj.smoothing``) then runs over the driven joints of the filled motion, and
-the result is clipped to the joint limits (the smoother's trend term can overshoot them).
+Smoothing (``jaxproj.smoothing``) then runs over the driven joints of the filled motion, and the
+result is clipped to the joint limits (the smoother's trend term can overshoot them).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxproj import ik, robot
+from jaxproj._jit import jit
+from jaxproj.engine import Model, check_neighbours, project_batch
+from jaxproj.exceptions import ConfigError
+from jaxproj.projection import FullConfig, Projector
 from jaxproj.skeleton import descriptor
-from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
+from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams
+from jaxproj.smoothing import _smooth_one as smooth_one  # noqa: F401 - until the shared step lands
+
+Method = Literal["ik", "relaxed", "full"]
+METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
 
 
 @dataclass(frozen=True)
@@ -39,9 +52,10 @@ class RetargetResult:
     valid: np.ndarray
 
 
-@jax.jit
 def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
     """Fill invalid frames of one motion: hold the last valid frame, back-fill leading ones.
+
+    A plain (traceable) function: call it inside a jitted caller.
 
     Args:
       q: ``(T, n)`` per-frame values (anything at invalid frames, NaN included).
@@ -59,48 +73,115 @@ def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
     return jnp.where(jnp.isfinite(out), out, 0.0)
 
 
-def retarget_positions(
+def _bucket(t: int) -> int:
+    """Padded length of a ``t``-frame motion: the next power of two, at least 64 frames."""
+    return max(64, 1 << (int(t) - 1).bit_length())
+
+
+def _motion(
+    p: Projector | None,
+    positions: jax.Array,
+    valid: jax.Array,
+    length: jax.Array,
+    gains: jax.Array,
+    *,
+    method: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+    smooth: bool,
+) -> tuple[jax.Array, jax.Array]:
+    """One padded motion ``(T, 20, 3)`` -> ``((T, 26) angles, (T,) valid)`` (see module doc)."""
+    d, ok = descriptor(positions, bones=bones, mirror=mirror)
+    ok = ok & valid
+    if method == "ik":
+        q = ik.driven_angles(d, ik.bone_index(bones))
+    else:
+        q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
+    q = fill_invalid(q, ok)
+    if smooth:
+        q = smooth_one(q, length, gains)
+        lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
+        hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
+        q = jnp.clip(q, lo, hi)
+    standing = jnp.asarray(robot.STANDING_POSTURE[robot.DRIVEN_INDEX], q.dtype)
+    q = jnp.where(jnp.any(ok), q, standing)
+    return ik.driven_to_full(q), ok
+
+
+_motion_jit = jit(
+    _motion,
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth"),
+)
+
+
+def retarget(
     positions: np.ndarray,
     valid: np.ndarray | None = None,
     *,
-    mapping: Callable[[jax.Array], jax.Array] | None = None,
+    model: Model | None = None,
+    method: Method | None = None,
+    n_l: int = 10,
+    n_m: int = 10,
+    full: FullConfig | None = None,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
     smoothing: SmoothingParams | None = PAPER_SMOOTHING,
 ) -> RetargetResult:
-    """Retarget one motion.
+    """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip).
 
     Args:
       positions: ``(T, 20, 3)`` joint positions, Kinect SDK order.
       valid: optional ``(T,)`` bool from the reader; combined with the descriptor's own check.
-      mapping: ``(N, 3 * n_bones)`` descriptors -> ``(N, 10)`` driven angles; default the
-        analytic IK (``ik.solve_driven``).
-      bones, mirror: descriptor options (``skeleton.descriptor``).
+      model: a projector ``Model`` for the learned methods; ``None`` for the analytic IK.
+      method: ``"ik"`` (default without a model), ``"relaxed"`` (default with one) or ``"full"``.
+      n_l, n_m: ``L`` and ``M`` of the projection.
+      full: settings of the full objective (default ``FullConfig()``).
+      bones, mirror: descriptor options for the IK; a model fixes its own (its config's).
       smoothing: smoother gains, or ``None`` for no smoothing.
 
     Returns:
       ``RetargetResult`` with ``(T, 26)`` angles and ``(T,)`` validity.
+
+    Raises:
+      ConfigError: bad shapes, a learned method without a model, bad ``L`` / ``M``.
     """
     positions = np.asarray(positions, dtype=np.float32)
     if positions.ndim != 3 or positions.shape[1:] != (20, 3) or positions.shape[0] < 1:
-        raise ValueError(f"positions must be (T >= 1, 20, 3), got {positions.shape}")
-    d, ok = descriptor(positions, bones=bones, mirror=mirror)
-    ok = np.asarray(ok)
-    if valid is not None:
-        ok = ok & np.asarray(valid, dtype=bool)
-    if not ok.any():
-        angles = np.broadcast_to(robot.STANDING_POSTURE, (positions.shape[0], robot.N_JOINTS))
-        return RetargetResult(np.array(angles, dtype=np.float32), ok)
-    if mapping is None:
-        q = ik.solve_driven(d, bones)
+        raise ConfigError(f"positions must be (T >= 1, 20, 3), got {positions.shape}")
+    t = positions.shape[0]
+    ok_in = np.ones(t, bool) if valid is None else np.asarray(valid, dtype=bool)
+    if ok_in.shape != (t,):
+        raise ConfigError(f"valid must be ({t},), got {ok_in.shape}")
+    method = method or ("ik" if model is None else "relaxed")
+    if method not in METHODS:
+        raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
+    p = None
+    if method != "ik":
+        if model is None:
+            raise ConfigError(f"method {method!r} needs a projector model (see `jaxproj build`)")
+        check_neighbours(model, n_l, n_m)
+        p = model.projector
+        bones, mirror = model.config.bones, model.config.mirror
     else:
-        q = mapping(d)
-    q = fill_invalid(q, jnp.asarray(ok))
-    if smoothing is not None:
-        # The trend term can overshoot; the robot never gets an angle outside its limits.
-        q = smooth(q, smoothing)
-        lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
-        hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
-        q = jnp.clip(q, lo, hi)
-    angles = np.asarray(ik.driven_to_full(q), dtype=np.float32)
-    return RetargetResult(angles, ok)
+        ik.bone_index(bones)  # ConfigError for a subset the IK cannot use
+    size = _bucket(t)
+    pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
+    ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
+    angles, ok_out = _motion_jit(
+        p,
+        pos,
+        ok,
+        np.int32(t),
+        (smoothing or PAPER_SMOOTHING).gains(),
+        method=method,
+        n_l=n_l,
+        n_m=n_m,
+        full=full or FullConfig(),
+        bones=bones,
+        mirror=mirror,
+        smooth=smoothing is not None,
+    )
+    return RetargetResult(np.asarray(angles)[:t], np.asarray(ok_out)[:t])

@@ -98,6 +98,18 @@ class RolloutConfig:
     ls_iterations: int = 4
     contact_friction: bool = True
 
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.frame_dt) and self.frame_dt > 0):
+            raise ConfigError(f"frame_dt must be a positive number of seconds, got {self.frame_dt}")
+        if not (np.isfinite(self.kp_scale) and self.kp_scale > 0):
+            raise ConfigError(f"kp_scale must be positive, got {self.kp_scale}")
+        if not isinstance(self.contact_friction, bool):
+            raise ConfigError(f"contact_friction must be a bool, got {self.contact_friction!r}")
+        for name in ("solver_iterations", "ls_iterations"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ConfigError(f"{name} must be a positive int, got {value!r}")
+
 
 class RolloutResult(NamedTuple):
     """What the simulated robot did, per motion ``b`` and frame ``t`` (``t < lengths[b]`` valid).
@@ -208,16 +220,6 @@ def _substeps(config: RolloutConfig, timestep: float) -> int:
 def _check_config(config: RolloutConfig) -> None:
     if not isinstance(config, RolloutConfig):
         raise ConfigError(f"config must be a RolloutConfig, got {type(config).__name__}")
-    if not (np.isfinite(config.frame_dt) and config.frame_dt > 0):
-        raise ConfigError(f"frame_dt must be a positive number of seconds, got {config.frame_dt}")
-    if not (np.isfinite(config.kp_scale) and config.kp_scale > 0):
-        raise ConfigError(f"kp_scale must be positive, got {config.kp_scale}")
-    if not isinstance(config.contact_friction, bool):
-        raise ConfigError(f"contact_friction must be a bool, got {config.contact_friction!r}")
-    for name in ("solver_iterations", "ls_iterations"):
-        value = getattr(config, name)
-        if not (isinstance(value, int) and value >= 1):
-            raise ConfigError(f"{name} must be a positive int, got {value!r}")
 
 
 @functools.lru_cache(maxsize=8)

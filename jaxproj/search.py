@@ -41,7 +41,7 @@ def nearest(
       ``(idx, d2)``: ``(..., n)`` int32 indices, nearest first, and their squared Euclidean
       distances. Exactly tied distances may be ordered differently from a full sort.
     """
-    cross = jnp.einsum("...d,kd->...k", x, points, precision=jax.lax.Precision.HIGHEST)
+    cross = jnp.einsum("...d,kd->...k", x, points)
     d2 = jnp.broadcast_to(points_sq, cross.shape) - 2.0 * cross
     d2 = d2 + jnp.sum(x * x, axis=-1, keepdims=True)
     k = d2.shape[-1]

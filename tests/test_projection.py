@@ -179,16 +179,16 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
     assert _deg(got, p.robot).max() < 0.01  # identity survives the pruning
 
 
-def test_bad_full_configs_are_config_errors(model):
-    d = np.zeros((2, 15), np.float32)
+def test_bad_full_configs_are_config_errors():
+    # validated when constructed, before anything is traced
     for bad, match in (
-        (FullConfig(clusters=-1), "clusters"),
-        (FullConfig(iterations=-2), "iterations"),
-        (FullConfig(learning_rate=0.0), "learning_rate"),
-        (FullConfig(objective="max"), "objective"),
+        (dict(clusters=-1), "clusters"),
+        (dict(iterations=-2), "iterations"),
+        (dict(learning_rate=0.0), "learning_rate"),
+        (dict(objective="max"), "objective"),
     ):
         with pytest.raises(ConfigError, match=match):
-            engine.project(model, d, "full", full=bad)
+            FullConfig(**bad)
 
 
 def test_k_is_capped_at_a_small_landmark_set():
