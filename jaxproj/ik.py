@@ -54,6 +54,7 @@ Every angle is clamped to its joint limits; joints outside ``DRIVEN_JOINTS`` are
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -62,7 +63,7 @@ import numpy as np
 from jaxproj import robot
 from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
-from jaxproj.skeleton import resolve_bones
+from jaxproj.skeleton import UPPER_BODY, resolve_bones
 
 ELBOW_OFFSET_ANGLE = math.atan2(robot.ELBOW_OFFSET_Y, robot.UPPER_ARM_LENGTH)
 """rad (8.13 deg): angle between the ElbowYaw axis and the shoulder->elbow segment."""
@@ -80,6 +81,46 @@ _REQUIRED = ("neck", "upper_arm_left", "forearm_left", "upper_arm_right", "forea
 
 _LO = {n: float(robot.LOWER[robot.IDX[n]]) for n in robot.DRIVEN_JOINTS}
 _HI = {n: float(robot.UPPER[robot.IDX[n]]) for n in robot.DRIVEN_JOINTS}
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A kinematic chain: descriptor bones and the driven joints that depend on them alone.
+
+    Attributes:
+      name: ``"head"``, ``"left_arm"`` or ``"right_arm"``.
+      bones: the descriptor bones the chain's angles are computed from (``skeleton.BONE_NAMES``).
+      joints: the driven joints it determines (``robot.DRIVEN_JOINTS`` names, in that order).
+    """
+
+    name: str
+    bones: tuple[str, ...]
+    joints: tuple[str, ...]
+
+
+CHAINS: tuple[Chain, ...] = (
+    Chain("head", ("neck",), ("HeadYaw", "HeadPitch")),
+    Chain(
+        "left_arm",
+        ("upper_arm_left", "forearm_left"),
+        ("LShoulderPitch", "LShoulderRoll", "LElbowYaw", "LElbowRoll"),
+    ),
+    Chain(
+        "right_arm",
+        ("upper_arm_right", "forearm_right"),
+        ("RShoulderPitch", "RShoulderRoll", "RElbowYaw", "RElbowRoll"),
+    ),
+)
+"""How the IK factorises: the head angles depend only on the neck bone, each arm's four angles
+only on that arm's upper arm and forearm (``_solve_driven`` computes them from exactly these
+bones; ``tests/test_ik.py`` perturbs one chain's bones and checks the others' outputs are
+bit-identical). Together the chains cover ``robot.DRIVEN_JOINTS`` once each."""
+
+WHOLE_BODY = Chain("whole", UPPER_BODY, robot.DRIVEN_JOINTS)
+"""The paper's formulation as one chain: all five upper-body bones -> all ten driven joints."""
+
+CHAIN_SETS: dict[str, tuple[Chain, ...]] = {"upper": CHAINS, "whole": (WHOLE_BODY,)}
+"""Named chain sets of ``BuildConfig.chains``: per-chain projection (default) or whole-body."""
 
 
 def _smoothstep(x: jax.Array, lo: float, hi: float) -> jax.Array:

@@ -18,11 +18,13 @@ Everything here is written for ONE query and vmapped over batches by the public 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from optax.projections import projection_simplex
 
@@ -58,11 +60,24 @@ class Projector:
 
 
 def make_projector(
-    human: jax.Array, robot_poses: jax.Array, forward: ELMBank, backward: ELMBank
+    human: jax.Array,
+    robot_poses: jax.Array,
+    forward: ELMBank,
+    backward: ELMBank,
+    lower: jax.Array | None = None,
+    upper: jax.Array | None = None,
 ) -> Projector:
-    """Assemble a ``Projector`` from landmarks ``(K, m)``, ``(K, n)`` and the two banks."""
+    """Assemble a ``Projector`` from landmarks ``(K, m)``, ``(K, n)`` and the two banks.
+
+    ``lower`` / ``upper`` ``(n,)`` are the limits of the ``n`` joints the robot landmarks hold
+    (default: ``robot.DRIVEN_JOINTS``'s, for ``n = 10``).
+    """
     human = jnp.asarray(human, jnp.float32)
     robot_poses = jnp.asarray(robot_poses, jnp.float32)
+    if lower is None:
+        lower = robot.LOWER[robot.DRIVEN_INDEX]
+    if upper is None:
+        upper = robot.UPPER[robot.DRIVEN_INDEX]
     return Projector(
         human=human,
         robot=robot_poses,
@@ -70,8 +85,8 @@ def make_projector(
         robot_sq=sq_norms(robot_poses),
         forward=forward,
         backward=backward,
-        lower=jnp.asarray(robot.LOWER[robot.DRIVEN_INDEX]),
-        upper=jnp.asarray(robot.UPPER[robot.DRIVEN_INDEX]),
+        lower=jnp.asarray(lower, jnp.float32),
+        upper=jnp.asarray(upper, jnp.float32),
         n_landmarks=int(human.shape[0]),
     )
 
@@ -270,3 +285,216 @@ def project_full_one(
     r, f = jax.vmap(_solve_cluster, in_axes=(None, None, 0, 0, None))(p, h, clusters, f0, cfg)
     j = jnp.argmin(f)
     return jnp.clip(r[j], p.lower, p.upper), f[j], f0[j]
+
+
+# --------------------------------------------------------------------------- stacked chains
+
+
+@dataclass(frozen=True)
+class ChainLayout:
+    """How chains split a descriptor and fill the driven joints (static, hashable).
+
+    Attributes:
+      names: chain names (``ik.Chain.name``), in stacking order.
+      inputs: per chain, the descriptor columns it reads (``3 * n_bones`` each).
+      outputs: per chain, the positions in ``robot.DRIVEN_JOINTS`` it writes.
+      landmarks: per chain, its landmark count ``K_c`` (before padding to the largest).
+      hidden: per chain, hidden units of its forward and backward kernels.
+      k: per chain, training neighbours of its kernels.
+    """
+
+    names: tuple[str, ...]
+    inputs: tuple[tuple[int, ...], ...]
+    outputs: tuple[tuple[int, ...], ...]
+    landmarks: tuple[int, ...]
+    hidden: tuple[int, ...]
+    k: tuple[int, ...]
+
+    @property
+    def n_chains(self) -> int:
+        """``C``."""
+        return len(self.names)
+
+    @property
+    def m_max(self) -> int:
+        """Widest chain input (padded width of the stacked human landmarks)."""
+        return max(len(c) for c in self.inputs)
+
+    @property
+    def n_max(self) -> int:
+        """Widest chain output (padded width of the stacked robot landmarks)."""
+        return max(len(c) for c in self.outputs)
+
+    @property
+    def m(self) -> int:
+        """Width of the whole descriptor."""
+        return sum(len(c) for c in self.inputs)
+
+    @property
+    def n(self) -> int:
+        """Number of driven joints written."""
+        return sum(len(c) for c in self.outputs)
+
+    @property
+    def identity(self) -> bool:
+        """One chain reading the whole descriptor and writing every joint, in order."""
+        return (
+            self.n_chains == 1
+            and self.inputs[0] == tuple(range(self.m))
+            and self.outputs[0] == tuple(range(self.n))
+        )
+
+    def input_index(self) -> np.ndarray:
+        """``(C, m_max)`` int: columns of ``[h, 0]`` that make each chain's padded input."""
+        idx = np.full((self.n_chains, self.m_max), self.m, np.int32)  # padding reads the 0
+        for c, cols in enumerate(self.inputs):
+            idx[c, : len(cols)] = cols
+        return idx
+
+    def output_index(self) -> np.ndarray:
+        """``(n,)`` int: for each driven joint, its place in the flattened ``(C, n_max)``."""
+        idx = np.zeros(self.n, np.int32)
+        for c, cols in enumerate(self.outputs):
+            idx[list(cols)] = c * self.n_max + np.arange(len(cols))
+        return idx
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class StackedProjector:
+    """One projector per kinematic chain, stacked along a leading chain axis (a pytree).
+
+    ``stack`` is a ``Projector`` whose every array has a leading ``(C,)`` axis, padded to the
+    largest chain: landmarks to ``K_max`` rows, inputs to ``m_max`` and outputs to ``n_max``
+    columns, hidden layers to the widest. Padding never wins a nearest-neighbour search (padded
+    landmarks have squared norm ``+inf``, hence infinite distance to every point) and never enters
+    a kernel (padded weights, offsets and columns are 0, and padded query columns are 0 too).
+    The whole-body projector (the paper's formulation) is the one-chain case.
+
+    Attributes:
+      stack: the padded, stacked per-chain projectors.
+      layout: the static chain layout.
+    """
+
+    stack: Projector
+    layout: ChainLayout = field(metadata=dict(static=True))
+
+    @property
+    def n_landmarks(self) -> int:
+        """The smallest chain's landmark count (``L`` and ``M`` may not exceed it)."""
+        return min(self.layout.landmarks)
+
+    def chain(self, c: int) -> Projector:
+        """Chain ``c``'s own projector, unpadded (host-side; for baselines, tests, reports)."""
+        lay = self.layout
+        k, m, n = lay.landmarks[c], len(lay.inputs[c]), len(lay.outputs[c])
+        h, kk = lay.hidden[c], lay.k[c]
+        s = jax.tree.map(lambda a: a[c], self.stack)
+        fwd = _slice_bank(s.forward, k, m, n, h, kk)
+        bwd = _slice_bank(s.backward, k, n, m, h, kk)
+        return make_projector(s.human[:k, :m], s.robot[:k, :n], fwd, bwd, s.lower[:n], s.upper[:n])
+
+
+def _slice_bank(bank: ELMBank, k: int, d_in: int, d_out: int, hidden: int, kk: int) -> ELMBank:
+    return ELMBank(
+        w=bank.w[:hidden, :d_in],
+        inv_scale=bank.inv_scale[:k],
+        bias=bank.bias[:k, :hidden],
+        out=bank.out[:k, :d_out, :hidden],
+        offset=bank.offset[:k, :d_out],
+        neighbours=bank.neighbours[:k, :kk],
+        n_kernels=k,
+        hidden=hidden,
+        d_in=d_in,
+        d_out=d_out,
+        k=kk,
+    )
+
+
+def _pad(a: jax.Array, shape: tuple[int, ...], value: float = 0.0) -> np.ndarray:
+    a = np.asarray(a)
+    return np.pad(
+        a, [(0, t - s) for s, t in zip(a.shape, shape, strict=True)], constant_values=value
+    )
+
+
+def _pad_bank(bank: ELMBank, k: int, hidden: int, d_in: int, d_out: int, kk: int) -> ELMBank:
+    return ELMBank(
+        w=_pad(bank.w, (hidden, d_in)),
+        inv_scale=_pad(bank.inv_scale, (k,)),
+        bias=_pad(bank.bias, (k, hidden)),
+        out=_pad(bank.out, (k, d_out, hidden)),
+        offset=_pad(bank.offset, (k, d_out)),
+        neighbours=_pad(bank.neighbours, (k, kk), -1),
+        n_kernels=k,
+        hidden=hidden,
+        d_in=d_in,
+        d_out=d_out,
+        k=kk,
+    )
+
+
+def stack_projectors(chains: Sequence[Projector], layout: ChainLayout) -> StackedProjector:
+    """Pad per-chain projectors to the largest and stack them (see ``StackedProjector``)."""
+    if len(chains) != layout.n_chains or not chains:
+        raise ConfigError(f"{len(chains)} projectors for {layout.n_chains} chains")
+    for c, p in enumerate(chains):
+        want = (layout.landmarks[c], len(layout.inputs[c]), len(layout.outputs[c]))
+        want += (layout.hidden[c], layout.hidden[c], layout.k[c], layout.k[c])
+        got = (p.n_landmarks, p.human.shape[1], p.robot.shape[1], p.forward.hidden)
+        got += (p.backward.hidden, p.forward.k, p.backward.k)
+        if got != want:
+            raise ConfigError(f"chain {layout.names[c]}: projector {got} does not match {want}")
+    k, m, n = max(layout.landmarks), layout.m_max, layout.n_max
+    hf = hb = max(layout.hidden)
+    kk = max(layout.k)
+    padded = [
+        Projector(
+            human=_pad(p.human, (k, m)),
+            robot=_pad(p.robot, (k, n)),
+            human_sq=_pad(p.human_sq, (k,), np.inf),
+            robot_sq=_pad(p.robot_sq, (k,), np.inf),
+            forward=_pad_bank(p.forward, k, hf, m, n, kk),
+            backward=_pad_bank(p.backward, k, hb, n, m, kk),
+            lower=_pad(p.lower, (n,)),
+            upper=_pad(p.upper, (n,)),
+            n_landmarks=k,
+        )
+        for p in chains
+    ]
+    stack = jax.tree.map(lambda *a: jnp.asarray(np.stack(a)), *padded)
+    return StackedProjector(stack=stack, layout=layout)
+
+
+def project_stacked_one(
+    sp: StackedProjector, h: jax.Array, objective: str, n_l: int, n_m: int, full: FullConfig
+) -> tuple[jax.Array, jax.Array]:
+    """Project one query through every chain (vmapped over the chain axis).
+
+    Args:
+      sp: the stacked projector.
+      h: ``(m,)`` whole descriptor.
+      objective: ``"relaxed"`` or ``"full"`` (static).
+      n_l, n_m: ``L`` and ``M`` per chain (static).
+      full: full-objective settings (static).
+
+    Returns:
+      ``(r, value)``: ``(n,)`` driven joints (each chain's answer in its joints), and the
+      objective's value over the whole descriptor: relaxed, ``sqrt(sum_c dev_c^2)`` (the chains
+      split the descriptor, so this is the deviation of the assembled pose); full, ``sum_c f_c``.
+    """
+
+    def chain(p: Projector, x: jax.Array) -> tuple[jax.Array, jax.Array]:
+        if objective == "relaxed":
+            return project_relaxed_one(p, x, n_l, n_m)
+        r, f, _ = project_full_one(p, x, n_l, n_m, full)
+        return r, f
+
+    lay = sp.layout
+    if lay.identity:  # the whole-body projector: no gather, no scatter
+        return chain(jax.tree.map(lambda a: a[0], sp.stack), h)
+    x = jnp.concatenate([h, jnp.zeros((1,), h.dtype)])[lay.input_index()]  # (C, m_max)
+    r, v = jax.vmap(chain)(sp.stack, x)  # (C, n_max), (C,)
+    out = r.reshape(-1)[lay.output_index()]
+    value = jnp.sqrt(jnp.sum(v * v)) if objective == "relaxed" else jnp.sum(v)
+    return out, value

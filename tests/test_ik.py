@@ -163,3 +163,27 @@ def test_whole_bundled_dataset_in_one_jitted_call():
     assert q.shape == (23478, 26)
     assert np.isfinite(q).all()
     assert (q >= robot.LOWER).all() and (q <= robot.UPPER).all()
+
+
+def test_chains_cover_the_driven_joints_once_and_factorise_the_ik():
+    """Perturbing one chain's bones leaves every other chain's IK output bit-identical, and
+    changes the chain's own output (so the chains are exactly the IK's factorisation)."""
+    from jaxproj.skeleton import UPPER_BODY
+
+    joints = [j for c in ik.CHAINS for j in c.joints]
+    assert sorted(joints) == sorted(robot.DRIVEN_JOINTS) and len(joints) == len(set(joints))
+    seqs = datasets.msr_action3d(subjects=[2], actions=[1, 5, 9])
+    pos = np.concatenate([s.positions[s.valid] for s in seqs])
+    d, ok = descriptor(pos)
+    d = np.asarray(d)[np.asarray(ok)]
+    base = np.asarray(ik.solve_driven(d))
+    rng = np.random.default_rng(0)
+    for chain in ik.CHAINS:
+        cols = np.concatenate([np.arange(3) + 3 * UPPER_BODY.index(b) for b in chain.bones])
+        bumped = d.copy()
+        bumped[:, cols] = rng.normal(size=(len(d), len(cols))).astype(np.float32)
+        out = np.asarray(ik.solve_driven(bumped))
+        own = [robot.DRIVEN_JOINTS.index(j) for j in chain.joints]
+        rest = [i for i in range(len(robot.DRIVEN_JOINTS)) if i not in own]
+        np.testing.assert_array_equal(out[:, rest], base[:, rest])
+        assert (np.abs(out[:, own] - base[:, own]).max(axis=1) > 1e-3).mean() > 0.9
