@@ -2,9 +2,11 @@
 
 Pipeline (one module per stage): ``readers`` / ``datasets`` / ``skeleton`` (data and the body-frame
 bone descriptor) -> ``robot`` / ``ik`` (NAO H25 model and the analytic IK ground truth) ->
-``landmarks`` (mean shift) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -> ``projection``
+``meanshift`` (generic mean shift, bandwidth search) -> ``landmarks`` (mean-shift modes of the
+training descriptors + their IK) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -> ``projection``
 (relaxed / full objectives) -> ``smoothing`` -> ``retarget`` (whole motions); ``engine`` holds the
-public build / project / save / load API.
+public build / project / save / load API. ``synthetic`` (the paper's basic poses and motions) and
+``experiments`` (the paper's studies on them) reproduce the paper's section IV.
 
 Jit policy: public entry points are jitted; helpers and loops inside them are not.
 """
