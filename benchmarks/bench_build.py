@@ -1,7 +1,7 @@
 """Time of the landmark build's mean shift: bandwidth search to 1644 / 961 / 86 landmarks.
 
 The paper's three landmark-set sizes (section IV) on the upper-body descriptors of the valid
-frames of MSR Action3D subjects 1, 3, 5, 7, 9 (``landmarks.training_descriptors``, ~11k points).
+frames of MSR Action3D subjects 1, 3, 5, 7, 9 (``datasets.valid_descriptors``, ~11k points).
 Timed with the shared helpers of ``jaxproj.timing``:
 
 * ``compile_s``: ``lower().compile()`` of the two jitted stages (``meanshift._iterate`` and
@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj import datasets, landmarks, meanshift
+from jaxproj import datasets, meanshift
 from jaxproj.exceptions import ConfigError, JaxprojError
 from jaxproj.timing import Timing, compile_timed, time_calls
 
@@ -100,7 +100,7 @@ def run(repeats: int) -> dict:
     "singletons", "repeats"}, ...]}``."""
     if repeats < 1:
         raise ConfigError(f"repeats must be >= 1, got {repeats}")
-    points = landmarks.training_descriptors(datasets.msr_action3d(subjects=list(SUBJECTS)))
+    points = datasets.valid_descriptors(datasets.msr_action3d(subjects=list(SUBJECTS)))
     compile_s = compile_stages(points)
     first = time_calls(lambda: meanshift.mean_shift(points, 0.2), min_repeats=1, max_repeats=1)
     rows = []

@@ -3,8 +3,8 @@
 The paper extracts its landmark set from recorded human motion with mean-shift clustering
 (Comaniciu & Meer 2002) and gives each landmark its robot pose by IK. ``build_landmarks`` does the
 same: the training points are the descriptors (``skeleton.descriptor``, default ``bones="upper"``:
-15 numbers) of the *valid* frames (``training_descriptors``), each landmark's human side is a mode
-(``meanshift.mean_shift``; the algorithm, kernels and merge rule are described there), its robot
+15 numbers) of the *valid* frames (``datasets.valid_descriptors``), each landmark's human side
+is a mode (``meanshift.mean_shift``; the algorithm, kernels and merge rule are described there), its robot
 side ``ik.solve_driven(mode)``. The landmark count is set through the bandwidth
 (``meanshift.find_bandwidth``).
 
@@ -23,23 +23,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxproj import ik
+from jaxproj.datasets import valid_descriptors
 from jaxproj.exceptions import ConfigError
 from jaxproj.meanshift import (
     MAX_ITER,
     MERGE_FRACTION,
     TOL,
     Kernel,
-    _as_points,
     check_options,
     find_bandwidth,
     mean_shift,
 )
-from jaxproj.skeleton import descriptor
 
 
 @dataclass(frozen=True)
@@ -73,50 +71,6 @@ class Landmarks:
         return int(self.human.shape[0])
 
 
-def training_descriptors(
-    sequences_or_points: Any,
-    *,
-    bones: str | tuple[str, ...] = "upper",
-    mirror: bool = False,
-) -> np.ndarray:
-    """Descriptors of the valid training frames.
-
-    Args:
-      sequences_or_points: an iterable of sequences (objects with ``positions (T, 20, 3)`` and
-        ``valid (T,)``, e.g. ``datasets.msr_action3d()``), or a ``(T, 20, 3)`` position array, or
-        an ``(N, 3 * n_bones)`` array of descriptors (taken as they are).
-      bones, mirror: descriptor options (``skeleton.descriptor``); ignored for descriptors.
-
-    Returns:
-      ``(N, 3 * n_bones)`` float32 descriptors of the frames that are valid both in the sequence
-      (``valid``) and for the descriptor (frame and bones not degenerate).
-
-    Raises:
-      ConfigError: no valid frame, or an array of the wrong shape.
-    """
-    if isinstance(sequences_or_points, (np.ndarray, jax.Array)):
-        a = np.asarray(sequences_or_points, dtype=np.float32)
-        if a.ndim == 2:
-            return _as_points(a, "descriptors")
-        if a.ndim == 3 and a.shape[1:] == (20, 3):
-            positions, valid = a, np.ones(a.shape[0], bool)
-        else:
-            raise ConfigError(
-                f"expected (N, 3 * n_bones) descriptors or (T, 20, 3) positions, got {a.shape}"
-            )
-    else:
-        seqs = list(sequences_or_points)
-        if not seqs:
-            raise ConfigError("no training sequences")
-        positions = np.concatenate([np.asarray(s.positions, np.float32) for s in seqs])
-        valid = np.concatenate([np.asarray(s.valid, bool) for s in seqs])
-    d, ok = descriptor(positions, bones=bones, mirror=mirror)
-    keep = valid & np.asarray(ok)
-    if not keep.any():
-        raise ConfigError("no valid training frame")
-    return np.asarray(d)[keep].astype(np.float32)
-
-
 def build_landmarks(
     sequences_or_points: Any,
     *,
@@ -136,7 +90,7 @@ def build_landmarks(
     ``rel_tol``) or ``bandwidth`` (one ``mean_shift`` run).
 
     Args:
-      sequences_or_points: training data, as ``training_descriptors`` takes it.
+      sequences_or_points: training data, as ``datasets.valid_descriptors`` takes it.
       target: wanted number of landmarks.
       bandwidth: mean-shift bandwidth.
       bones, mirror: descriptor options.
@@ -157,7 +111,7 @@ def build_landmarks(
     check_options(kernel, max_iter, tol, merge_fraction, bandwidth=bandwidth)
     if target is not None and int(target) < 1:
         raise ConfigError(f"target must be >= 1, got {target}")
-    points = training_descriptors(sequences_or_points, bones=bones, mirror=mirror)
+    points = valid_descriptors(sequences_or_points, bones=bones, mirror=mirror)
     options = dict(kernel=kernel, max_iter=max_iter, tol=tol, merge_fraction=merge_fraction)
     if target is not None:
         h, res = find_bandwidth(points, target, rel_tol=rel_tol, **options)

@@ -57,7 +57,6 @@ Python (``ConfigError``) before anything is traced.
 
 from __future__ import annotations
 
-import functools
 import math
 import warnings
 from typing import Any, Literal, NamedTuple
@@ -66,6 +65,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
 
 Kernel = Literal["gaussian", "flat"]
@@ -174,7 +174,7 @@ def _shift_block(
     return x_new, log_den
 
 
-@functools.partial(jax.jit, static_argnames=("kernel", "block"))
+@jit(static_argnames=("kernel", "block"))
 def _iterate(
     seeds: jax.Array,
     active0: jax.Array,
@@ -229,7 +229,7 @@ def _iterate(
     return jax.lax.while_loop(cond, iteration, state)
 
 
-@jax.jit
+@jit
 def _merge(
     x: jax.Array, log_den: jax.Array, valid: jax.Array, r2: jax.Array
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -263,7 +263,7 @@ def _merge(
     return jax.lax.while_loop(cond, body, state)
 
 
-@functools.partial(jax.jit, static_argnames=("kernel", "block"))
+@jit(static_argnames=("kernel", "block"))
 def _step(
     x: jax.Array,
     x_valid: jax.Array,

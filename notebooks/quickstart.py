@@ -13,10 +13,9 @@ import numpy as np
 
 import jaxproj
 from jaxproj import datasets, evaluate, ik, robot
-from jaxproj.landmarks import training_descriptors
 from jaxproj.skeleton import descriptor
 
-train = training_descriptors(datasets.msr_action3d(subjects=[1, 3]))
+train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
 print("training descriptors:", train.shape)
 
 # %% Build: mean-shift landmarks + forward/backward ELM kernel banks

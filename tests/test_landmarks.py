@@ -10,7 +10,7 @@ from jaxproj.exceptions import ConfigError
 
 
 def _train_points(subjects, actions=None):
-    return landmarks.training_descriptors(datasets.msr_action3d(subjects=subjects, actions=actions))
+    return datasets.valid_descriptors(datasets.msr_action3d(subjects=subjects, actions=actions))
 
 
 # --- real data ------------------------------------------------------------------------------------
@@ -18,7 +18,7 @@ def _train_points(subjects, actions=None):
 
 def test_find_bandwidth_on_two_subjects_and_landmarks_use_the_ik():
     seqs = datasets.msr_action3d(subjects=[1, 3])
-    points = landmarks.training_descriptors(seqs)
+    points = datasets.valid_descriptors(seqs)
     n_valid = sum(int(s.valid.sum()) for s in seqs)
     assert 0.9 * n_valid <= points.shape[0] <= n_valid
     target = 400
@@ -76,7 +76,7 @@ def test_bad_arguments_raise_config_error_before_the_descriptors(monkeypatch):
         with pytest.raises(ConfigError):
             landmarks.build_landmarks(seqs, **bad)
     monkeypatch.undo()
-    points = landmarks.training_descriptors(seqs)
+    points = datasets.valid_descriptors(seqs)
     with pytest.raises(ConfigError, match="target"):  # N is known only after the descriptors
         landmarks.build_landmarks(points, target=points.shape[0] + 1)
 

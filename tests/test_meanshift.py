@@ -8,7 +8,7 @@ import jax
 import numpy as np
 import pytest
 
-from jaxproj import datasets, landmarks, meanshift
+from jaxproj import datasets, meanshift
 from jaxproj.exceptions import ConfigError
 
 # --- helpers --------------------------------------------------------------------------------------
@@ -59,7 +59,7 @@ def _reference_mean_shift(points, h, kernel, tol, merge_fraction, max_iter=500):
 
 
 def _train_points(subjects, actions=None):
-    return landmarks.training_descriptors(datasets.msr_action3d(subjects=subjects, actions=actions))
+    return datasets.valid_descriptors(datasets.msr_action3d(subjects=subjects, actions=actions))
 
 
 # --- mean shift ---------------------------------------------------------------------------------
