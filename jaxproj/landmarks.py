@@ -4,8 +4,8 @@ The paper extracts its landmark set from recorded human motion with mean-shift c
 (Comaniciu & Meer 2002) and gives each landmark its robot pose by IK. ``build_landmarks`` does the
 same: the training points are the descriptors (``skeleton.descriptor``, default ``bones="upper"``:
 15 numbers) of the *valid* frames (``datasets.valid_descriptors``), each landmark's human side
-is a mode (``meanshift.mean_shift``; the algorithm, kernels and merge rule are described there), its robot
-side ``ik.solve_driven(mode)``. The landmark count is set through the bandwidth
+is a mode (``meanshift.mean_shift``; the algorithm, kernels and merge rule are described
+there), its robot side ``ik.solve_driven(mode)``. The landmark count is set through the bandwidth
 (``meanshift.find_bandwidth``).
 
 On MSR Action3D subjects 1, 3, 5, 7, 9 (all 20 actions: 292 sequences, 11,280 valid frames) most
