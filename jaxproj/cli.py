@@ -266,7 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
     pb = sub.add_parser(
         "build", formatter_class=fmt, help="build a projector (landmarks + ELM kernels)"
     )
-    pb.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
+    pb.add_argument("--data", default="bundled", help="'bundled'/'msr', 'utkinect' or a folder")
     pb.add_argument(
         "--subjects",
         type=_parse_ints,
@@ -289,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate", formatter_class=fmt, help="batch evaluation against the IK, with baselines"
     )
     pe.add_argument("--model", required=True, help="projector file from `jaxproj build`")
-    pe.add_argument("--data", default="bundled", help="'bundled' or a folder of recordings")
+    pe.add_argument("--data", default="bundled", help="'bundled'/'msr', 'utkinect' or a folder")
     pe.add_argument(
         "--subjects", type=_parse_ints, default=[2, 4, 6, 8, 10], help="evaluated subjects"
     )

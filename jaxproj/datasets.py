@@ -1,4 +1,5 @@
-"""The bundled MSR Action3D skeletons (567 sequences, 20 actions x 10 subjects x 2-3 takes).
+"""The bundled MSR Action3D skeletons (567 sequences, 20 actions x 10 subjects x 2-3 takes), and
+a UTKinect-Action3D subset (10 recordings; section at the end).
 
 ``msr_action3d()`` returns every sequence as a ``MotionSequence`` with ``(T, 20, 3)`` float32
 positions in metres, Kinect SDK joint order (``jaxproj.skeleton.JOINT_NAMES``), camera frame with y
@@ -25,6 +26,29 @@ layout (format 1; S sequences, N frames in total; every array is plain numeric o
 - ``joint_names`` ``(20,)`` unicode, ``format_version`` int64 scalar.
 
 The archive is written with fixed zip timestamps, so the same sources give byte-identical files.
+
+UTKinect-Action3D (a second, independent Kinect v1 dataset; 10 of its 20 recordings)
+-------------------------------------------------------------------------------------
+``utkinect_action3d()`` returns the labelled action segments (or, with ``segments=False``, the
+ten whole recordings) of ``jaxproj/data/utkinect_action3d.npz`` as ``MotionSequence``s with the
+same ``(T, 20, 3)`` float32 metres, SDK joint order and camera frame, plus ``frame_numbers`` and
+``times`` (``frame_numbers / UTK_FPS`` seconds). Source, citation and licence caveat:
+``jaxproj/data/UTKINECT_ACTION3D.md``. Built from ``joints_sXX_eYY.txt`` and ``actionLabel.txt``
+by ``bundle_utkinect_action3d`` (``python -m jaxproj.datasets --dataset utkinect SRC_DIR
+OUT.npz``). Archive layout (format 1; R recordings, N frames in total; no pickles):
+
+- ``dataset`` unicode scalar ``"utkinect_action3d"``, ``format_version`` int64 scalar,
+  ``joint_names`` ``(20,)`` and ``action_names`` ``(10,)`` unicode (``UTK_ACTION_NAMES``).
+- ``positions_um_planes`` ``(4, N*20*3)`` uint8: int32 micrometres in byte planes, exactly as in
+  the MSR archive (lossless: the source has exactly 6 decimals).
+- ``frame_numbers`` ``(N,)`` int32: the source's frame number of each kept frame (strictly
+  increasing within a recording; a repeated frame number keeps its first line, the rule of
+  ``readers.read_skeleton(format="utkinect")``).
+- ``offsets`` ``(R + 1,)`` int64: recording i is frames ``offsets[i]:offsets[i + 1]``.
+- ``names`` ``(R,)`` unicode (``"s03_e01"``, sorted), ``subject`` / ``take`` ``(R,)`` uint8.
+- ``segments`` ``(R, 10, 2)`` int32: ``[start, end]`` frame numbers (inclusive) of action
+  ``a`` (1-based) of recording i at ``segments[i, a - 1]``; ``-1, -1`` where ``actionLabel.txt``
+  says ``NaN NaN`` (absent).
 """
 
 from __future__ import annotations
@@ -45,7 +69,7 @@ import jax
 import numpy as np
 
 from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.readers import MSR_TO_SDK, _read_msr_rows
+from jaxproj.readers import MSR_TO_SDK, _read_msr_rows, _read_utkinect_rows
 from jaxproj.skeleton import JOINT_NAMES, N_JOINTS
 
 DATA_PATH = Path(__file__).with_name("data") / "msr_action3d.npz"
@@ -71,19 +95,58 @@ _FILE_RE = re.compile(r"^a(\d{2})_s(\d{2})_e(\d{2})_skeleton3D\.txt$")
 _CVPR12_LIST = "files_used_in_cvpr12_paper.txt"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
+UTK_DATA_PATH = Path(__file__).with_name("data") / "utkinect_action3d.npz"
+"""The bundled UTKinect-Action3D archive."""
+
+UTK_FORMAT_VERSION = 1
+_UTK_DATASET = "utkinect_action3d"
+
+UTK_ACTION_NAMES: tuple[str, ...] = (
+    "walk", "sitDown", "standUp", "pickUp", "carry",
+    "throw", "push", "pull", "waveHands", "clapHands",
+)  # fmt: skip
+"""Names of the UTKinect actions, in the order performed: ``UTK_ACTION_NAMES[action - 1]``."""
+
+UTK_UPPER_BODY_ACTIONS: tuple[int, ...] = (6, 7, 8, 9, 10)
+"""1-based numbers of the upper-body-rich UTKinect actions: throw, push, pull, waveHands,
+clapHands."""
+
+UTK_FPS = 30.0
+"""Nominal capture rate of UTKinect-Action3D (frames/s, from the dataset's description).
+
+Only tracked frames were saved, so frame numbers jump; ``times = frame_numbers / UTK_FPS`` are
+seconds since the capture's frame 0 and are approximate (the rate is nominal, not measured). The
+frame numbers are all even and step by 2 at least, and walking speeds come out at 0.3-0.4 m/s, so
+the counter may advance 2 per captured frame and these times be up to 2x too long (see the Notes
+of ``jaxproj/data/UTKINECT_ACTION3D.md``)."""
+
+UTK_N_SUBJECTS = 10
+"""UTKinect-Action3D has subjects 1..10; the bundled subset holds 3, 4, 6, 7 and 9."""
+
+_UTK_FILE_RE = re.compile(r"^joints_s(\d{2})_e(\d{2})\.txt$")
+_UTK_LABELS = "actionLabel.txt"
+_UTK_BLOCK_RE = re.compile(r"^s(\d{2})_e(\d{2})$")
+
 
 @dataclass(frozen=True)
 class MotionSequence:
-    """One MSR Action3D sequence (read-only arrays).
+    """One recorded sequence: MSR Action3D, a UTKinect-Action3D segment / recording, or a file.
 
     Attributes:
-      name: ``"aXX_sYY_eZZ"``.
-      action: 1-based action number (``ACTION_NAMES[action - 1]``).
+      name: ``"aXX_sYY_eZZ"`` (MSR), ``"sXX_eYY_<action>"`` / ``"sXX_eYY"`` (UTKinect segment /
+        whole recording) or the file stem (folder).
+      action: 1-based action number (MSR: ``ACTION_NAMES[action - 1]``; UTKinect:
+        ``UTK_ACTION_NAMES[action - 1]``); 0 when unknown (whole UTKinect recording, folder file).
       subject: 1-based subject number (1..10).
-      take: 1-based execution number (1..3).
+      take: 1-based execution number (MSR 1..3, UTKinect 1..2).
       positions: ``(T, 20, 3)`` float32 metres, Kinect SDK joint order; invalid frames are 0.
-      confidence: ``(T, 20)`` float32 per-joint tracking confidence in [0, 1] (SDK order).
+      confidence: ``(T, 20)`` float32 per-joint tracking confidence in [0, 1] (SDK order; all 1
+        where the source has none).
       valid: ``(T,)`` bool, frame is not all zeros and all finite.
+      frame_numbers: ``(T,)`` int64 source frame numbers, strictly increasing (UTKinect, whose
+        frame numbers jump over untracked frames); ``None`` where frames are consecutive (MSR).
+      times: ``(T,)`` float64 seconds, ``frame_numbers / UTK_FPS`` (approximate); ``None`` with
+        ``frame_numbers``.
     """
 
     name: str
@@ -93,6 +156,8 @@ class MotionSequence:
     positions: np.ndarray
     confidence: np.ndarray
     valid: np.ndarray
+    frame_numbers: np.ndarray | None = None
+    times: np.ndarray | None = None
 
 
 # --- bundling -------------------------------------------------------------------------------------
@@ -117,18 +182,9 @@ def bundle_msr_action3d(src_dir: str | os.PathLike[str], out_path: str | os.Path
     names, numbers, positions, confidence = [], [], [], []
     for path in files:
         raw = _read_msr_rows(path)[:, list(MSR_TO_SDK), :]  # (T, 20, 4) float64, SDK order
-        with np.errstate(invalid="ignore", over="ignore"):
-            um = np.round(raw[..., :3] * 1e6)
-        exact = np.isfinite(um).all() and np.abs(um).max() < 2**31
-        if not exact or np.abs(um / 1e6 - raw[..., :3]).max() > 1e-9:
-            raise InputError(
-                path,
-                "coordinates not representable as int32 micrometres (non-finite, > 2 km, "
-                "or more than 6 decimals)",
-            )
         names.append(path.name[: -len("_skeleton3D.txt")])
         numbers.append([int(g) for g in _FILE_RE.match(path.name).groups()])
-        positions.append(um.astype("<i4"))
+        positions.append(_micrometres(path, raw[..., :3]))
         confidence.append(raw[..., 3])
     cvpr12_path = src / _CVPR12_LIST
     used = set(cvpr12_path.read_text().split()) if cvpr12_path.is_file() else set()
@@ -145,13 +201,161 @@ def bundle_msr_action3d(src_dir: str | os.PathLike[str], out_path: str | os.Path
         "take": np.array([n[2] for n in numbers], dtype=np.uint8),
         "cvpr12": np.array([n in used for n in names], dtype=bool),
         "offsets": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-        "positions_um_planes": np.ascontiguousarray(
-            pos.reshape(-1).view(np.uint8).reshape(-1, 4).T
-        ),
+        "positions_um_planes": _byte_planes(pos),
         "confidence_values": conf_values.astype(np.float64),
         "confidence_index": conf_index.reshape(pos.shape[:2]).astype(index_dtype),
     }
     _write_npz(Path(out_path), arrays)
+
+
+def _micrometres(path: Path, xyz: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` float64 metres with <= 6 decimals -> the same shape as ``<i4`` micrometres.
+
+    Raises:
+      InputError: a value that int32 micrometres cannot hold exactly (more than 6 decimals,
+        non-finite, > 2 km).
+    """
+    with np.errstate(invalid="ignore", over="ignore"):
+        um = np.round(xyz * 1e6)
+    exact = np.isfinite(um).all() and np.abs(um).max() < 2**31
+    if not exact or np.abs(um / 1e6 - xyz).max() > 1e-9:
+        raise InputError(
+            path,
+            "coordinates not representable as int32 micrometres (non-finite, > 2 km, "
+            "or more than 6 decimals)",
+        )
+    return um.astype("<i4")
+
+
+def _byte_planes(um: np.ndarray) -> np.ndarray:
+    """``<i4`` array (any shape, n values) -> ``(4, n)`` uint8 byte planes (plane k = byte k)."""
+    flat = np.ascontiguousarray(um, dtype="<i4").reshape(-1)
+    return np.ascontiguousarray(flat.view(np.uint8).reshape(-1, 4).T)
+
+
+def _from_planes(planes: np.ndarray, n_frames: int) -> np.ndarray:
+    """Inverse of ``_byte_planes`` for positions: ``(4, n_frames*60)`` uint8 -> float32 metres
+    ``(n_frames, 20, 3)``."""
+    um = np.ascontiguousarray(planes.T).view("<i4").reshape(n_frames, N_JOINTS, 3)
+    return (um / 1e6).astype(np.float32)
+
+
+def _valid(positions: np.ndarray) -> np.ndarray:
+    """``(T, 20, 3)`` -> ``(T,)`` bool: not all zeros and all finite."""
+    return (positions != 0).any(axis=(1, 2)) & np.isfinite(positions).all(axis=(1, 2))
+
+
+def bundle_utkinect_action3d(
+    src_dir: str | os.PathLike[str], out_path: str | os.PathLike[str]
+) -> None:
+    """Convert the raw UTKinect-Action3D text files of ``src_dir`` into one compressed npz.
+
+    Reads every ``joints_sXX_eYY.txt`` (sorted by name) with the reader of
+    ``readers.read_skeleton(format="utkinect")`` (a repeated frame number keeps its first line)
+    and the segment table ``actionLabel.txt`` (blocks of a ``sXX_eYY`` line and one
+    ``action: start end`` line per action of ``UTK_ACTION_NAMES``; ``NaN NaN`` = absent; blocks of
+    recordings not in ``src_dir`` are ignored); writes ``out_path`` in the layout of the module
+    docstring (fixed zip timestamps: byte-identical for the same input).
+
+    Raises:
+      InputError: no recording files, no ``actionLabel.txt`` or no block in it for a recording,
+        a malformed file (see ``jaxproj.readers``) or label line, frame numbers that do not
+        increase after the repeats are dropped or are negative / beyond int32, or coordinates that
+        int32 micrometres cannot hold exactly.
+    """
+    src = Path(src_dir)
+    if not src.is_dir():
+        raise InputError(src, "not a directory")
+    files = sorted(p for p in src.iterdir() if _UTK_FILE_RE.match(p.name))
+    if not files:
+        raise InputError(src, "no joints_sXX_eYY.txt files")
+    labels = _read_utk_labels(src / _UTK_LABELS)
+    names, numbers, frames, positions, segments = [], [], [], [], []
+    for path in files:
+        frame, xyz = _read_utkinect_rows(path)
+        if frame[0] < 0 or frame[-1] >= 2**31 or (np.diff(frame) <= 0).any():
+            raise InputError(
+                path,
+                "frame numbers must be >= 0, < 2**31 and increase (after dropping repeats)",
+            )
+        name = path.name[len("joints_") : -len(".txt")]
+        if name not in labels:
+            raise InputError(src / _UTK_LABELS, f"no segment block for {name}")
+        names.append(name)
+        numbers.append([int(g) for g in _UTK_FILE_RE.match(path.name).groups()])
+        frames.append(frame.astype("<i4"))
+        positions.append(_micrometres(path, xyz))
+        segments.append(labels[name])
+    lengths = [len(f) for f in frames]
+    arrays = {
+        "dataset": np.array(_UTK_DATASET),
+        "format_version": np.array(UTK_FORMAT_VERSION, dtype=np.int64),
+        "joint_names": np.array(JOINT_NAMES),
+        "action_names": np.array(UTK_ACTION_NAMES),
+        "names": np.array(names),
+        "subject": np.array([n[0] for n in numbers], dtype=np.uint8),
+        "take": np.array([n[1] for n in numbers], dtype=np.uint8),
+        "offsets": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+        "frame_numbers": np.concatenate(frames),
+        "positions_um_planes": _byte_planes(np.concatenate(positions)),
+        "segments": np.stack(segments).astype(np.int32),
+    }
+    _write_npz(Path(out_path), arrays)
+
+
+def _read_utk_labels(path: Path) -> dict[str, np.ndarray]:
+    """``actionLabel.txt`` -> ``{"sXX_eYY": (10, 2) int64 [start, end]}`` (-1, -1: absent).
+
+    Raises:
+      InputError: missing file, a line that is neither ``sXX_eYY`` nor ``action: start end``, an
+        unknown or repeated action, an action missing from a block, ``start > end``, non-integer
+        bounds, or only one of the two bounds ``NaN``.
+    """
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(path, "segment labels not found") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(path, f"cannot read segment labels ({type(err).__name__})") from None
+    blocks: dict[str, np.ndarray] = {}
+    seen: dict[str, set[str]] = {}
+    current: str | None = None
+    for i, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line:
+            continue
+        if _UTK_BLOCK_RE.match(line):
+            if line in blocks:
+                raise InputError(path, f"line {i}: block {line} repeated")
+            current = line
+            blocks[current] = np.full((len(UTK_ACTION_NAMES), 2), -1, dtype=np.int64)
+            seen[current] = set()
+            continue
+        action, colon, bounds = line.partition(":")
+        fields = bounds.split()
+        action = action.strip()
+        if current is None or not colon or len(fields) != 2:
+            raise InputError(
+                path, f"line {i}: expected 'sXX_eYY' or 'action: start end', got {line!r}"
+            )
+        if action not in UTK_ACTION_NAMES or action in seen[current]:
+            what = "repeated" if action in seen[current] else "unknown"
+            raise InputError(path, f"line {i}: {what} action {action!r} in block {current}")
+        seen[current].add(action)
+        if fields == ["NaN", "NaN"]:
+            continue
+        if not all(re.fullmatch(r"\d{1,9}", f) for f in fields) or int(fields[0]) > int(fields[1]):
+            raise InputError(
+                path,
+                f"line {i}: bounds must be integers 0 <= start <= end < 1e9 (or 'NaN NaN'), "
+                f"got {bounds.strip()!r}",
+            )
+        blocks[current][UTK_ACTION_NAMES.index(action)] = [int(f) for f in fields]
+    for name, actions in seen.items():
+        missing = [a for a in UTK_ACTION_NAMES if a not in actions]
+        if missing:
+            raise InputError(path, f"block {name} lacks actions {missing}")
+    return blocks
 
 
 def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
@@ -182,27 +386,29 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _load(path: str | os.PathLike[str]) -> _Bundle:
-    """Decode an archive written by ``bundle_msr_action3d`` (arrays are read-only views)."""
+def _read_archive(path: str | os.PathLike[str], rebuild: str) -> dict[str, np.ndarray]:
+    """Every member of an npz archive; ``rebuild`` is the hint given when it is missing."""
     try:
         with np.load(path, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
+            return {k: z[k] for k in z.files}
     except FileNotFoundError:
-        raise InputError(
-            path,
-            "dataset archive not found; rebuild it with `python -m jaxproj.datasets "
-            "SRC_DIR OUT.npz` (see jaxproj/data/MSR_ACTION3D.md)",
-        ) from None
+        raise InputError(path, f"dataset archive not found; rebuild it with {rebuild}") from None
     except Exception as err:  # corrupt zip / npy member
         raise InputError(path, f"corrupt dataset archive ({type(err).__name__}: {err})") from None
-    if int(d.get("format_version", -1)) != FORMAT_VERSION:
+
+
+def _load(path: str | os.PathLike[str]) -> _Bundle:
+    """Decode an archive written by ``bundle_msr_action3d`` (arrays are read-only views)."""
+    d = _read_archive(
+        path,
+        "`python -m jaxproj.datasets SRC_DIR OUT.npz` (see jaxproj/data/MSR_ACTION3D.md)",
+    )
+    if int(d.get("format_version", -1)) != FORMAT_VERSION or "dataset" in d:
         raise InputError(path, f"unsupported dataset archive format (expected {FORMAT_VERSION})")
     offsets = d["offsets"]
-    n = int(offsets[-1])
-    um = np.ascontiguousarray(d["positions_um_planes"].T).view("<i4").reshape(n, N_JOINTS, 3)
-    positions = _readonly((um / 1e6).astype(np.float32))
+    positions = _readonly(_from_planes(d["positions_um_planes"], int(offsets[-1])))
     confidence = _readonly(d["confidence_values"][d["confidence_index"]].astype(np.float32))
-    valid = _readonly((positions != 0).any(axis=(1, 2)) & np.isfinite(positions).all(axis=(1, 2)))
+    valid = _readonly(_valid(positions))
     sequences = tuple(
         MotionSequence(
             name=str(name),
@@ -229,6 +435,83 @@ def _load(path: str | os.PathLike[str]) -> _Bundle:
 @functools.lru_cache(maxsize=1)
 def _bundled() -> _Bundle:
     return _load(DATA_PATH)
+
+
+@dataclass(frozen=True)
+class _UtkBundle:
+    recordings: tuple[MotionSequence, ...]
+    segments: tuple[MotionSequence, ...]
+
+
+def _load_utkinect(path: str | os.PathLike[str]) -> _UtkBundle:
+    """Decode an archive written by ``bundle_utkinect_action3d`` (arrays are read-only views).
+
+    Segments (``segments[i, a - 1] = [start, end]``) become the frames of recording i whose frame
+    number lies in ``[start, end]``; absent segments, and segments that hold no frame, are
+    skipped. Order: recordings by name, within each the segments by action number.
+    """
+    d = _read_archive(
+        path,
+        "`python -m jaxproj.datasets --dataset utkinect SRC_DIR OUT.npz` "
+        "(see jaxproj/data/UTKINECT_ACTION3D.md)",
+    )
+    if str(d.get("dataset", "")) != _UTK_DATASET:
+        raise InputError(path, "not a UTKinect-Action3D archive (no dataset='utkinect_action3d')")
+    if int(d.get("format_version", -1)) != UTK_FORMAT_VERSION:
+        raise InputError(
+            path, f"unsupported dataset archive format (expected {UTK_FORMAT_VERSION})"
+        )
+    offsets = d["offsets"]
+    positions = _readonly(_from_planes(d["positions_um_planes"], int(offsets[-1])))
+    confidence = _readonly(np.ones(positions.shape[:2], np.float32))
+    valid = _readonly(_valid(positions))
+    frame_numbers = _readonly(d["frame_numbers"].astype(np.int64))
+    times = _readonly(frame_numbers / UTK_FPS)
+    recordings, segments = [], []
+    for i, (name, subject, take) in enumerate(
+        zip(d["names"], d["subject"], d["take"], strict=True)
+    ):
+        lo, hi = int(offsets[i]), int(offsets[i + 1])
+        recordings.append(
+            MotionSequence(
+                name=str(name),
+                action=0,
+                subject=int(subject),
+                take=int(take),
+                positions=positions[lo:hi],
+                confidence=confidence[lo:hi],
+                valid=valid[lo:hi],
+                frame_numbers=frame_numbers[lo:hi],
+                times=times[lo:hi],
+            )
+        )
+        for a, (start, end) in enumerate(d["segments"][i], start=1):
+            if start < 0:  # NaN NaN in actionLabel.txt
+                continue
+            # frame numbers increase, so [start, end] is one slice of the recording
+            a_lo = lo + int(np.searchsorted(frame_numbers[lo:hi], start, side="left"))
+            a_hi = lo + int(np.searchsorted(frame_numbers[lo:hi], end, side="right"))
+            if a_hi <= a_lo:
+                continue
+            segments.append(
+                MotionSequence(
+                    name=f"{name}_{UTK_ACTION_NAMES[a - 1]}",
+                    action=a,
+                    subject=int(subject),
+                    take=int(take),
+                    positions=positions[a_lo:a_hi],
+                    confidence=confidence[a_lo:a_hi],
+                    valid=valid[a_lo:a_hi],
+                    frame_numbers=frame_numbers[a_lo:a_hi],
+                    times=times[a_lo:a_hi],
+                )
+            )
+    return _UtkBundle(recordings=tuple(recordings), segments=tuple(segments))
+
+
+@functools.lru_cache(maxsize=1)
+def _bundled_utkinect() -> _UtkBundle:
+    return _load_utkinect(UTK_DATA_PATH)
 
 
 def _select(values: Iterable[int] | None, what: str, n: int) -> frozenset[int] | None:
@@ -274,13 +557,85 @@ def msr_action3d(
     ]
 
 
-def dataset_summary() -> dict[str, int]:
-    """Counts of the bundled dataset.
+def utkinect_action3d(
+    subjects: Iterable[int] | None = None,
+    actions: Iterable[int] | None = None,
+    *,
+    segments: bool = True,
+) -> list[MotionSequence]:
+    """The bundled UTKinect-Action3D data (10 recordings: subjects 3, 4, 6, 7, 9, takes 1-2).
+
+    Args:
+      subjects: 1-based subject numbers to keep (1..10; only 3, 4, 6, 7 and 9 are bundled, the
+        others match nothing); ``None`` keeps all.
+      actions: 1-based action numbers to keep (1..10, ``UTK_ACTION_NAMES``, e.g.
+        ``UTK_UPPER_BODY_ACTIONS``); ``None`` keeps all. Only with ``segments=True``.
+      segments: ``True``: one sequence per labelled action segment (the frames whose frame number
+        lies in the segment's ``[start, end]`` of ``actionLabel.txt``), named ``"s03_e01_throw"``,
+        ``action`` its 1-based number; ordered by recording name, then action number. Segments
+        may overlap (the labels do); an absent (``NaN NaN``) segment, or one with no recorded
+        frame, is left out. ``False``: the whole recordings (``"s03_e01"``, action 0).
 
     Returns:
-      ``{"sequences": 567, "frames": 23478, "valid_frames": ..., "subjects": 10, "actions": 20,
-      "cvpr12_sequences": 557}``.
+      ``MotionSequence`` list with ``frame_numbers`` ``(T,)`` int64 and ``times`` ``(T,)`` float64
+      seconds (``frame_numbers / UTK_FPS``, approximate), read-only views of one cached decode.
+      ``confidence`` is all 1 (the source has none); ``valid`` marks finite, not all-zero frames.
+
+    Raises:
+      ConfigError: a subject or action number out of range, ``subjects`` naming no bundled
+        subject, or ``actions`` with ``segments=False``.
     """
+    keep_s = _select(subjects, "subjects", UTK_N_SUBJECTS)
+    keep_a = _select(actions, "actions", len(UTK_ACTION_NAMES))
+    bundle = _bundled_utkinect()
+    present = sorted({r.subject for r in bundle.recordings})
+    if keep_s is not None and not keep_s & set(present):
+        raise ConfigError(
+            f"subjects: none of {sorted(keep_s)} is in the bundled UTKinect-Action3D subset "
+            f"(subjects {present})"
+        )
+    if not segments:
+        if keep_a is not None:
+            raise ConfigError("actions: whole recordings (segments=False) have no action")
+        return [r for r in bundle.recordings if keep_s is None or r.subject in keep_s]
+    return [
+        seg
+        for seg in bundle.segments
+        if (keep_s is None or seg.subject in keep_s) and (keep_a is None or seg.action in keep_a)
+    ]
+
+
+def dataset_summary(name: str = "msr") -> dict[str, int]:
+    """Counts of a bundled dataset.
+
+    Args:
+      name: ``"msr"`` (MSR Action3D) or ``"utkinect"`` (UTKinect-Action3D).
+
+    Returns:
+      ``"msr"``: ``{"sequences": 567, "frames": 23478, "valid_frames": ..., "subjects": 10,
+      "actions": 20, "cvpr12_sequences": 557}``. ``"utkinect"``: ``{"recordings": 10,
+      "frames": ..., "valid_frames": ..., "subjects": 5, "segments": ..., "segment_frames": ...,
+      "upper_body_segments": ..., "upper_body_frames": ...}`` (frames after dropping repeated
+      frame numbers; segment frames count a frame once per segment holding it).
+
+    Raises:
+      ConfigError: an unknown ``name``.
+    """
+    if name == "utkinect":
+        utk = _bundled_utkinect()
+        upper = [s for s in utk.segments if s.action in UTK_UPPER_BODY_ACTIONS]
+        return {
+            "recordings": len(utk.recordings),
+            "frames": sum(len(r.valid) for r in utk.recordings),
+            "valid_frames": sum(int(r.valid.sum()) for r in utk.recordings),
+            "subjects": len({r.subject for r in utk.recordings}),
+            "segments": len(utk.segments),
+            "segment_frames": sum(len(s.valid) for s in utk.segments),
+            "upper_body_segments": len(upper),
+            "upper_body_frames": sum(len(s.valid) for s in upper),
+        }
+    if name != "msr":
+        raise ConfigError(f"dataset_summary: unknown dataset {name!r}; use 'msr' or 'utkinect'")
     bundle = _bundled()
     seqs = bundle.sequences
     return {
@@ -310,10 +665,12 @@ def load_sequences(
     *,
     progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
 ) -> list[MotionSequence]:
-    """The bundled MSR Action3D sequences, or every recording in a folder.
+    """The bundled MSR Action3D or UTKinect-Action3D sequences, or every recording in a folder.
 
     Args:
-      data: ``"bundled"`` or a folder of recordings. Folder files are read with
+      data: ``"bundled"`` or ``"msr"`` (MSR Action3D, ``msr_action3d``), ``"utkinect"`` (every
+        labelled UTKinect-Action3D action segment, ``utkinect_action3d``; callers filter by
+        ``action``), or a folder of recordings. Folder files are read with
         ``readers.read_skeleton`` (format by extension / content); a file name with ``sNN``
         gives the subject and ``aNN_`` the action (0 when absent).
       subjects: keep only these subjects (``None``: all). Folder files with no subject in their
@@ -321,16 +678,23 @@ def load_sequences(
       progress: optional wrapper of the file iterable (e.g. a progress bar).
 
     Raises:
-      InputError: ``data`` is neither ``"bundled"`` nor a folder, or it holds no recording.
+      InputError: ``data`` is none of the names above nor a folder, or the folder holds no
+        recording.
+      ConfigError: a subject number out of range (bundled data), or for ``"utkinect"`` none of
+        ``subjects`` bundled (only 3, 4, 6, 7, 9 are).
     """
     from jaxproj.readers import read_skeleton
 
     wanted = None if subjects is None else set(subjects)
-    if str(data) == "bundled":
+    if str(data) in ("bundled", "msr"):
         return msr_action3d(subjects=wanted)
+    if str(data) == "utkinect":
+        return utkinect_action3d(subjects=wanted)
     folder = Path(data)
     if not folder.is_dir():
-        raise InputError(folder, "--data must be 'bundled' or a folder of recordings")
+        raise InputError(
+            folder, "--data must be 'bundled', 'msr', 'utkinect' or a folder of recordings"
+        )
     files = sorted(p for p in folder.iterdir() if p.is_file())
     seqs = []
     for f in files if progress is None else progress(files):
@@ -397,25 +761,41 @@ def valid_descriptors(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m jaxproj.datasets SRC_DIR OUT.npz``: bundle raw MSR Action3D text files."""
+    """``python -m jaxproj.datasets [--dataset msr|utkinect] SRC_DIR OUT.npz``: bundle raw files."""
     parser = argparse.ArgumentParser(
         prog="python -m jaxproj.datasets",
-        description="Bundle the raw MSR Action3D skeleton text files into one compressed npz.",
+        description="Bundle raw MSR Action3D or UTKinect-Action3D skeleton text files into one "
+        "compressed npz.",
     )
-    parser.add_argument("src_dir", help="folder with aXX_sYY_eZZ_skeleton3D.txt files")
+    parser.add_argument(
+        "--dataset",
+        choices=("msr", "utkinect"),
+        default="msr",
+        help="msr: aXX_sYY_eZZ_skeleton3D.txt files; utkinect: joints_sXX_eYY.txt files and "
+        "actionLabel.txt (default: msr)",
+    )
+    parser.add_argument("src_dir", help="folder with the raw text files")
     parser.add_argument("out_path", help="npz file to write")
     args = parser.parse_args(argv)
     try:
-        bundle_msr_action3d(args.src_dir, args.out_path)
-        bundle = _load(args.out_path)
+        if args.dataset == "utkinect":
+            bundle_utkinect_action3d(args.src_dir, args.out_path)
+            utk = _load_utkinect(args.out_path)
+            counts = (
+                f"{len(utk.recordings)} recordings, "
+                f"{sum(len(r.valid) for r in utk.recordings)} frames, "
+                f"{len(utk.segments)} segments"
+            )
+        else:
+            bundle_msr_action3d(args.src_dir, args.out_path)
+            bundle = _load(args.out_path)
+            frames = sum(len(s.valid) for s in bundle.sequences)
+            counts = f"{len(bundle.sequences)} sequences, {frames} frames"
     except InputError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
-    frames = sum(len(s.valid) for s in bundle.sequences)
     size = Path(args.out_path).stat().st_size
-    print(
-        f"wrote {args.out_path}: {len(bundle.sequences)} sequences, {frames} frames, {size} bytes"
-    )
+    print(f"wrote {args.out_path}: {counts}, {size} bytes")
     return 0
 
 

@@ -93,7 +93,7 @@ def read_skeleton(path: str | os.PathLike[str], format: Format = "auto") -> Reco
     elif format == "msr":
         positions, valid = _read_msr_rows(path, data)[:, list(MSR_TO_SDK), :3], None
     elif format == "utkinect":
-        positions, valid = _parse_utkinect(path, data), None
+        positions, valid = _read_utkinect_rows(path, data)[1], None
     else:
         positions, valid = _parse_csv(path, data), None
     return _recording(positions, valid, str(path), format)
@@ -255,7 +255,16 @@ def _read_msr_rows(path: str | os.PathLike[str], data: bytes | None = None) -> n
     return table.reshape(-1, N_JOINTS, _MSR_COLUMNS)
 
 
-def _parse_utkinect(path: str | os.PathLike[str], data: bytes) -> np.ndarray:
+def _read_utkinect_rows(
+    path: str | os.PathLike[str], data: bytes | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """UTKinect text -> (``(T,)`` int64 frame numbers, ``(T, 20, 3)`` float64 positions, SDK order).
+
+    A line whose frame number repeats an earlier line's is dropped (the first one is kept); lines
+    stay in file order.
+    """
+    if data is None:
+        data = _read_bytes(path)
     table, lines = _whitespace_table(
         path, _decode(path, data), _UTK_COLUMNS, "UTKinect: frame number + 20 x y z"
     )
@@ -266,7 +275,7 @@ def _parse_utkinect(path: str | os.PathLike[str], data: bytes) -> np.ndarray:
         raise InputError(path, f"line {lines[i]}: frame number {frame[i]:g} is not an integer")
     _, first = np.unique(frame, return_index=True)
     keep = np.sort(first)  # first occurrence of each frame number, in file order
-    return table[keep, 1:].reshape(-1, N_JOINTS, 3)
+    return frame[keep].astype(np.int64), table[keep, 1:].reshape(-1, N_JOINTS, 3)
 
 
 def _is_number(token: str) -> bool:

@@ -287,3 +287,281 @@ def test_bundle_errors(tmp_path: Path, raw_dir: tuple[Path, dict[str, np.ndarray
     assert not (tmp_path / "x.npz").exists()
     with pytest.raises(InputError, match="not found"):
         datasets._load(tmp_path / "x.npz")
+
+
+# --- UTKinect-Action3D ----------------------------------------------------------------------------
+
+# Counts of the bundled subset, computed during development from the ten source files
+# (/work/shared/data/utkinect_action3d): each joints_sXX_eYY.txt split into lines, a line whose
+# frame number (column 1) was seen before dropped, and segments cut from actionLabel.txt as the
+# kept frames whose frame number lies in [start, end]; cross-checked against
+# readers.read_skeleton(format="utkinect"). Lines in the source: 9114 (413 repeats dropped).
+UTK_FRAMES = {
+    "s03_e01": 742, "s03_e02": 830, "s04_e01": 535, "s04_e02": 1271, "s06_e01": 655,
+    "s06_e02": 692, "s07_e01": 840, "s07_e02": 609, "s09_e01": 1244, "s09_e02": 1283,
+}  # fmt: skip
+# Frames per action summed over the ten recordings (walk ... clapHands); 10 segments each.
+UTK_ACTION_FRAMES = (409, 329, 255, 350, 539, 121, 298, 177, 446, 303)
+# First kept line of joints_s03_e01.txt: frame 342, HipCenter and FootRight (SDK joints 0, 19).
+UTK_S03_E01_FIRST = (342, (-1.088523, 0.085042, 2.450324), (-0.941222, -0.957707, 2.601439))
+
+
+@pytest.fixture(scope="module")
+def utk_recordings() -> list[MotionSequence]:
+    return datasets.utkinect_action3d(segments=False)
+
+
+@pytest.fixture(scope="module")
+def utk_segments() -> list[MotionSequence]:
+    return datasets.utkinect_action3d()
+
+
+def test_utk_bundled_counts(
+    utk_recordings: list[MotionSequence], utk_segments: list[MotionSequence]
+) -> None:
+    assert {r.name: len(r.valid) for r in utk_recordings} == UTK_FRAMES
+    assert [(r.subject, r.take, r.action) for r in utk_recordings] == [
+        (s, t, 0) for s in (3, 4, 6, 7, 9) for t in (1, 2)
+    ]
+    assert Counter(s.name[:7] for s in utk_segments) == {name: 10 for name in UTK_FRAMES}
+    per_action = tuple(
+        sum(len(s.valid) for s in utk_segments if s.action == a) for a in range(1, 11)
+    )
+    assert per_action == UTK_ACTION_FRAMES
+    assert datasets.dataset_summary("utkinect") == {
+        "recordings": 10,
+        "frames": 8701,
+        "valid_frames": 8701,
+        "subjects": 5,
+        "segments": 100,
+        "segment_frames": sum(UTK_ACTION_FRAMES),
+        "upper_body_segments": 50,
+        "upper_body_frames": sum(UTK_ACTION_FRAMES[5:]),
+    }
+    assert dataset_summary()["sequences"] == 567  # the default is still MSR Action3D
+    with pytest.raises(ConfigError, match="unknown dataset"):
+        dataset_summary("kth")
+
+
+def test_utk_first_frame_matches_raw_text(utk_recordings: list[MotionSequence]) -> None:
+    frame, hip, foot = UTK_S03_E01_FIRST
+    r = utk_recordings[0]
+    assert r.name == "s03_e01" and r.frame_numbers[0] == frame
+    np.testing.assert_array_equal(r.positions[0, J["HipCenter"]], np.float32(hip))
+    np.testing.assert_array_equal(r.positions[0, J["FootRight"]], np.float32(foot))
+
+
+def test_utk_frames_and_segments(
+    utk_recordings: list[MotionSequence], utk_segments: list[MotionSequence]
+) -> None:
+    with np.load(datasets.UTK_DATA_PATH, allow_pickle=False) as z:
+        bounds = dict(zip(z["names"], z["segments"], strict=True))
+    recordings = {r.name: r for r in utk_recordings}
+    for s in (*utk_recordings, *utk_segments):
+        t = len(s.valid)
+        assert t >= 1 and s.positions.shape == (t, 20, 3) and s.positions.dtype == np.float32
+        assert s.confidence.shape == (t, 20) and (s.confidence == 1).all()
+        assert s.valid.all() and s.frame_numbers.dtype == np.int64
+        assert (np.diff(s.frame_numbers) > 0).all(), s.name  # strictly increasing
+        np.testing.assert_array_equal(s.times, s.frame_numbers / datasets.UTK_FPS)
+        for array in (s.positions, s.frame_numbers, s.times, s.valid):
+            with pytest.raises(ValueError, match="read-only"):
+                array[0] = 0
+    for name, r in recordings.items():
+        segs = [s for s in utk_segments if s.name.startswith(name + "_")]
+        assert [s.action for s in segs] == list(range(1, 11))
+        for s in segs:
+            assert s.name == f"{name}_{datasets.UTK_ACTION_NAMES[s.action - 1]}"
+            assert (s.subject, s.take) == (r.subject, r.take)
+            start, end = bounds[name][s.action - 1]
+            inside = (r.frame_numbers >= start) & (r.frame_numbers <= end)
+            lo = int(np.argmax(inside))
+            # the segment is exactly the recording's frames within [start, end], in time order
+            assert inside.sum() == len(s.valid) and inside[lo : lo + len(s.valid)].all()
+            np.testing.assert_array_equal(s.frame_numbers, r.frame_numbers[inside])
+            np.testing.assert_array_equal(s.positions, r.positions[inside])
+            assert r.times[0] <= s.times[0] <= s.times[-1] <= r.times[-1]
+
+
+def test_utk_filters_and_errors(utk_segments: list[MotionSequence]) -> None:
+    upper = datasets.utkinect_action3d(actions=datasets.UTK_UPPER_BODY_ACTIONS)
+    assert upper == [s for s in utk_segments if s.action in (6, 7, 8, 9, 10)]
+    assert len(upper) == 50 and {s.action for s in upper} == {6, 7, 8, 9, 10}
+    names = {datasets.UTK_ACTION_NAMES[a - 1] for a in datasets.UTK_UPPER_BODY_ACTIONS}
+    assert names == {"throw", "push", "pull", "waveHands", "clapHands"}
+    assert {s.name.split("_")[2] for s in upper} == names
+    s3 = datasets.utkinect_action3d(subjects=[3, 5], actions=[9])
+    assert [s.name for s in s3] == ["s03_e01_waveHands", "s03_e02_waveHands"]
+    assert len(datasets.utkinect_action3d(subjects=[4], segments=False)) == 2
+    for bad in ([0], [11]):
+        with pytest.raises(ConfigError, match="subjects"):
+            datasets.utkinect_action3d(subjects=bad)
+    with pytest.raises(ConfigError, match="bundled UTKinect"):
+        datasets.utkinect_action3d(subjects=[1, 2])  # real subjects, not in the subset
+    with pytest.raises(ConfigError, match="actions"):
+        datasets.utkinect_action3d(actions=[11])
+    with pytest.raises(ConfigError, match="segments=False"):
+        datasets.utkinect_action3d(actions=[6], segments=False)
+    assert datasets.UTK_FPS == 30.0 and len(datasets.UTK_ACTION_NAMES) == 10
+
+
+def test_load_sequences_names_the_datasets(utk_segments: list[MotionSequence]) -> None:
+    assert datasets.load_sequences("utkinect") == utk_segments
+    test_split = datasets.load_sequences("utkinect", [2, 4, 6, 8, 10])
+    assert test_split == [s for s in utk_segments if s.subject in (4, 6)]
+    assert datasets.load_sequences("msr", [4]) == datasets.load_sequences("bundled", [4])
+    assert len(datasets.load_sequences("msr", [4])) == 38
+    with pytest.raises(InputError, match="'utkinect'"):
+        datasets.load_sequences("utk")
+
+
+def test_utk_bundled_archive_layout() -> None:
+    with np.load(datasets.UTK_DATA_PATH, allow_pickle=False) as z:
+        assert str(z["dataset"]) == "utkinect_action3d" and int(z["format_version"]) == 1
+        assert tuple(z["joint_names"]) == JOINT_NAMES
+        assert tuple(z["action_names"]) == datasets.UTK_ACTION_NAMES
+        assert z["positions_um_planes"].dtype == np.uint8
+        assert z["positions_um_planes"].shape == (4, 8701 * 60)
+        assert z["frame_numbers"].shape == (8701,) and z["segments"].shape == (10, 10, 2)
+        assert (z["segments"] >= 0).all()  # no NaN segment among the ten recordings
+    assert datasets.UTK_DATA_PATH.stat().st_size < 1_500_000
+    with pytest.raises(InputError, match="unsupported"):
+        datasets._load(datasets.UTK_DATA_PATH)
+    with pytest.raises(InputError, match="not a UTKinect"):
+        datasets._load_utkinect(datasets.DATA_PATH)
+
+
+def _write_utk(path: Path, frames: list[int], xyz: np.ndarray) -> None:
+    """frames (T,), xyz (T, 20, 3) SDK order -> joints_sXX_eYY.txt text (6 decimals)."""
+    path.write_text(
+        "".join(
+            f"{f}   " + "  ".join(f"{v:.6f}" for v in row.reshape(-1)) + "\n"
+            for f, row in zip(frames, xyz, strict=True)
+        )
+    )
+
+
+UTK_LABELS = """s01_e01
+walk: 10 14
+sitDown: NaN NaN
+standUp: 16 30 \n pickUp: 40 50
+carry:  3 3
+throw: 1 2
+push: 11 18
+pull: 12 12
+waveHands: 14 20
+clapHands: 20 22
+s02_e01
+walk: 1 2
+sitDown: 2 3
+standUp: 3 4
+pickUp: 4 5
+carry: 5 6
+throw: 6 7
+push: 7 8
+pull: 8 9
+waveHands: 9 10
+clapHands: 10 11
+"""
+
+
+@pytest.fixture
+def utk_raw(tmp_path: Path) -> tuple[Path, np.ndarray]:
+    """One synthetic recording with repeated frame numbers; the labels list another one too."""
+    rng = np.random.default_rng(3)
+    src = tmp_path / "utk"
+    src.mkdir()
+    frames = [10, 12, 12, 14, 18, 18, 20, 26]
+    xyz = np.round(rng.uniform(-2.0, 4.0, size=(len(frames), 20, 3)), 6)
+    _write_utk(src / "joints_s01_e01.txt", frames, xyz)
+    (src / "actionLabel.txt").write_text(UTK_LABELS)
+    (src / "README.txt").write_text("not a recording\n")
+    return src, xyz
+
+
+def test_utk_bundle_round_trip(tmp_path: Path, utk_raw: tuple[Path, np.ndarray]) -> None:
+    from jaxproj.readers import read_skeleton
+
+    src, xyz = utk_raw
+    out = tmp_path / "utk.npz"
+    datasets.bundle_utkinect_action3d(src, out)
+    utk = datasets._load_utkinect(out)
+    (rec,) = utk.recordings
+    kept = [0, 1, 3, 4, 6, 7]  # the second line of frames 12 and 18 is dropped
+    assert (rec.name, rec.subject, rec.take, rec.action) == ("s01_e01", 1, 1, 0)
+    np.testing.assert_array_equal(rec.frame_numbers, [10, 12, 14, 18, 20, 26])
+    np.testing.assert_array_equal(rec.positions, xyz[kept].astype(np.float32))
+    raw = read_skeleton(src / "joints_s01_e01.txt", format="utkinect")
+    np.testing.assert_array_equal(rec.positions, raw.positions)  # the reader's rule, same values
+    # lossless: the stored micrometres are the decimal text read as integers, no float parsing
+    lines = (src / "joints_s01_e01.txt").read_text().splitlines()
+    text_um = [[int(t.replace(".", "")) for t in lines[i].split()[1:]] for i in kept]
+    with np.load(out, allow_pickle=False) as z:
+        um = np.ascontiguousarray(z["positions_um_planes"].T).view("<i4").reshape(-1, 60)
+        np.testing.assert_array_equal(um, text_um)
+        np.testing.assert_array_equal(z["segments"][0, :2], [[10, 14], [-1, -1]])
+    # walk 10-14, standUp 16-30, push 11-18, pull 12, waveHands 14-20, clapHands 20-22;
+    # sitDown is NaN, pickUp / carry / throw hold no recorded frame: left out
+    assert [(s.name, s.frame_numbers.tolist()) for s in utk.segments] == [
+        ("s01_e01_walk", [10, 12, 14]),
+        ("s01_e01_standUp", [18, 20, 26]),
+        ("s01_e01_push", [12, 14, 18]),
+        ("s01_e01_pull", [12]),
+        ("s01_e01_waveHands", [14, 18, 20]),
+        ("s01_e01_clapHands", [20]),
+    ]
+    assert [s.action for s in utk.segments] == [1, 3, 7, 8, 9, 10]
+    np.testing.assert_array_equal(utk.segments[1].positions, xyz[[4, 6, 7]].astype(np.float32))
+
+
+def test_utk_bundle_is_deterministic_and_cli_works(
+    tmp_path: Path, utk_raw: tuple[Path, np.ndarray], capsys: pytest.CaptureFixture
+) -> None:
+    src, _ = utk_raw
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    datasets.bundle_utkinect_action3d(src, a)
+    assert datasets.main(["--dataset", "utkinect", str(src), str(b)]) == 0
+    assert "1 recordings, 6 frames, 6 segments" in capsys.readouterr().out
+    assert a.read_bytes() == b.read_bytes()
+    with zipfile.ZipFile(a) as zf:
+        assert {info.date_time for info in zf.infolist()} == {(1980, 1, 1, 0, 0, 0)}
+    # the MSR archive format is chosen without --dataset, and it finds no MSR file here
+    assert datasets.main([str(src), str(tmp_path / "c.npz")]) == 1
+    assert "no aXX_sYY_eZZ_skeleton3D.txt files" in capsys.readouterr().err
+
+
+def test_utk_bundle_errors(tmp_path: Path, utk_raw: tuple[Path, np.ndarray]) -> None:
+    src, xyz = utk_raw
+    out = tmp_path / "x.npz"
+    labels = src / "actionLabel.txt"
+    cases = [
+        (labels, UTK_LABELS.replace("pull: 12 12", "pull: 12"), "line 9: expected"),
+        (labels, UTK_LABELS.replace("pull: 12 12", "pull: 13 12"), "line 9: bounds"),
+        (labels, UTK_LABELS.replace("pull: 12 12", "pull: 12 NaN"), "line 9: bounds"),
+        (labels, UTK_LABELS.replace("pull: 12 12", "jump: 12 12"), "unknown action 'jump'"),
+        (labels, UTK_LABELS.replace("pull: 12 12", "push: 12 12"), "repeated action 'push'"),
+        (labels, UTK_LABELS.replace("s01_e01", "s01_e02"), "no segment block for s01_e01"),
+        (labels, UTK_LABELS.replace("pull: 12 12\n", ""), r"s01_e01 lacks actions \['pull'\]"),
+    ]
+    for path, text, message in cases:
+        path.write_text(text)
+        with pytest.raises(InputError, match=message):
+            datasets.bundle_utkinect_action3d(src, out)
+    labels.unlink()
+    with pytest.raises(InputError, match="segment labels not found"):
+        datasets.bundle_utkinect_action3d(src, out)
+    labels.write_text(UTK_LABELS)
+    joints = src / "joints_s01_e01.txt"
+    _write_utk(joints, [10, 14, 12], xyz[:3])
+    with pytest.raises(InputError, match="joints_s01_e01.txt: frame numbers must"):
+        datasets.bundle_utkinect_action3d(src, out)
+    joints.write_text("10 " + " ".join(["0.1234567"] * 60) + "\n")  # 7 decimals
+    with pytest.raises(InputError, match="joints_s01_e01.txt: .*micrometres"):
+        datasets.bundle_utkinect_action3d(src, out)
+    joints.write_text("10 1.0 2.0\n")
+    with pytest.raises(InputError, match="line 1: found 3 columns, expected 61"):
+        datasets.bundle_utkinect_action3d(src, out)
+    joints.unlink()
+    with pytest.raises(InputError, match="no joints_sXX_eYY.txt files"):
+        datasets.bundle_utkinect_action3d(src, out)
+    assert not out.exists()
