@@ -29,57 +29,137 @@ from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.kernels import ELMBank, train_bank
 from jaxproj.projection import (
+    ChainLayout,
     FullConfig,
     Projector,
+    StackedProjector,
     make_projector,
     project_full_one,
     project_relaxed_one,
+    project_stacked_one,
+    stack_projectors,
 )
+from jaxproj.skeleton import resolve_bones
 
 FORMAT = "jaxproj-projector"
-FORMAT_VERSION = 2
-"""2: kernel output weights stored ``(n_kernels, d_out, hidden)`` (1 had ``hidden, d_out``)."""
+FORMAT_VERSION = 3
+"""3: one projector per kinematic chain (``chain<c>.*`` arrays, the layout in the metadata);
+2: kernel output weights stored ``(n_kernels, d_out, hidden)``; 1: ``(hidden, d_out)``."""
+
+HEAD_BANDWIDTH = 0.04
+"""Mean-shift bandwidth of the head chain when ``BuildConfig.landmarks`` is one number (that
+number is then the count of each arm chain, and of the whole-body chain). The neck direction of
+a Kinect skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count
+target would bisect the bandwidth over many slow mean-shift runs; one run at this bandwidth
+gives ~120 head landmarks on subjects 1,3,5,7,9 (measured in ``benchmarks/RESULTS.md``)."""
+
+PerChain = tuple  # a tuple with one value per chain, in chain order
+
+
+def _per_chain(value: object, c: int, n: int, name: str) -> object:
+    if isinstance(value, (tuple, list)):
+        if len(value) != n:
+            raise ConfigError(f"{name} has {len(value)} values for {n} chains")
+        return value[c]
+    return value
+
+
+@dataclass(frozen=True)
+class ChainConfig:
+    """The settings of one chain's projector (``BuildConfig.chain_config``)."""
+
+    landmarks: int | None
+    bandwidth: float | None
+    k: int
+    hidden: int
+    lam: float
+    input_scale: float
+    seed: int
 
 
 @dataclass(frozen=True)
 class BuildConfig:
-    """How a model is built. Exactly one of ``landmarks`` / ``bandwidth`` sets the landmarks.
+    """How a model is built: which chains, and per chain its landmarks and kernels.
 
-    Validated when constructed (``ConfigError`` with what to change).
+    Validated when constructed (``ConfigError`` with what to change). Every per-chain setting
+    is one value for all chains or a tuple with one value per chain (in ``ik.CHAIN_SETS[chains]``
+    order: head, left_arm, right_arm).
 
     Attributes:
-      landmarks: target landmark count (the mean-shift bandwidth is found by bisection).
-      bandwidth: mean-shift bandwidth, used as is.
+      chains: ``"upper"`` (default): one projector per kinematic chain (``ik.CHAINS``: head,
+        left arm, right arm), searched and trained in the chain's own bones; ``"whole"``: one
+        projector over the whole descriptor, the paper's formulation.
+      landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
+        number sets each arm chain (and the whole-body chain); the head then uses
+        ``HEAD_BANDWIDTH``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
+      bandwidth: mean-shift bandwidth, used as is (per chain where ``landmarks`` is ``None``).
       bones: descriptor bone subset (``skeleton.descriptor``); the IK needs ``"upper"`` bones.
       mirror: mirror imitation (human left drives robot right).
       k: training neighbours per ELM kernel (the landmark itself included), capped at the
-        number of landmarks ``K``: a small set (the paper's 86) trains every kernel on all its
-        landmarks. The ``k`` used is the kernel banks' ``k``.
+        chain's number of landmarks ``K``: a small set (the paper's 86) trains every kernel on all
+        its landmarks. The ``k`` used is in the model's layout.
       hidden: hidden units per kernel (``>= k``).
       lam: ridge regulariser of the ELMs.
       input_scale: standard deviation of the random hidden weights.
-      seed: PRNG seed of the random hidden layers.
+      seed: PRNG seed of the random hidden layers (chain 0 uses ``PRNGKey(seed)``, chain ``c``
+        ``fold_in(PRNGKey(seed), c)``).
     """
 
-    landmarks: int | None = 1644
-    bandwidth: float | None = None
+    landmarks: int | PerChain | None = 1644
+    bandwidth: float | PerChain | None = None
+    chains: str = "upper"
     bones: str = "upper"
     mirror: bool = False
-    k: int = 96
-    hidden: int = 96
-    lam: float = 1e-3
-    input_scale: float = 0.5
+    k: int | PerChain = 96
+    hidden: int | PerChain = 96
+    lam: float | PerChain = 1e-3
+    input_scale: float | PerChain = 0.5
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if (self.landmarks is None) == (self.bandwidth is None):
-            raise ConfigError("give exactly one of landmarks (a count) or bandwidth")
-        if self.landmarks is not None and self.landmarks < 2:
-            raise ConfigError(f"landmarks={self.landmarks} must be >= 2")
-        if self.bandwidth is not None and not self.bandwidth > 0:
-            raise ConfigError(f"bandwidth={self.bandwidth} must be > 0")
-        if self.hidden < self.k:
-            raise ConfigError(f"hidden={self.hidden} must be >= k={self.k}")
+        for name in ("landmarks", "bandwidth", "k", "hidden", "lam", "input_scale"):
+            if isinstance(getattr(self, name), list):  # from JSON
+                object.__setattr__(self, name, tuple(getattr(self, name)))
+        chains = ik.chain_set(self.chains)
+        for c in range(len(chains)):
+            self.chain_config(c)
+
+    @property
+    def chain_names(self) -> tuple[str, ...]:
+        """Names of the chains, in order."""
+        return tuple(ch.name for ch in ik.chain_set(self.chains))
+
+    def chain_config(self, c: int) -> ChainConfig:
+        """Chain ``c``'s settings (validated; ``ConfigError`` says what to change)."""
+        chains = ik.chain_set(self.chains)
+        n, name = len(chains), chains[c].name
+
+        def get(field_name: str) -> object:
+            return _per_chain(getattr(self, field_name), c, n, field_name)
+
+        landmarks, bandwidth = get("landmarks"), get("bandwidth")
+        if name == "head" and not isinstance(self.landmarks, tuple) and bandwidth is None:
+            landmarks, bandwidth = None, HEAD_BANDWIDTH
+        if (landmarks is None) == (bandwidth is None):
+            raise ConfigError(
+                f"chain {name}: give exactly one of landmarks (a count) or bandwidth"
+            )
+        if landmarks is not None and landmarks < 2:
+            raise ConfigError(f"chain {name}: landmarks={landmarks} must be >= 2")
+        if bandwidth is not None and not bandwidth > 0:
+            raise ConfigError(f"chain {name}: bandwidth={bandwidth} must be > 0")
+        cfg = ChainConfig(
+            landmarks, bandwidth, get("k"), get("hidden"), get("lam"), get("input_scale"), self.seed
+        )
+        if cfg.k < 2:
+            raise ConfigError(f"chain {name}: k={cfg.k} must be >= 2")
+        if cfg.hidden < cfg.k:
+            raise ConfigError(f"chain {name}: hidden={cfg.hidden} must be >= k={cfg.k}")
+        if not cfg.lam > 0:
+            raise ConfigError(f"chain {name}: lam={cfg.lam} must be > 0")
+        if not cfg.input_scale > 0:
+            raise ConfigError(f"chain {name}: input_scale={cfg.input_scale} must be > 0")
+        return cfg
 
 
 @dataclass(frozen=True)
@@ -87,33 +167,49 @@ class Model:
     """A built projector plus what it was built from.
 
     Attributes:
-      projector: landmarks and kernel banks (a pytree, see ``projection.Projector``).
+      projector: the chains' landmarks and kernel banks (a pytree, see
+        ``projection.StackedProjector``; the whole-body model is its one-chain case).
       config: the ``BuildConfig``.
-      bandwidth: the mean-shift bandwidth used.
-      counts: ``(K,)`` training frames per landmark.
+      bandwidth: per chain, the mean-shift bandwidth used.
+      counts: per chain, ``(K_c,)`` training frames per landmark.
       n_train: training frames (valid descriptors) the landmarks came from.
     """
 
-    projector: Projector
+    projector: StackedProjector
     config: BuildConfig
-    bandwidth: float
-    counts: np.ndarray
+    bandwidth: tuple[float, ...]
+    counts: tuple[np.ndarray, ...]
     n_train: int
 
     @property
     def n_landmarks(self) -> int:
-        """Number of landmark pairs ``K``."""
+        """The smallest chain's landmark count (the largest ``L`` and ``M``)."""
         return self.projector.n_landmarks
+
+    @property
+    def landmarks(self) -> dict[str, int]:
+        """Landmark count per chain."""
+        lay = self.projector.layout
+        return dict(zip(lay.names, lay.landmarks, strict=True))
 
 
 def build_from_landmarks(
-    human: np.ndarray, robot_poses: np.ndarray, config: BuildConfig
+    human: np.ndarray,
+    robot_poses: np.ndarray,
+    config: BuildConfig | ChainConfig,
+    *,
+    key: jax.Array | None = None,
+    lower: np.ndarray | None = None,
+    upper: np.ndarray | None = None,
 ) -> Projector:
-    """Train both kernel banks on given landmark pairs ``(K, m)``, ``(K, n)``.
+    """Train both kernel banks of one projector on given landmark pairs ``(K, m)``, ``(K, n)``.
 
-    Each kernel trains on ``min(config.k, K)`` neighbours (see ``BuildConfig.k``).
+    Each kernel trains on ``min(config.k, K)`` neighbours (see ``BuildConfig.k``); ``config``'s
+    ``k``, ``hidden``, ``lam``, ``input_scale`` must be single numbers. ``key`` defaults to
+    ``PRNGKey(config.seed)``; ``lower`` / ``upper`` ``(n,)`` are the limits of the joints the
+    robot landmarks hold (default: all of ``robot.DRIVEN_JOINTS``).
     """
-    key = jax.random.PRNGKey(config.seed)
+    key = jax.random.PRNGKey(config.seed) if key is None else key
     k_fwd, k_bwd = jax.random.split(key)
     if config.k < 2 or len(human) < 2:
         raise ConfigError(f"k={config.k} and the number of landmarks={len(human)} must be >= 2")
@@ -121,15 +217,16 @@ def build_from_landmarks(
     opts = dict(k=k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
     forward = train_bank(human, robot_poses, k_fwd, **opts)
     backward = train_bank(robot_poses, human, k_bwd, **opts)
-    return make_projector(human, robot_poses, forward, backward)
+    return make_projector(human, robot_poses, forward, backward, lower, upper)
 
 
 def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_shift) -> Model:
-    """Build a model from training descriptors.
+    """Build a model from training descriptors: per chain, mean-shift landmarks of the chain's
+    bones, their IK, and both kernel banks; then the chains are stacked.
 
     Args:
       descriptors: ``(N, m)`` human descriptors of VALID training frames.
-      config: landmarks and kernel settings.
+      config: chains, landmarks and kernel settings.
       **mean_shift: extra options passed to ``landmarks.build_landmarks``.
 
     Returns:
@@ -138,24 +235,65 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
     d = np.asarray(descriptors, np.float32)
     if d.ndim != 2 or len(d) < 2 or not np.isfinite(d).all():
         raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
-    lm = landmarks.build_landmarks(
-        d, target=config.landmarks, bandwidth=config.bandwidth, bones=config.bones, **mean_shift
+    chains = ik.chain_set(config.chains)
+    whole = len(chains) == 1
+    base_key = jax.random.PRNGKey(config.seed)
+    projectors, bandwidths, counts = [], [], []
+    for c, chain in enumerate(chains):
+        cc = config.chain_config(c)
+        lm = landmarks.build_landmarks(
+            d,
+            target=cc.landmarks,
+            bandwidth=cc.bandwidth,
+            bones=config.bones,
+            chain=None if whole else chain,
+            **mean_shift,
+        )
+        joints = list(ik.chain_joints(chain))
+        lo = robot.LOWER[robot.DRIVEN_INDEX][joints]
+        hi = robot.UPPER[robot.DRIVEN_INDEX][joints]
+        key = base_key if c == 0 else jax.random.fold_in(base_key, c)
+        projectors.append(build_from_landmarks(lm.human, lm.robot, cc, key=key, lower=lo, upper=hi))
+        bandwidths.append(float(lm.bandwidth))
+        counts.append(np.asarray(lm.counts))
+    stacked = stack_projectors(projectors, layout_of(config, projectors))
+    return Model(stacked, config, tuple(bandwidths), tuple(counts), int(len(d)))
+
+
+def layout_of(config: BuildConfig, projectors: Sequence[Projector]) -> ChainLayout:
+    """The ``ChainLayout`` of ``config``'s chains holding these per-chain projectors."""
+    chains = ik.chain_set(config.chains)
+    if len(chains) == 1:  # the whole-body projector reads the whole descriptor
+        inputs = (tuple(range(3 * len(resolve_bones(config.bones)))),)
+    else:
+        inputs = tuple(ik.chain_columns(ch, config.bones) for ch in chains)
+    return ChainLayout(
+        names=tuple(ch.name for ch in chains),
+        inputs=inputs,
+        outputs=tuple(ik.chain_joints(ch) for ch in chains),
+        landmarks=tuple(p.n_landmarks for p in projectors),
+        hidden=tuple(p.forward.hidden for p in projectors),
+        k=tuple(p.forward.k for p in projectors),
     )
-    projector = build_from_landmarks(lm.human, lm.robot, config)
-    return Model(projector, config, float(lm.bandwidth), np.asarray(lm.counts), int(lm.n_frames))
 
 
 Objective = Literal["relaxed", "full"]
 
 
-def sub_batch(p: Projector, objective: str, n_l: int, n_m: int, batch: int) -> int:
+AnyProjector = Projector | StackedProjector
+
+
+def sub_batch(p: AnyProjector, objective: str, n_l: int, n_m: int, batch: int) -> int:
     """Queries vmapped together inside one jitted batch (the rest is a ``lax.map`` loop).
 
-    Each query gathers ``L * M`` backward kernels (``L * M * hidden * (m + 2)`` floats); a
-    sub-batch is sized so that this stays within a cache-sized (CPU, 16 MiB) or memory-sized
-    (accelerators, 4 GiB) budget, and divides ``batch``.
+    Each query gathers ``L * M`` backward kernels per chain (``L * M * hidden * (m + 2)``
+    floats); a sub-batch is sized so that this stays within a cache-sized (CPU, 16 MiB) or
+    memory-sized (accelerators, 4 GiB) budget, and divides ``batch``.
     """
-    per_query = 4 * n_l * n_m * p.backward.hidden * (p.backward.d_out + 2)
+    chains = 1
+    if isinstance(p, StackedProjector):
+        chains, p = p.layout.n_chains, p.stack
+    per_query = 4 * chains * n_l * n_m * p.backward.hidden * (p.backward.d_out + 2)
     if objective == "full":
         per_query *= 3  # values, gradients and optimiser state
     budget = 16 * 2**20 if jax.default_backend() == "cpu" else 4 * 2**30
@@ -168,7 +306,7 @@ def sub_batch(p: Projector, objective: str, n_l: int, n_m: int, batch: int) -> i
 
 
 def project_batch(
-    p: Projector,
+    p: AnyProjector,
     h: jax.Array,
     objective: str = "relaxed",
     n_l: int = 10,
@@ -177,12 +315,15 @@ def project_batch(
 ) -> tuple[jax.Array, jax.Array]:
     """The traceable core of ``project`` for one batch (call it inside a jitted function).
 
-    ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``: the one-query projection vmapped over
+    ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``: the one-query projection (of every
+    chain, for a ``StackedProjector``; see ``projection.project_stacked_one``) vmapped over
     sub-batches of ``sub_batch(...)`` queries, the sub-batches looped with ``lax.map``.
     """
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
 
     def one(x: jax.Array) -> tuple[jax.Array, jax.Array]:
+        if isinstance(p, StackedProjector):
+            return project_stacked_one(p, x, objective, n_l, n_m, full)
         if objective == "relaxed":
             return project_relaxed_one(p, x, n_l, n_m)
         r, f, _ = project_full_one(p, x, n_l, n_m, full)
@@ -197,8 +338,8 @@ project_chunk = jit(project_batch, static_argnames=("objective", "n_l", "n_m", "
 """Jitted ``project_batch``: ``(projector, (B, m), objective, L, M, full) -> ((B, n), (B,))``."""
 
 
-def check_neighbours(model_or_projector: Model | Projector, n_l: int, n_m: int) -> None:
-    """Raise ``ConfigError`` unless ``1 <= L, M <= K``."""
+def check_neighbours(model_or_projector: Model | AnyProjector, n_l: int, n_m: int) -> None:
+    """Raise ``ConfigError`` unless ``1 <= L, M <= K`` (``K``: the smallest chain's count)."""
     p = model_or_projector
     if isinstance(p, Model):
         p = p.projector
@@ -224,7 +365,7 @@ def _placement(devices: Sequence[jax.Device] | None, batch_size: int) -> Any:
 
 
 def project(
-    model: Model | Projector,
+    model: Model | AnyProjector,
     descriptors: np.ndarray,
     objective: Objective = "relaxed",
     *,
@@ -240,7 +381,7 @@ def project(
     ``(objective, L, M, full, batch_size)``.
 
     Args:
-      model: a ``Model`` or a bare ``Projector``.
+      model: a ``Model``, or a bare ``StackedProjector`` / ``Projector``.
       descriptors: ``(B, m)`` human descriptors (valid frames).
       objective: ``"relaxed"`` or ``"full"``.
       n_l, n_m: ``L`` human and ``M`` robot neighbours.
@@ -259,9 +400,10 @@ def project(
     if objective not in ("relaxed", "full"):
         raise ConfigError(f"objective must be 'relaxed' or 'full', got {objective!r}")
     check_neighbours(p, n_l, n_m)
+    m = p.layout.m if isinstance(p, StackedProjector) else p.human.shape[1]
     h = np.asarray(descriptors, np.float32)
-    if h.ndim != 2 or h.shape[1] != p.human.shape[1]:
-        raise ConfigError(f"descriptors must be (B, {p.human.shape[1]}), got {h.shape}")
+    if h.ndim != 2 or h.shape[1] != m:
+        raise ConfigError(f"descriptors must be (B, {m}), got {h.shape}")
     if batch_size < 1:
         raise ConfigError(f"batch_size={batch_size} must be >= 1")
     place = _placement(devices, batch_size)
@@ -276,12 +418,18 @@ def project(
         outs.append(np.asarray(r)[: batch_size - pad])
         vals.append(np.asarray(v)[: batch_size - pad])
     if not outs:
-        return np.zeros((0, p.robot.shape[1]), np.float32), np.zeros((0,), np.float32)
+        n = p.layout.n if isinstance(p, StackedProjector) else p.robot.shape[1]
+        return np.zeros((0, n), np.float32), np.zeros((0,), np.float32)
     return np.concatenate(outs), np.concatenate(vals)
 
 
-def _padding_query(p: Projector) -> np.ndarray:
-    """``(1, m)``: a harmless padding query (the first landmark)."""
+def _padding_query(p: AnyProjector) -> np.ndarray:
+    """``(1, m)``: a harmless padding query (the first landmark of each chain)."""
+    if isinstance(p, StackedProjector):
+        q = np.zeros((1, p.layout.m), np.float32)
+        for c, cols in enumerate(p.layout.inputs):
+            q[0, list(cols)] = np.asarray(p.stack.human[c, 0, : len(cols)])
+        return q
     return np.asarray(p.human[:1])
 
 
@@ -291,21 +439,26 @@ _BANK_FIELDS = ("w", "inv_scale", "bias", "out", "offset", "neighbours")
 
 
 def save(model: Model, path: str | Path) -> None:
-    """Write a model to one ``.npz``: every array, the config and a format version."""
-    p = model.projector
-    arrays: dict[str, np.ndarray] = {
-        "human": np.asarray(p.human),
-        "robot": np.asarray(p.robot),
-        "counts": np.asarray(model.counts),
-    }
-    for name, bank in (("forward", p.forward), ("backward", p.backward)):
-        for f in _BANK_FIELDS:
-            arrays[f"{name}.{f}"] = np.asarray(getattr(bank, f))
+    """Write a model to one ``.npz``: every chain's arrays (unpadded), the config, the chain
+    layout and a format version. The file is written under a temporary name and then renamed,
+    so an interrupted save never leaves a half-written model."""
+    sp = model.projector
+    lay = sp.layout
+    arrays: dict[str, np.ndarray] = {}
+    for c in range(lay.n_chains):
+        p = sp.chain(c)
+        arrays[f"chain{c}.human"] = np.asarray(p.human)
+        arrays[f"chain{c}.robot"] = np.asarray(p.robot)
+        arrays[f"chain{c}.counts"] = np.asarray(model.counts[c])
+        for name, bank in (("forward", p.forward), ("backward", p.backward)):
+            for f in _BANK_FIELDS:
+                arrays[f"chain{c}.{name}.{f}"] = np.asarray(getattr(bank, f))
     meta = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "config": asdict(model.config),
-        "bandwidth": model.bandwidth,
+        "chains": {"names": list(lay.names), "inputs": lay.inputs, "outputs": lay.outputs},
+        "bandwidth": list(model.bandwidth),
         "n_train": model.n_train,
         "driven_joints": list(robot.DRIVEN_JOINTS),
         "ik": {
@@ -314,11 +467,14 @@ def save(model: Model, path: str | Path) -> None:
         },
     }
     path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "wb") as fh:
+        with open(tmp, "wb") as fh:
             np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
+        tmp.replace(path)
     except OSError as e:
+        tmp.unlink(missing_ok=True)
         raise InputError(path, f"cannot write model: {e.strerror or e}") from None
 
 
@@ -348,23 +504,35 @@ def load(path: str | Path) -> Model:
         )
     try:
         config = BuildConfig(**meta["config"])
-        banks = {}
-        for name in ("forward", "backward"):
-            a = {f: data[f"{name}.{f}"] for f in _BANK_FIELDS}
-            banks[name] = ELMBank(
-                **{f: jnp.asarray(v) for f, v in a.items()},
-                n_kernels=int(a["out"].shape[0]),
-                hidden=int(a["out"].shape[2]),
-                d_in=int(a["w"].shape[1]),
-                d_out=int(a["out"].shape[1]),
-                k=int(a["neighbours"].shape[1]),
+        projectors = []
+        for c, ch in enumerate(ik.chain_set(config.chains)):
+            banks = {}
+            for name in ("forward", "backward"):
+                a = {f: data[f"chain{c}.{name}.{f}"] for f in _BANK_FIELDS}
+                banks[name] = ELMBank(
+                    **{f: jnp.asarray(v) for f, v in a.items()},
+                    n_kernels=int(a["out"].shape[0]),
+                    hidden=int(a["out"].shape[2]),
+                    d_in=int(a["w"].shape[1]),
+                    d_out=int(a["out"].shape[1]),
+                    k=int(a["neighbours"].shape[1]),
+                )
+            joints = list(ik.chain_joints(ch))
+            projectors.append(
+                make_projector(
+                    data[f"chain{c}.human"],
+                    data[f"chain{c}.robot"],
+                    banks["forward"],
+                    banks["backward"],
+                    robot.LOWER[robot.DRIVEN_INDEX][joints],
+                    robot.UPPER[robot.DRIVEN_INDEX][joints],
+                )
             )
-        projector = make_projector(
-            data["human"], data["robot"], banks["forward"], banks["backward"]
-        )
+        layout = layout_of(config, projectors)
+        if [list(x) for x in layout.inputs] != [list(x) for x in meta["chains"]["inputs"]]:
+            raise InputError(path, "the file's chain layout differs from its configuration's")
+        stacked = stack_projectors(projectors, layout)
+        counts = tuple(data[f"chain{c}.counts"] for c in range(layout.n_chains))
     except (KeyError, TypeError, IndexError, ValueError) as e:
         raise InputError(path, f"incomplete or inconsistent model file ({e})") from None
-    k = projector.n_landmarks
-    if data["robot"].shape != (k, len(robot.DRIVEN_JOINTS)) or banks["forward"].n_kernels != k:
-        raise InputError(path, "inconsistent array shapes in model file")
-    return Model(projector, config, float(meta["bandwidth"]), data["counts"], int(meta["n_train"]))
+    return Model(stacked, config, tuple(meta["bandwidth"]), counts, int(meta["n_train"]))

@@ -122,6 +122,45 @@ WHOLE_BODY = Chain("whole", UPPER_BODY, robot.DRIVEN_JOINTS)
 CHAIN_SETS: dict[str, tuple[Chain, ...]] = {"upper": CHAINS, "whole": (WHOLE_BODY,)}
 """Named chain sets of ``BuildConfig.chains``: per-chain projection (default) or whole-body."""
 
+_REST_DIRECTION = {"neck": (0.0, 0.0, 1.0)}
+"""Fill for the bones a chain does not read (any valid direction gives the same chain angles);
+arm bones hang: (0, 0, -1)."""
+
+
+def chain_set(name: str) -> tuple[Chain, ...]:
+    """The chains of ``CHAIN_SETS[name]``; ``ConfigError`` for an unknown name."""
+    if name not in CHAIN_SETS:
+        raise ConfigError(f"unknown chain set {name!r}; use one of {sorted(CHAIN_SETS)}")
+    return CHAIN_SETS[name]
+
+
+def chain_columns(chain: Chain, bones: str | tuple[str, ...] = "upper") -> tuple[int, ...]:
+    """The columns of a ``bones`` descriptor that hold ``chain``'s bones (3 per bone)."""
+    names = resolve_bones(bones)
+    missing = [b for b in chain.bones if b not in names]
+    if missing:
+        raise ConfigError(f"chain {chain.name!r} needs the bones {missing}, absent from {bones!r}")
+    return tuple(3 * names.index(b) + i for b in chain.bones for i in range(3))
+
+
+def chain_joints(chain: Chain) -> tuple[int, ...]:
+    """Positions of ``chain.joints`` in ``robot.DRIVEN_JOINTS``."""
+    return tuple(robot.DRIVEN_JOINTS.index(j) for j in chain.joints)
+
+
+def solve_chain(x: np.ndarray, chain: Chain, bones: str | tuple[str, ...] = "upper") -> np.ndarray:
+    """IK of one chain from its own bones: ``(N, 3 * len(chain.bones))`` -> ``(N, len(joints))``.
+
+    The chain's bones are placed in a ``bones`` descriptor whose other bones rest (neck up, arms
+    hanging); by the IK's factorisation (``CHAINS``) the result does not depend on that fill.
+    """
+    x = np.asarray(x, np.float32)
+    names = resolve_bones(bones)
+    fill = np.concatenate([_REST_DIRECTION.get(b, (0.0, 0.0, -1.0)) for b in names])
+    d = np.broadcast_to(fill.astype(np.float32), (len(x), len(fill))).copy()
+    d[:, list(chain_columns(chain, bones))] = x
+    return np.asarray(solve_driven(d, bones))[:, list(chain_joints(chain))]
+
 
 def _smoothstep(x: jax.Array, lo: float, hi: float) -> jax.Array:
     t = jnp.clip((x - lo) / (hi - lo), 0.0, 1.0)

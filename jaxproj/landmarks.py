@@ -78,6 +78,7 @@ def build_landmarks(
     bandwidth: float | None = None,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
+    chain: ik.Chain | None = None,
     kernel: Kernel = "gaussian",
     rel_tol: float = 0.05,
     max_iter: int = MAX_ITER,
@@ -94,11 +95,14 @@ def build_landmarks(
       target: wanted number of landmarks.
       bandwidth: mean-shift bandwidth.
       bones, mirror: descriptor options.
+      chain: landmarks of one kinematic chain (``ik.CHAINS``): mean shift runs on the chain's
+        columns of the descriptor only, and the robot side is the chain's joints
+        (``ik.solve_chain``). ``None``: the whole descriptor and all ten driven joints.
       kernel, rel_tol, max_iter, tol, merge_fraction: as in ``find_bandwidth`` / ``mean_shift``.
 
     Returns:
-      ``Landmarks`` with ``human (K, 3 * n_bones)``, ``robot (K, 10)`` = ``ik.solve_driven``
-      of ``human``, ``counts (K,)``.
+      ``Landmarks`` with ``human (K, m)`` (the chain's columns, or the whole descriptor),
+      ``robot (K, n)`` its IK (the chain's joints, or ``robot.DRIVEN_JOINTS``), ``counts (K,)``.
 
     Raises:
       ConfigError: both or neither of ``target`` / ``bandwidth``; bad data or options (the
@@ -112,13 +116,18 @@ def build_landmarks(
     if target is not None and int(target) < 1:
         raise ConfigError(f"target must be >= 1, got {target}")
     points = valid_descriptors(sequences_or_points, bones=bones, mirror=mirror)
+    if chain is not None:
+        points = np.ascontiguousarray(points[:, list(ik.chain_columns(chain, bones))])
     options = dict(kernel=kernel, max_iter=max_iter, tol=tol, merge_fraction=merge_fraction)
     if target is not None:
         h, res = find_bandwidth(points, target, rel_tol=rel_tol, **options)
     else:
         res = mean_shift(points, bandwidth, **options)
         h = res.bandwidth
-    robot_pose = np.asarray(ik.solve_driven(jnp.asarray(res.modes), bones), dtype=np.float32)
+    if chain is None:
+        robot_pose = np.asarray(ik.solve_driven(jnp.asarray(res.modes), bones), np.float32)
+    else:
+        robot_pose = ik.solve_chain(res.modes, chain, bones).astype(np.float32)
     return Landmarks(
         human=res.modes,
         robot=robot_pose,
