@@ -1,31 +1,492 @@
-"""Speed benchmark of the projection engine (the runnable script form of ``jaxproj bench``).
-
-Per-projection time and throughput of the relaxed and full objectives (compilation timed apart,
-answers checked against a NumPy + cKDTree reference of the paper's algorithm, which is also the
-speed baseline), kernel-bank build time, single-frame streaming latency and MJX rollout steps/s.
-See ``jaxproj/bench.py`` for what each number means and ``benchmarks/RESULTS.md`` for results.
+"""Speed benchmark of the projection engine.
 
     python benchmarks/bench_projection.py [--quick] [--device cpu|gpu] [--json OUT]
+        [--landmarks 86,1644] [--batches 1,256,4096] [--repeats N] [--ref-queries N]
+        [--no-streaming] [--no-rollout] [--full-clusters C] [--full-iterations I]
+
+(also ``python -m benchmarks.bench_projection ...`` from the repository root). Needs a checkout
+(``benchmarks/`` is not installed with the package) and the test extra (scipy, for the
+reference). Results and how they were run: ``benchmarks/RESULTS.md``.
+
+What is measured (every timing waits for the device with ``block_until_ready``; compilation is
+timed apart; timing primitives from ``jaxproj.timing``):
+
+* **projection** records, one per ``(objective, L, M, N, batch)``: the engine's jitted
+  ``engine.project_chunk`` on a fixed batch of held-out queries. ``compile_s`` is the
+  ``lower(...).compile()`` time of exactly that executable (``timing.compile_timed``); the
+  executable is then called once (warm-up, its answer is checked, see below) and again
+  ``repeats`` times (``timing.time_calls``); ``us_per_projection`` is the median call time
+  divided by the batch, ``throughput`` its inverse (projections/s).
+* the **reference** (``reference_us_per_projection``, ``speedup``): ``jaxproj.testing.Reference``,
+  a faithful per-query NumPy + ``scipy.spatial.cKDTree`` implementation of the paper's algorithm
+  on the SAME trained landmarks and kernels, in float64 -- the baseline a Python user would
+  write. It is timed per query over ``ref_queries`` queries in the same run, and it is the
+  "exact mode" every projection record is checked against before timing: ``max_abs_diff_deg`` is
+  the largest ``|engine - reference|`` over the driven joints of the first ``n_checked`` queries
+  (at least ``n_check`` = 64: a smaller batch is run again on the next queries; up to
+  ``ref_queries``), in degrees, with ``n_disagree`` queries beyond the tolerance (0.1 deg
+  relaxed, 1 deg full).
+* **build** records, one per landmark count: descriptors -> landmarks (mean shift with the
+  bandwidth search) -> both ELM kernel banks, timed on a second build so that compilation is
+  excluded (``compile_s`` = first build minus second); ``banks_s`` times the two kernel banks
+  alone (``engine.build_from_landmarks``).
+* the **streaming** record: latency of one frame through the public ``jaxproj.streaming.update``
+  (a ``(20, 3)`` host array of joint positions -> descriptor -> relaxed projection -> one
+  smoothing step -> clip -> a host array of 10 angles; one jitted call, host <-> device transfers
+  included), after 50 warm-up frames; median and p99. ``compile_s`` is the first call's time
+  minus the median (trace + compile).
+* **rollout** records: MJX rollout (``jaxproj.rollout.simulate``) NAO physics steps per second
+  per batch size, through ``bench`` of ``bench_rollout.py`` (next to this script), with motion 0
+  checked against CPU MuJoCo; marked ``skipped`` when MuJoCo MJX is not available.
+
+Landmark sets: N = 86, 961, 1644 are real models, ``engine.build(train, BuildConfig(landmarks=N))``
+on the valid upper-body descriptors of MSR Action3D subjects 1, 3, 5, 7, 9 (the count reached by
+the bandwidth search is ``n_landmarks``, e.g. 1635 for 1644). There are only ~11k training frames,
+so N = 8192 has no mean-shift counterpart: it is a deterministic subsample (seed 0) of 8192
+distinct training descriptors with their IK poses, trained with ``engine.build_from_landmarks``.
+Queries: the valid descriptors of subjects 2, 4, 6, 8, 10 (all actions) in a fixed random order,
+tiled to the batch size.
+
+The JSON written by ``--json`` is a list of records; each has ``kind`` (``header``, ``build``,
+``projection``, ``streaming``, ``rollout``, ``target``). Projection records carry ``objective, L,
+M, N, batch, device, us_per_projection, throughput, compile_s, reference_us_per_projection,
+max_abs_diff_deg, speedup`` (plus ``n_landmarks, repeats, n_checked``...). The header holds the
+machine, the versions and the date. A configuration that would not fit in memory (XLA's own
+estimate of the compiled executable, checked before running it) or would take too long is kept as
+a record with ``skipped`` saying why. Shared machinery (plan, records, targets, table, options):
+``harness.py``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
 
-from jaxproj import bench
-from jaxproj.exceptions import JaxprojError
+import jax
+import numpy as np
+
+# the sibling modules (harness, bench_rollout) are imported as top-level modules: this folder
+# is on sys.path when run as a script; this line also covers `python -m benchmarks...`
+_HERE = str(Path(__file__).resolve().parent)
+if _HERE not in sys.path:
+    sys.path.insert(0, _HERE)
+
+import harness  # noqa: E402
+from harness import (  # noqa: E402
+    FULL_TOL_DEG,
+    RELAXED_TOL_DEG,
+    SYNTHETIC_N,
+    Plan,
+    available_bytes,
+    frame_latencies,
+    get_device,
+    header,
+    make_plan,
+    needed_bytes,
+    record,
+    table_row,
+    target_checks,
+    time_plan,
+)
+
+from jaxproj import datasets, engine, ik  # noqa: E402
+from jaxproj import streaming as jaxproj_streaming  # noqa: E402
+from jaxproj.exceptions import ConfigError, JaxprojError  # noqa: E402
+from jaxproj.projection import FullConfig, Projector  # noqa: E402
+from jaxproj.skeleton import descriptor  # noqa: E402
+from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams  # noqa: E402
+from jaxproj.testing import Reference  # noqa: E402
+from jaxproj.timing import compile_timed  # noqa: E402
+
+TRAIN_SUBJECTS = (1, 3, 5, 7, 9)
+TEST_SUBJECTS = (2, 4, 6, 8, 10)
 
 
-def main(argv: list[str] | None = None) -> int:
+# ----------------------------------------------------------------------------------- data
+
+
+def descriptors(subjects: Sequence[int]) -> np.ndarray:
+    """``(N, 15)`` upper-body descriptors of the valid frames of the bundled data's subjects."""
+    seqs = datasets.msr_action3d(subjects=list(subjects))
+    pos = np.concatenate([s.positions[s.valid] for s in seqs])
+    d, ok = descriptor(pos)
+    return np.asarray(d)[np.asarray(ok)]
+
+
+def queries(test: np.ndarray, batch: int) -> np.ndarray:
+    """``(batch, m)``: ``test`` (already in a fixed random order) tiled to ``batch`` rows."""
+    reps = -(-batch // len(test))
+    return np.ascontiguousarray(np.tile(test, (reps, 1))[:batch])
+
+
+def shuffled(d: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Rows of ``d`` in a fixed random order."""
+    return d[np.random.default_rng(seed).permutation(len(d))]
+
+
+def subsample_projector(train: np.ndarray, n: int, config: engine.BuildConfig) -> Projector:
+    """A projector on ``n`` distinct training descriptors (seed 0) and their IK poses."""
+    uniq = np.unique(train, axis=0)
+    if n > len(uniq):
+        raise ConfigError(f"N={n} exceeds the {len(uniq)} distinct training descriptors")
+    idx = np.sort(np.random.default_rng(0).choice(len(uniq), n, replace=False))
+    human = uniq[idx].astype(np.float32)
+    robot_poses = np.asarray(ik.solve_driven(human), np.float32)
+    return engine.build_from_landmarks(human, robot_poses, config)
+
+
+def build_models(
+    train: np.ndarray,
+    landmarks: Sequence[int],
+    device: jax.Device,
+    log: Callable[[str], None],
+    subsample_all: bool = False,
+) -> tuple[dict[int, Projector], list[dict]]:
+    """Build one projector per landmark count; also return their build records."""
+    models: dict[int, Projector] = {}
+    records = []
+    for n in landmarks:
+        sub = subsample_all or n == SYNTHETIC_N
+        cfg = engine.BuildConfig() if sub else engine.BuildConfig(landmarks=n)
+        times = []
+        for _ in range(2):
+            t0 = time.perf_counter()
+            if sub:
+                p = subsample_projector(train, n, cfg)
+            else:
+                p = engine.build(train, cfg).projector
+            jax.block_until_ready(p)
+            times.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        jax.block_until_ready(
+            engine.build_from_landmarks(np.asarray(p.human), np.asarray(p.robot), cfg)
+        )
+        banks_s = time.perf_counter() - t0
+        models[n] = jax.device_put(p, device)
+        rec = record(
+            "build",
+            objective="build",
+            N=n,
+            device=device.platform,
+            compile_s=max(times[0] - times[1], 0.0),
+            n_landmarks=p.n_landmarks,
+            build_s=times[1],
+            first_build_s=times[0],
+            banks_s=banks_s,
+            landmarks_source="subsample" if sub else "mean_shift",
+        )
+        records.append(rec)
+        log(
+            f"build N={n}: K={p.n_landmarks}, {times[1]:.2f} s (first {times[0]:.2f} s), "
+            f"banks {banks_s:.2f} s"
+        )
+    return models, records
+
+
+# ------------------------------------------------------------------------------ reference
+
+
+def time_reference(
+    ref: Reference, h: np.ndarray, objective: str, n_l: int, n_m: int, full: FullConfig
+) -> tuple[np.ndarray, float]:
+    """Answers ``(Q, n)`` for queries ``h (Q, m)`` and the median-free mean us per query.
+
+    The first query is run once untimed (warm-up); then every query once, timed as a whole.
+    """
+    ref.project(h[0], objective, n_l, n_m, full)
+    t0 = time.perf_counter()
+    out = [ref.project(q, objective, n_l, n_m, full)[0] for q in h]
+    us = (time.perf_counter() - t0) / len(h) * 1e6
+    return np.asarray(out), us
+
+
+# ------------------------------------------------------------------------------ streaming
+
+
+def bench_streaming(
+    model: engine.Model | Projector,
+    positions: np.ndarray,
+    device: jax.Device,
+    n_frames: int,
+    n_l: int = 10,
+    n_m: int = 10,
+    params: SmoothingParams = PAPER_SMOOTHING,
+    warmup: int = 50,
+) -> dict:
+    """Per-frame latency of ``jaxproj.streaming.update`` over ``positions (T, 20, 3)`` (cycled):
+    a host array in, a host array of angles out, the state carried from frame to frame."""
+    frames = np.asarray(positions, np.float32)
+    state = jax.device_put(jaxproj_streaming.init(model), device)
+    angles = np.zeros(0, np.float32)
+
+    def step(i: int) -> None:
+        nonlocal state, angles
+        out, state = jaxproj_streaming.update(
+            model, state, frames[i % len(frames)], n_l=n_l, n_m=n_m, smoothing=params
+        )
+        angles = np.asarray(out)  # the host has the answer: the frame is done
+
+    with jax.default_device(device):
+        t0 = time.perf_counter()
+        step(0)  # trace + compile + one frame
+        first_s = time.perf_counter() - t0
+        lat_us = frame_latencies(step, n_frames, max(warmup - 1, 0)) * 1e6
+    if not np.isfinite(angles).all():
+        raise RuntimeError("streaming produced non-finite angles")
+    med = float(np.median(lat_us))
+    return record(
+        "streaming",
+        objective="streaming",
+        L=n_l,
+        M=n_m,
+        N=None,
+        batch=1,
+        device=device.platform,
+        us_per_projection=med,
+        throughput=1e6 / med,
+        compile_s=max(first_s - med * 1e-6, 0.0),
+        median_us=med,
+        p99_us=float(np.percentile(lat_us, 99)),
+        mean_us=float(lat_us.mean()),
+        frames=n_frames,
+    )
+
+
+# ----------------------------------------------------------------------------- projection
+
+
+def bench_projection(
+    p: Projector,
+    h_all: np.ndarray,
+    objective: str,
+    n_l: int,
+    n_m: int,
+    batch: int,
+    device: jax.Device,
+    plan: Plan,
+    ref_answers: np.ndarray,
+    full: FullConfig | None = None,
+    estimate_us: float | None = None,
+) -> dict:
+    """One projection record (see the module doc); ``ref_answers`` are the reference's poses
+    for the first rows of ``h_all``."""
+    rec = record(
+        "projection",
+        objective=objective,
+        L=n_l,
+        M=n_m,
+        batch=batch,
+        device=device.platform,
+        n_landmarks=p.n_landmarks,
+    )
+    if estimate_us is not None and estimate_us * batch * 1e-6 > plan.max_call_s:
+        rec["skipped"] = (
+            f"estimated {estimate_us * batch * 1e-6:.0f} s per call (from a smaller batch) "
+            f"exceeds the {plan.max_call_s:.0f} s budget"
+        )
+        return rec
+    full = FullConfig() if full is None else full
+    h = jax.device_put(queries(h_all, batch), device)
+    compiled, rec["compile_s"] = compile_timed(
+        engine.project_chunk, p, h, objective, n_l, n_m, full
+    )
+    need, avail = needed_bytes(compiled), available_bytes(device)
+    rec["memory_bytes"] = need
+    if need is not None and avail is not None and need > plan.memory_fraction * avail:
+        rec["skipped"] = (
+            f"needs {need / 2**30:.1f} GiB (XLA estimate), more than "
+            f"{plan.memory_fraction:.0%} of the {avail / 2**30:.1f} GiB available"
+        )
+        return rec
+    t0 = time.perf_counter()
+    r, v = jax.block_until_ready(compiled(p, h))
+    rec["first_call_s"] = time.perf_counter() - t0
+    r, v = np.asarray(r), np.asarray(v)
+    # a batch smaller than the check is run again on the next queries until it is covered
+    start = batch
+    while len(r) < min(plan.n_check, len(ref_answers)):
+        more = jax.device_put(queries(np.roll(h_all, -start, axis=0), batch), device)
+        r2, v2 = compiled(p, more)
+        r, v = np.concatenate([r, np.asarray(r2)]), np.concatenate([v, np.asarray(v2)])
+        start += batch
+    if not (np.isfinite(r).all() and np.isfinite(v).all()):
+        raise RuntimeError(f"non-finite engine output for {objective} L={n_l} M={n_m}")
+    n = min(len(r), len(ref_answers), max(plan.n_check, batch))
+    diff = np.degrees(np.abs(r[:n] - ref_answers[:n]))
+    per_query = diff.max(axis=1)
+    tol = RELAXED_TOL_DEG if objective == "relaxed" else FULL_TOL_DEG
+    rec.update(
+        n_checked=int(n),
+        max_abs_diff_deg=float(per_query.max()),
+        median_abs_diff_deg=float(np.median(per_query)),
+        n_disagree=int(np.sum(per_query > tol)),
+        tolerance_deg=tol,
+        agrees=bool(per_query.max() <= tol),
+    )
+    timing = time_plan(lambda: compiled(p, h), plan)
+    sec, reps = timing.median_s, timing.repeats
+    rec.update(
+        us_per_projection=sec / batch * 1e6,
+        throughput=batch / sec,
+        repeats=reps,
+        call_s=sec,
+    )
+    return rec
+
+
+# -------------------------------------------------------------------------------- rollout
+
+
+def bench_rollout(quick: bool, device: jax.Device, frames: int = 30) -> list[dict]:
+    """MJX rollout steps/s (``benchmarks/bench_rollout.py``'s ``bench``: synthetic arm motions,
+    15 frames/s, 33 physics steps per frame), one record per batch size; motion 0 is checked
+    against CPU MuJoCo ``mj_step`` (``mjx_vs_cpu_max_dq_rad``); a ``skipped`` record when MuJoCo
+    MJX cannot be imported."""
+    rec = record("rollout", objective="rollout", device=device.platform)
+    try:
+        import bench_rollout as mod  # the sibling script (imports jaxproj.rollout, MJX)
+    except ImportError as e:
+        return [rec | {"skipped": f"rollout module not available ({e})"}]
+    if device.platform == "cpu":
+        batches = (64,) if quick else (64, 256)
+    else:
+        batches = (4096,) if quick else (1024, 4096, 16384)
+    out = []
+    try:
+        from jaxproj import robot
+
+        substeps = round((1.0 / 15.0) / robot.load_model("fixed").opt.timestep)
+        ref = mod.motions(1, frames, 0)[0]
+        cpu_q, cpu_ncon, _ = mod.cpu_rollout(ref, substeps)
+        with jax.default_device(device):
+            for b in batches:
+                r = mod.bench(b, frames, 0, 1 if quick else 3, substeps)
+                dq = float(np.abs(np.asarray(r.pop("qpos0")) - cpu_q).max())
+                out.append(
+                    rec
+                    | dict(
+                        batch=b,
+                        throughput=r["steps_per_s"],
+                        compile_s=r["compile_s"],
+                        steps_per_s=r["steps_per_s"],
+                        run_s=r["run_s"],
+                        steps=r["steps"],
+                        frames=frames,
+                        substeps=substeps,
+                        finite=r["finite"],
+                        mjx_vs_cpu_max_dq_rad=dq,
+                        cpu_contacts=int(cpu_ncon),
+                    )
+                )
+    except Exception as e:  # noqa: BLE001 - report, do not lose the projection numbers
+        return out + [rec | {"skipped": f"rollout benchmark failed: {type(e).__name__}: {e}"}]
+    return out
+
+
+# ----------------------------------------------------------------------------------- run
+
+
+def run(
+    quick: bool,
+    device: str,
+    *,
+    plan: Plan | None = None,
+    streaming: bool = True,
+    rollout: bool = True,
+    log: Callable[[str], None] | None = None,
+    full: FullConfig | None = None,
+    **plan_overrides: Any,
+) -> list[dict]:
+    """Run the benchmark suite; returns the records (header first, target checks last).
+
+    ``full`` sets the full objective's solver (default ``FullConfig()``, the exact full
+    objective); the reference runs the same configuration, and every full record carries it.
+    """
+    dev = get_device(device)
+    plan = plan or make_plan(quick, device, **plan_overrides)
+    log = log or (lambda s: print(s, file=sys.stderr, flush=True))
+    records = [header(dev)]
+    log(f"bench on {records[0]['device_kind']} ({records[0]['cpu_usable']} usable CPU cores)")
+    train = descriptors(TRAIN_SUBJECTS)
+    test = shuffled(descriptors(TEST_SUBJECTS))
+    models, builds = build_models(train, plan.landmarks, dev, log, plan.subsample_all)
+    records += builds
+    full = FullConfig() if full is None else full
+    for n in plan.landmarks:
+        p = models[n]
+        ref = Reference(p)
+        for objective, n_l, n_m in plan.configs:
+            if max(n_l, n_m) > p.n_landmarks:
+                continue
+            nq = max(plan.ref_queries[objective], plan.n_check)
+            ans, ref_us = time_reference(ref, test[:nq], objective, n_l, n_m, full)
+            log(f"reference {objective} L={n_l} M={n_m} N={n}: {ref_us:.0f} us/query")
+            estimate = None
+            for batch in sorted(plan.batches):
+                rec = bench_projection(
+                    p, test, objective, n_l, n_m, batch, dev, plan, ans, full, estimate
+                )
+                rec.update(N=n, reference_us_per_projection=ref_us, reference_queries=nq)
+                if objective == "full":
+                    rec["full_config"] = dataclasses.asdict(full)
+                if rec.get("us_per_projection"):
+                    rec["speedup"] = ref_us / rec["us_per_projection"]
+                    estimate = rec["us_per_projection"]
+                else:
+                    rec.setdefault("speedup", None)
+                    rec.setdefault("max_abs_diff_deg", None)
+                records.append(rec)
+                log(table_row(rec))
+    if streaming:
+        n_stream = 1644 if 1644 in models else max(models)
+        seqs = datasets.msr_action3d(subjects=list(TEST_SUBJECTS))
+        pos = np.concatenate([s.positions[s.valid] for s in seqs[:20]])
+        rec = bench_streaming(models[n_stream], pos, dev, plan.stream_frames)
+        rec["N"] = n_stream
+        rec["n_landmarks"] = models[n_stream].n_landmarks
+        records.append(rec)
+        log(f"streaming N={n_stream}: median {rec['median_us']:.0f} us, p99 {rec['p99_us']:.0f} us")
+    if rollout:
+        for rec in bench_rollout(quick, dev):
+            records.append(rec)
+            if rec.get("steps_per_s"):
+                log(f"rollout batch {rec['batch']}: {rec['steps_per_s']:.4g} steps/s")
+    records += target_checks(records, device)
+    return records
+
+    return records
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark from the command line: print the table, write ``--json``; returns the
+    exit status (2 with one line on a configuration error)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    bench.add_arguments(ap)
+    harness.add_arguments(ap)
     args = ap.parse_args(argv)
     try:
-        return bench.main(args)
+        records = run(
+            args.quick,
+            args.device,
+            streaming=not args.no_streaming,
+            rollout=not args.no_rollout,
+            landmarks=args.landmarks,
+            batches=args.batches,
+            repeats=args.repeats,
+            ref_queries=args.ref_queries,
+            full=harness.full_config(args.full_clusters, args.full_iterations),
+        )
     except JaxprojError as e:
         print(f"bench_projection: error: {e}", file=sys.stderr)
         return 2
+    if args.json:
+        harness.write_json(records, args.json)
+    print(harness.format_table(records))
+    return 0
 
 
 if __name__ == "__main__":

@@ -318,11 +318,6 @@ def build_parser() -> argparse.ArgumentParser:
     pd.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
     pd.set_defaults(func=_demo)
 
-    from jaxproj import bench
-
-    pbench = sub.add_parser("bench", help="speed benchmarks (compile timed apart, checked first)")
-    bench.add_arguments(pbench)
-    pbench.set_defaults(func=bench.main)
     return p
 
 

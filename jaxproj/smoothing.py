@@ -15,7 +15,8 @@ eta 0.15.
 
 ``smooth`` handles one motion (``lax.scan`` over time); ``smooth_batch`` vmaps it over a padded
 batch ``(B, T, n)`` with lengths: frames past a motion's length leave its state untouched and
-are returned as the input.
+are returned as the input. ``step`` is one frame of the update: the scan's body, and what
+``jaxproj.streaming`` runs once per frame, so the two cannot drift apart.
 """
 
 from __future__ import annotations
@@ -55,16 +56,38 @@ PAPER_SMOOTHING = SmoothingParams()
 """The paper's gains: alpha 0.75, gamma 0.3, eta 0.15."""
 
 
-def _smooth_one(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
-    alpha, gamma, eta = (gains[i].astype(y.dtype) for i in range(3))
+def step(
+    s_prev: jax.Array, b_prev: jax.Array, y: jax.Array, gains: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """One frame of the smoother (the update rule of the module doc, dead band before trend).
 
-    def step(carry, inp):
+    ``smooth`` / ``smooth_batch`` scan this over time and ``jaxproj.streaming`` calls it once
+    per frame: both run exactly the same operations.
+
+    Args:
+      s_prev: ``(n,)`` previous smoothed value ``s_{t-1}``.
+      b_prev: ``(n,)`` previous trend ``b_{t-1}``.
+      y: ``(n,)`` this frame's input ``y_t``.
+      gains: ``(3,)`` ``(alpha, gamma, eta)`` (``SmoothingParams.gains()``), cast to ``y``'s
+        dtype.
+
+    Returns:
+      ``(s_t, b_t)``, each ``(n,)``. The first frame of a motion is not a step: it starts the
+      smoother with ``s_0 = y_0``, ``b_0 = 0``.
+    """
+    alpha, gamma, eta = (gains[i].astype(y.dtype) for i in range(3))
+    cand = alpha * y + (1 - alpha) * (s_prev + b_prev)
+    moved = jnp.sqrt(jnp.sum((cand - s_prev) ** 2)) >= eta
+    s_t = jnp.where(moved, cand, s_prev)
+    b_t = gamma * (s_t - s_prev) + (1 - gamma) * b_prev
+    return s_t, b_t
+
+
+def _smooth_one(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
+    def scan_step(carry, inp):
         s_prev, b_prev = carry
         y_t, t = inp
-        cand = alpha * y_t + (1 - alpha) * (s_prev + b_prev)
-        moved = jnp.sqrt(jnp.sum((cand - s_prev) ** 2)) >= eta
-        s_t = jnp.where(moved, cand, s_prev)
-        b_t = gamma * (s_t - s_prev) + (1 - gamma) * b_prev
+        s_t, b_t = step(s_prev, b_prev, y_t, gains)
         live = t < length
         s_t = jnp.where(live, s_t, s_prev)
         b_t = jnp.where(live, b_t, b_prev)
@@ -72,7 +95,7 @@ def _smooth_one(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
 
     s0 = y[0]
     ts = jnp.arange(1, y.shape[0])
-    _, rest = jax.lax.scan(step, (s0, jnp.zeros_like(s0)), (y[1:], ts))
+    _, rest = jax.lax.scan(scan_step, (s0, jnp.zeros_like(s0)), (y[1:], ts))
     return jnp.concatenate([s0[None], rest], axis=0)
 
 

@@ -1,3 +1,7 @@
+import dataclasses
+
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -34,7 +38,7 @@ def test_matches_numpy_loop(params):
     rng = np.random.default_rng(1)
     y = _motion(rng, 80)
     got = np.asarray(smooth(y, params))
-    want = _reference(y, *params)
+    want = _reference(y, *dataclasses.astuple(params))
     np.testing.assert_allclose(got, want, atol=1e-5)
     # the dead band actually held some frames with the paper's eta, and not with eta=0
     held = np.all(np.diff(got, axis=0) == 0, axis=1).sum()
@@ -52,7 +56,9 @@ def test_padded_batch_equals_one_by_one():
         batch[i, len(y) :] = 99.0  # padding must not leak into anything
     out = np.asarray(smooth_batch(batch, np.array(lengths)))
     for i, y in enumerate(ys):
-        np.testing.assert_allclose(out[i, : len(y)], _reference(y, *PAPER_SMOOTHING), atol=1e-5)
+        np.testing.assert_allclose(
+            out[i, : len(y)], _reference(y, *dataclasses.astuple(PAPER_SMOOTHING)), atol=1e-5
+        )
         assert (out[i, len(y) :] == 99.0).all()
 
 
@@ -81,3 +87,44 @@ def test_bad_gains_are_config_errors():
         smooth(y, SmoothingParams(eta=-1.0))
     with pytest.raises(ConfigError, match="shape"):
         smooth(np.zeros((3,), np.float32))
+
+
+def test_step_is_one_frame_of_smooth():
+    # smooth scans smoothing.step; a Python loop of the same step (one jitted call per frame,
+    # as jaxproj.streaming runs it) gives the same motion. Separately compiled float32 programs
+    # may round differently: 1e-6 rad (a few ulp of angles up to ~2 rad; measured 1.2e-7).
+    rng = np.random.default_rng(4)
+    y = _motion(rng, 120)
+    params = SmoothingParams(0.75, 0.3, 0.15)
+    want = np.asarray(smooth(y, params))
+    one = jax.jit(smoothing.step)
+    s, b = jnp.asarray(y[0]), jnp.zeros(10, jnp.float32)
+    got = [np.asarray(s)]
+    for t in range(1, len(y)):
+        s, b = one(s, b, jnp.asarray(y[t]), params.gains())
+        got.append(np.asarray(s))
+    got = np.stack(got)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
+    # same frames held by the dead band
+    held_got = np.all(np.diff(got, axis=0) == 0, axis=1)
+    held_want = np.all(np.diff(want, axis=0) == 0, axis=1)
+    assert held_want.any() and np.array_equal(held_got, held_want)
+
+
+def test_step_follows_the_documented_rule():
+    s_prev = np.array([0.1, -0.2, 0.3], np.float32)
+    b_prev = np.array([0.05, 0.0, -0.02], np.float32)
+    y = np.array([0.4, -0.1, 0.2], np.float32)
+    alpha, gamma, eta = 0.75, 0.3, 0.15
+    gains = SmoothingParams(alpha, gamma, eta).gains()
+    s, b = smoothing.step(jnp.asarray(s_prev), jnp.asarray(b_prev), jnp.asarray(y), gains)
+    cand = alpha * y + (1 - alpha) * (s_prev + b_prev)
+    assert np.linalg.norm(cand - s_prev) >= eta  # this frame moves
+    np.testing.assert_allclose(np.asarray(s), cand, atol=1e-6)
+    b_want = gamma * (cand - s_prev) + (1 - gamma) * b_prev
+    np.testing.assert_allclose(np.asarray(b), b_want, atol=1e-6)
+    # inside the dead band: the value holds and the trend decays (dead band before the trend)
+    wide = SmoothingParams(alpha, gamma, 1.0).gains()
+    s2, b2 = smoothing.step(jnp.asarray(s_prev), jnp.asarray(b_prev), jnp.asarray(s_prev), wide)
+    np.testing.assert_array_equal(np.asarray(s2), s_prev)
+    np.testing.assert_allclose(np.asarray(b2), (1 - gamma) * b_prev, atol=1e-7)
