@@ -32,8 +32,7 @@ from jaxproj.engine import Model, check_neighbours, project_batch
 from jaxproj.exceptions import ConfigError
 from jaxproj.projection import FullConfig, Projector
 from jaxproj.skeleton import descriptor
-from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams
-from jaxproj.smoothing import _smooth_one as smooth_one  # noqa: F401 - until the shared step lands
+from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_motion
 
 Method = Literal["ik", "relaxed", "full"]
 METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
@@ -102,7 +101,7 @@ def _motion(
         q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
     q = fill_invalid(q, ok)
     if smooth:
-        q = smooth_one(q, length, gains)
+        q = smooth_motion(q, length, gains)
         lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
         hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
         q = jnp.clip(q, lo, hi)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
+from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
 
 
@@ -83,7 +84,18 @@ def step(
     return s_t, b_t
 
 
-def _smooth_one(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
+def smooth_motion(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
+    """The traceable core of ``smooth`` (call it inside a jitted function).
+
+    Args:
+      y: ``(T, n)`` a motion padded to ``T`` frames.
+      length: ``()`` int, its true length; later frames are returned as the input.
+      gains: ``(3,)`` ``SmoothingParams.gains()``.
+
+    Returns:
+      ``(T, n)`` the smoothed motion.
+    """
+
     def scan_step(carry, inp):
         s_prev, b_prev = carry
         y_t, t = inp
@@ -99,9 +111,11 @@ def _smooth_one(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
     return jnp.concatenate([s0[None], rest], axis=0)
 
 
-@jax.jit
 def _smooth_batch(y: jax.Array, lengths: jax.Array, gains: jax.Array) -> jax.Array:
-    return jax.vmap(_smooth_one, in_axes=(0, 0, None))(y, lengths, gains)
+    return jax.vmap(smooth_motion, in_axes=(0, 0, None))(y, lengths, gains)
+
+
+_smooth_batch = jit(_smooth_batch)
 
 
 def smooth(y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING) -> jax.Array:

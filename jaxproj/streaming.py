@@ -35,9 +35,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj import robot
+from jaxproj._jit import jit
 from jaxproj.engine import Model, check_neighbours
 from jaxproj.exceptions import ConfigError
-from jaxproj.projection import Projector, project_relaxed_one
+from jaxproj.projection import (
+    FullConfig,
+    Projector,
+    StackedProjector,
+    project_relaxed_one,
+    project_stacked_one,
+)
 from jaxproj.skeleton import N_JOINTS, descriptor, resolve_bones
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams
 from jaxproj.smoothing import step as smoothing_step
@@ -58,7 +65,17 @@ class StreamState(NamedTuple):
     started: jax.Array
 
 
-def _projector(model: Model | Projector) -> tuple[Projector, str | tuple[str, ...], bool]:
+AnyProjector = Projector | StackedProjector
+
+
+def _widths(p: AnyProjector) -> tuple[int, int]:
+    """``(m, n)``: descriptor width and driven joints of a projector."""
+    if isinstance(p, StackedProjector):
+        return p.layout.m, p.layout.n
+    return p.human.shape[1], p.robot.shape[1]
+
+
+def _projector(model: Model | AnyProjector) -> tuple[AnyProjector, str | tuple[str, ...], bool]:
     """The projector and the descriptor options it was built for (a bare ``Projector``: the
     default upper-body bones, direct imitation)."""
     if isinstance(model, Model):
@@ -68,12 +85,12 @@ def _projector(model: Model | Projector) -> tuple[Projector, str | tuple[str, ..
             bones if isinstance(bones, str) else tuple(bones),
             model.config.mirror,
         )
-    if isinstance(model, Projector):
+    if isinstance(model, Projector | StackedProjector):
         return model, "upper", False
     raise ConfigError(f"model must be an engine.Model or a projection.Projector, got {type(model)}")
 
 
-def init(model: Model | Projector) -> StreamState:
+def init(model: Model | AnyProjector) -> StreamState:
     """The state before any frame: nothing seen, output at the standing posture.
 
     Args:
@@ -84,7 +101,7 @@ def init(model: Model | Projector) -> StreamState:
       zero trend and ``started = False``.
     """
     p, _, _ = _projector(model)
-    n = p.robot.shape[1]
+    _, n = _widths(p)
     if n != len(robot.DRIVEN_JOINTS):
         raise ConfigError(f"model drives {n} joints, streaming expects {len(robot.DRIVEN_JOINTS)}")
     standing = robot.STANDING_POSTURE[robot.DRIVEN_INDEX].astype(np.float32)
@@ -96,7 +113,7 @@ def init(model: Model | Projector) -> StreamState:
 
 
 def _update(
-    p: Projector,
+    p: AnyProjector,
     state: StreamState,
     positions: jax.Array,
     gains: jax.Array,
@@ -107,8 +124,10 @@ def _update(
     mirror: bool,
 ) -> tuple[jax.Array, StreamState]:
     d, ok = descriptor(positions, bones=bones, mirror=mirror)  # (m,), ()
-    with jax.default_matmul_precision("highest"):  # as engine.project (no TF32 on GPUs)
-        r, _ = project_relaxed_one(p, d, n_l, n_m)  # (n,), clipped
+    if isinstance(p, StackedProjector):
+        r, _ = project_stacked_one(p, d, "relaxed", n_l, n_m, FullConfig())  # (n,), clipped
+    else:
+        r, _ = project_relaxed_one(p, d, n_l, n_m)
     s_t, b_t = smoothing_step(state.level, state.trend, r, gains)
     # the first valid frame starts the smoother, as smoothing.smooth starts a motion
     s_t = jnp.where(state.started, s_t, r)
@@ -117,14 +136,16 @@ def _update(
     level = jnp.where(ok, s_t, state.level)
     trend = jnp.where(ok, b_t, state.trend)
     new = StreamState(level, trend, state.started | ok)
-    return jnp.clip(level, p.lower, p.upper), new
+    lo = jnp.asarray(robot.LOWER[robot.DRIVEN_INDEX])
+    hi = jnp.asarray(robot.UPPER[robot.DRIVEN_INDEX])
+    return jnp.clip(level, lo, hi), new
 
 
-_update_jit = jax.jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))
+_update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))
 
 
 def update(
-    model: Model | Projector,
+    model: Model | AnyProjector,
     state: StreamState,
     positions: np.ndarray | jax.Array,
     *,
@@ -160,15 +181,15 @@ def update(
         raise ConfigError(f"smoothing must be a SmoothingParams, got {type(smoothing).__name__}")
     if not isinstance(state, StreamState):
         raise ConfigError(f"state must be a StreamState from streaming.init, got {type(state)}")
-    n = p.robot.shape[1]
+    m, n = _widths(p)
     if state.level.shape != (n,) or state.trend.shape != (n,) or state.started.shape != ():
         raise ConfigError(
             f"state does not fit this model: level {state.level.shape}, trend "
             f"{state.trend.shape}, started {state.started.shape} (expected ({n},), ({n},), ())"
         )
-    if len(resolve_bones(bones)) * 3 != p.human.shape[1]:
+    if len(resolve_bones(bones)) * 3 != m:
         raise ConfigError(
-            f"descriptor bones {bones!r} do not match the model's {p.human.shape[1]}-wide "
+            f"descriptor bones {bones!r} do not match the model's {m}-wide "
             "landmarks; pass the engine.Model it was built with"
         )
     if not isinstance(positions, jax.Array):
