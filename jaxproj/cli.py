@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from jaxproj import __version__
+from jaxproj.engine import HEAD_BANDWIDTH
 from jaxproj.exceptions import ConfigError, InputError, JaxprojError
 
 METHODS = ("ik", "relaxed", "full")
@@ -70,10 +71,21 @@ def _retarget(args: argparse.Namespace) -> int:
     from jaxproj.smoothing import PAPER_SMOOTHING
 
     model = None
+    bones = "upper" if args.bones is None else args.bones
+    mirror = bool(args.mirror)
     if args.method != "ik":
         if args.model is None:
             raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
         model = engine.load(args.model)
+        fixed = {"--bones": (args.bones, model.config.bones)}
+        fixed["--mirror"] = (args.mirror, model.config.mirror)
+        for flag, (given, own) in fixed.items():
+            if given is not None and given != own:
+                raise ConfigError(
+                    f"{flag} {given} conflicts with the model {args.model}, built with "
+                    f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
+                )
+        bones, mirror = model.config.bones, model.config.mirror
     rec = read_skeleton(args.input, format=args.format)
     result = retarget(
         rec.positions,
@@ -82,8 +94,8 @@ def _retarget(args: argparse.Namespace) -> int:
         method=args.method,
         n_l=args.L,
         n_m=args.M,
-        bones=args.bones,
-        mirror=args.mirror,
+        bones=bones,
+        mirror=mirror,
         smoothing=PAPER_SMOOTHING if args.smooth else None,
     )
     out = Path(args.out)
@@ -115,6 +127,22 @@ def _parse_ints(text: str) -> list[int]:
         ) from None
 
 
+def _parse_floats(text: str) -> list[float]:
+    try:
+        return [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated numbers, got {text!r}"
+        ) from None
+
+
+def _one_or_tuple(values: list | None) -> object:
+    """CLI lists: ``None``, one value, or a per-chain tuple."""
+    if values is None:
+        return None
+    return values[0] if len(values) == 1 else tuple(values)
+
+
 def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
@@ -134,8 +162,9 @@ def _build(args: argparse.Namespace) -> int:
     from jaxproj import datasets, engine
 
     cfg = engine.BuildConfig(
-        landmarks=args.landmarks,
-        bandwidth=args.bandwidth,
+        chains=args.chains,
+        landmarks=_one_or_tuple(args.landmarks),
+        bandwidth=_one_or_tuple(args.bandwidth),
         k=args.k,
         hidden=args.hidden if args.hidden is not None else max(args.k, 96),
         lam=args.lam,
@@ -151,12 +180,14 @@ def _build(args: argparse.Namespace) -> int:
     model = engine.build(d, cfg)
     engine.save(model, args.out)
     dt = time.perf_counter() - t0
-    target = f" (target {cfg.landmarks})" if cfg.landmarks else ""
+    lay = model.projector.layout
+    per_chain = ", ".join(
+        f"{name} {k} (bandwidth {h:.4f}, k={kk})"
+        for name, k, h, kk in zip(lay.names, lay.landmarks, model.bandwidth, lay.k, strict=True)
+    )
     print(
-        f"built {model.n_landmarks} landmarks{target} from {model.n_train} valid frames "
-        f"(of {n_frames}), bandwidth {model.bandwidth:.4f}, k={model.projector.forward.k}, "
-        f"hidden={cfg.hidden}, "
-        f"seed={cfg.seed} in {dt:.1f} s -> {args.out}"
+        f"built {cfg.chains} chains: {per_chain} from {model.n_train} valid frames "
+        f"(of {n_frames}), hidden={cfg.hidden}, seed={cfg.seed} in {dt:.1f} s -> {args.out}"
     )
     return 0
 
@@ -248,12 +279,15 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--M", type=int, default=10, help="robot-landmark neighbours per candidate")
     pr.add_argument(
         "--bones",
-        default="upper",
+        default=None,
         choices=("upper", "full"),
-        help="descriptor bones for --method ik (a model fixes its own)",
+        help="descriptor bones (None: upper; a model fixes its own, a different value is refused)",
     )
     pr.add_argument(
-        "--mirror", action="store_true", help="mirror imitation: human left drives robot right"
+        "--mirror",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="mirror imitation: human left drives robot right (None: off, or the model's)",
     )
     pr.add_argument(
         "--smooth",
@@ -273,9 +307,23 @@ def build_parser() -> argparse.ArgumentParser:
         default=[1, 3, 5, 7, 9],
         help="training subjects, comma-separated",
     )
+    pb.add_argument(
+        "--chains",
+        default="upper",
+        choices=("upper", "whole"),
+        help="upper: one projector per chain (head, left arm, right arm); whole: the paper's "
+        "whole-body projector",
+    )
     size = pb.add_mutually_exclusive_group(required=True)
-    size.add_argument("--landmarks", type=int, help="target landmark count (bisection)")
-    size.add_argument("--bandwidth", type=float, help="mean-shift bandwidth, used as is")
+    size.add_argument(
+        "--landmarks",
+        type=_parse_ints,
+        help="target landmark count, bisected: one number for each arm (head: bandwidth "
+        f"{HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644",
+    )
+    size.add_argument(
+        "--bandwidth", type=_parse_floats, help="mean-shift bandwidth: one, or one per chain"
+    )
     pb.add_argument("--k", type=int, default=96, help="training neighbours per ELM kernel")
     pb.add_argument("--hidden", type=int, default=None, help="hidden units (None: max(k, 96))")
     pb.add_argument("--lam", type=float, default=1e-3, help="ELM ridge regulariser")

@@ -81,8 +81,9 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
     model = engine.build(train, cfg)
     timings["build_s"] = time.perf_counter() - t0
     _log(
-        f"[1/5] built {model.n_landmarks} landmarks from {len(train)} frames "
-        f"(bandwidth {model.bandwidth:.4f}) in {timings['build_s']:.1f} s"
+        f"[1/5] built {model.landmarks} landmarks from {len(train)} frames "
+        f"(bandwidths {', '.join(f'{h:.4f}' for h in model.bandwidth)}) "
+        f"in {timings['build_s']:.1f} s"
     )
     engine.save(model, out_dir / "projector.npz")
 
@@ -126,8 +127,8 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
         "rollout": rollout_out,
         "experiments": {"basic_poses": poses, "landmark_size": sizes, "efficiency": eff},
         "build": {
-            "landmarks": model.n_landmarks,
-            "bandwidth": model.bandwidth,
+            "landmarks": model.landmarks,
+            "bandwidth": dict(zip(model.landmarks, model.bandwidth, strict=True)),
             "train_frames": len(train),
             "config": vars(model.config).copy(),
         },
@@ -254,7 +255,8 @@ def _experiments_md(ex: dict) -> list[str]:
     ]
     for row in ex["landmark_size"]["sizes"]:
         lines.append(
-            f"| {row['target']} | {row['landmarks']} | {row['bandwidth']:.4f} | "
+            f"| {row['target']} | {row['landmarks']} | "
+            f"{' / '.join(f'{h:.4f}' for h in row['bandwidth'])} | "
             f"{row['M_avg_median']:.2f} | {row['M_max_p95']:.1f} "
             f"| {row['pose8_M_max']:.1f} | {row['pose8_M_avg_mean']:.2f} |"
         )
@@ -275,8 +277,8 @@ def _markdown(r: dict) -> str:
     lines = [
         "# jaxproj demo report",
         "",
-        f"Landmarks: {r['build']['landmarks']} (mean shift, bandwidth "
-        f"{r['build']['bandwidth']:.4f}) from {r['build']['train_frames']} valid frames of "
+        f"Landmarks per chain: {r['build']['landmarks']} (mean shift, bandwidths "
+        f"{r['build']['bandwidth']}) from {r['build']['train_frames']} valid frames of "
         f"subjects {r['train_subjects']}; "
         f"evaluated on {r['valid_frames']} valid frames ({r['sequences']} sequences) of subjects "
         f"{r['test_subjects']}. L = {r['L']}, M = {r['M']}. Errors in degrees over the driven "

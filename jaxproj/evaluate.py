@@ -7,6 +7,8 @@ analytic IK of the frame (``jaxproj.ik``). Only valid frames are scored.
 Methods, all on the same landmarks:
 
 * ``relaxed`` / ``full``: the paper's projection (``jaxproj.projection``);
+Baselines run per chain on a per-chain model (each chain's landmarks, in its own bones):
+
 * ``nearest_landmark``: the robot pose of the nearest human landmark;
 * ``knn_average``: inverse-distance average of the ``L`` nearest landmarks' robot poses;
 * ``global_elm``: one regularised ELM (sigmoid, ``GLOBAL_HIDDEN`` hidden units) fitted to all
@@ -168,8 +170,8 @@ def _fit_global_elm(p: Projector, key: jax.Array, lam: float, hidden: int) -> Gl
     return GlobalELM(w, b, out)
 
 
-def _batched(fn: Callable[[jax.Array], jax.Array], h: np.ndarray, batch: int = 4096):
-    """Apply ``fn`` in fixed-size padded batches (one compile)."""
+def _batched(fn: Callable[[jax.Array], jax.Array], h: np.ndarray, n: int, batch: int = 4096):
+    """Apply ``fn`` (``(B, m) -> (B, n)``) in fixed-size padded batches (one compile)."""
     outs = []
     for s in range(0, len(h), batch):
         chunk = h[s : s + batch]
@@ -177,7 +179,7 @@ def _batched(fn: Callable[[jax.Array], jax.Array], h: np.ndarray, batch: int = 4
         if pad:
             chunk = np.concatenate([chunk, np.repeat(chunk[:1], pad, axis=0)])
         outs.append(np.asarray(fn(jnp.asarray(chunk)))[: batch - pad])
-    return np.concatenate(outs) if outs else np.zeros((0, 10), np.float32)
+    return np.concatenate(outs) if outs else np.zeros((0, n), np.float32)
 
 
 def predict_method(
@@ -206,18 +208,28 @@ def predict_method(
 
 
 def _predict(model, method, h, *, n_l, n_m, full, seed, devices) -> np.ndarray:
-    p = model.projector
     if method in ("relaxed", "full"):
         return project(model, h, method, n_l=n_l, n_m=n_m, full=full, devices=devices)[0]
-    if method == "nearest_landmark":
-        return _batched(lambda x: _nearest_landmark_jit(p, x), h)
-    if method == "knn_average":
-        return _batched(lambda x: _knn_average_jit(p, x, n_l=n_l), h)
-    if method == "global_elm":
-        elm = fit_global_elm(p, jax.random.PRNGKey(seed))
-        lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
-        return np.clip(_batched(elm, h), lo[None], hi[None])
-    raise ConfigError(f"unknown method {method!r}; use one of {METHODS}")
+    if method not in METHODS:
+        raise ConfigError(f"unknown method {method!r}; use one of {METHODS}")
+    # the baselines run per chain too, on each chain's own landmarks and bones
+    sp = model.projector
+    lay = sp.layout
+    out = np.zeros((len(h), lay.n), np.float32)
+    base_key = jax.random.PRNGKey(seed)
+    for c in range(lay.n_chains):
+        p = sp.chain(c)
+        x = np.ascontiguousarray(h[:, list(lay.inputs[c])])
+        n = len(lay.outputs[c])
+        if method == "nearest_landmark":
+            pred = _batched(lambda q, p=p: _nearest_landmark_jit(p, q), x, n)
+        elif method == "knn_average":
+            pred = _batched(lambda q, p=p: _knn_average_jit(p, q, n_l=n_l), x, n)
+        else:  # global_elm
+            elm = fit_global_elm(p, base_key if c == 0 else jax.random.fold_in(base_key, c))
+            pred = np.clip(_batched(elm, x, n), np.asarray(p.lower), np.asarray(p.upper))
+        out[:, list(lay.outputs[c])] = pred
+    return out
 
 
 # --------------------------------------------------------------------------------- metrics

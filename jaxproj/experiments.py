@@ -22,7 +22,7 @@ import numpy as np
 from jaxproj import engine, ik, robot
 from jaxproj.evaluate import describe, frame_errors
 from jaxproj.exceptions import ConfigError
-from jaxproj.projection import FullConfig, Projector
+from jaxproj.projection import FullConfig, Projector, StackedProjector
 from jaxproj.skeleton import N_JOINTS, descriptor
 from jaxproj.synthetic import (
     BASIC_POSES,
@@ -65,8 +65,16 @@ def _descriptors(model: engine.Model | Projector, positions: np.ndarray) -> np.n
     return d
 
 
-def _nearest_landmark_deg(p: Projector, d: np.ndarray) -> np.ndarray:
-    """``(F, m)`` -> ``(F,)``: worst bone angle (deg) to the nearest landmark (Euclidean)."""
+def _nearest_landmark_deg(p: Projector | StackedProjector, d: np.ndarray) -> np.ndarray:
+    """``(F, m)`` -> ``(F,)``: worst bone angle (deg) to the nearest landmark (Euclidean), per
+    chain on a chain model (each chain's nearest landmark in its own bones)."""
+    if isinstance(p, StackedProjector):
+        lay = p.layout
+        per_chain = [
+            _nearest_landmark_deg(p.chain(c), np.asarray(d)[:, list(lay.inputs[c])])
+            for c in range(lay.n_chains)
+        ]
+        return np.max(per_chain, axis=0)
     human = np.asarray(p.human, np.float64)
     d = np.asarray(d, np.float64)
     idx = np.argmin(np.sum((d[:, None, :] - human[None]) ** 2, axis=-1), axis=1)
@@ -284,7 +292,7 @@ def landmark_size_study(
         t0 = time.perf_counter()
         model = engine.build(train_descriptors, cfg)
         build_s = time.perf_counter() - t0
-        k = model.n_landmarks
+        k = model.n_landmarks  # the smallest chain
         ll, mm = min(n_l, k), min(n_m, k)
         res = run_pose_experiments(
             model, n_l=ll, n_m=mm, objectives=(objective,), key=key, noise_std=noise_std,
@@ -294,8 +302,9 @@ def landmark_size_study(
         motion = res["motions"]["POSE_8"][objective]
         row = {
             "target": int(size),
-            "landmarks": int(k),
-            "bandwidth": model.bandwidth,
+            "landmarks": int(max(model.landmarks.values())),  # the target's chains (arms)
+            "landmarks_per_chain": model.landmarks,
+            "bandwidth": list(model.bandwidth),
             "build_s": build_s,
             "L": ll,
             "M": mm,
@@ -314,11 +323,15 @@ def landmark_size_study(
     return {"objective": objective, "L": n_l, "M": n_m, "sizes": rows}
 
 
-def _bytes_per_query(p: Projector, n_l: int, n_m: int) -> int:
+def _bytes_per_query(p: Projector | StackedProjector, n_l: int, n_m: int) -> int:
     """Rough peak memory of one projection in a vmapped batch: the ``L x M`` backward kernels
-    it evaluates are gathered per query (``out``: hidden x m, plus bias and features)."""
+    it evaluates are gathered per query and chain (``out``: hidden x m, plus bias and
+    features)."""
+    chains = 1
+    if isinstance(p, StackedProjector):
+        chains, p = p.layout.n_chains, p.stack
     bank = p.backward
-    return 4 * n_l * n_m * bank.hidden * (bank.d_out + 3)
+    return 4 * chains * n_l * n_m * bank.hidden * (bank.d_out + 3)
 
 
 def efficiency_study(

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from jaxproj.exceptions import ConfigError
-from jaxproj.projection import FullConfig, Projector
+from jaxproj.projection import FullConfig, Projector, StackedProjector
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
@@ -195,3 +195,35 @@ class Reference:
         if objective == "relaxed":
             return self.relaxed(h, n_l, n_m)
         return self.full(h, n_l, n_m, FullConfig() if full is None else full)
+
+
+class StackedReference:
+    """``Reference`` of every chain of a ``StackedProjector`` (or a ``Model``'s projector).
+
+    Each chain is projected by its own float64 ``Reference`` on its own columns of the query;
+    the answers fill the chain's joints, and the values combine as the engine's do
+    (``projection.project_stacked_one``): relaxed ``sqrt(sum_c dev_c^2)``, full ``sum_c f_c``.
+    """
+
+    def __init__(self, sp: StackedProjector) -> None:
+        self.layout = sp.layout
+        self.chains = [Reference(sp.chain(c)) for c in range(sp.layout.n_chains)]
+
+    def project(
+        self, h: np.ndarray, objective: str, n_l: int, n_m: int, full: FullConfig | None = None
+    ) -> tuple[np.ndarray, float]:
+        """One query ``(m,)``, either objective -> (pose ``(n,)``, value)."""
+        h = np.asarray(h, np.float64)
+        out = np.zeros(self.layout.n)
+        values = []
+        for ref, cols, joints in zip(
+            self.chains, self.layout.inputs, self.layout.outputs, strict=True
+        ):
+            r, v = ref.project(h[list(cols)], objective, n_l, n_m, full)
+            out[list(joints)] = r
+            values.append(v)
+        v = np.asarray(values)
+        value = float(np.sqrt(np.sum(v * v))) if objective == "relaxed" else float(np.sum(v))
+        if len(values) == 1:
+            value = float(values[0])
+        return out, value
