@@ -141,9 +141,7 @@ class BuildConfig:
         if name == "head" and not isinstance(self.landmarks, tuple) and bandwidth is None:
             landmarks, bandwidth = None, HEAD_BANDWIDTH
         if (landmarks is None) == (bandwidth is None):
-            raise ConfigError(
-                f"chain {name}: give exactly one of landmarks (a count) or bandwidth"
-            )
+            raise ConfigError(f"chain {name}: give exactly one of landmarks (a count) or bandwidth")
         if landmarks is not None and landmarks < 2:
             raise ConfigError(f"chain {name}: landmarks={landmarks} must be >= 2")
         if bandwidth is not None and not bandwidth > 0:
@@ -258,6 +256,48 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
         counts.append(np.asarray(lm.counts))
     stacked = stack_projectors(projectors, layout_of(config, projectors))
     return Model(stacked, config, tuple(bandwidths), tuple(counts), int(len(d)))
+
+
+def from_landmarks(
+    human: np.ndarray, robot_poses: np.ndarray, config: BuildConfig, n_train: int | None = None
+) -> Model:
+    """A ``Model`` on given landmark pairs (no mean shift): ``(K, m)`` descriptors and their
+    ``(K, 10)`` driven-joint poses. Each chain takes its columns of ``human`` and its joints of
+    ``robot_poses``, rows that repeat in the chain's columns dropped (first kept); its kernels
+    are trained as ``build`` trains them. ``config.landmarks`` / ``bandwidth`` are not used (the
+    model records bandwidth 0)."""
+    human = np.asarray(human, np.float32)
+    robot_poses = np.asarray(robot_poses, np.float32)
+    if human.ndim != 2 or robot_poses.shape != (len(human), len(robot.DRIVEN_JOINTS)):
+        raise ConfigError(f"landmarks must be (K, m) and (K, 10), got {human.shape}, "
+                          f"{robot_poses.shape}")  # fmt: skip
+    chains = ik.chain_set(config.chains)
+    base_key = jax.random.PRNGKey(config.seed)
+    projectors, counts = [], []
+    for c, chain in enumerate(chains):
+        cols = (
+            list(range(human.shape[1]))
+            if len(chains) == 1
+            else list(ik.chain_columns(chain, config.bones))
+        )
+        joints = list(ik.chain_joints(chain))
+        _, first = np.unique(human[:, cols], axis=0, return_index=True)
+        rows = np.sort(first)
+        key = base_key if c == 0 else jax.random.fold_in(base_key, c)
+        projectors.append(
+            build_from_landmarks(
+                human[rows][:, cols],
+                robot_poses[rows][:, joints],
+                config.chain_config(c),
+                key=key,
+                lower=robot.LOWER[robot.DRIVEN_INDEX][joints],
+                upper=robot.UPPER[robot.DRIVEN_INDEX][joints],
+            )
+        )
+        counts.append(np.ones(len(rows), np.int64))
+    stacked = stack_projectors(projectors, layout_of(config, projectors))
+    n = len(human) if n_train is None else n_train
+    return Model(stacked, config, tuple(0.0 for _ in chains), tuple(counts), n)
 
 
 def layout_of(config: BuildConfig, projectors: Sequence[Projector]) -> ChainLayout:

@@ -8,9 +8,10 @@ from jaxproj import datasets, engine, evaluate, ik, report, robot
 def model():
     d = evaluate.prepare(datasets.msr_action3d(subjects=[1, 3], actions=[1, 2, 5, 11]))
     human = d.descriptors[d.valid][::4]
-    cfg = engine.BuildConfig(landmarks=None, bandwidth=1.0, k=16, hidden=32, input_scale=1.0)
-    p = engine.build_from_landmarks(human, np.asarray(ik.solve_driven(human)), cfg)
-    return engine.Model(p, cfg, 1.0, np.ones(len(human), np.int64), len(human))
+    cfg = engine.BuildConfig(
+        chains="whole", landmarks=None, bandwidth=1.0, k=16, hidden=32, input_scale=1.0
+    )
+    return engine.from_landmarks(human, np.asarray(ik.solve_driven(human)), cfg)
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +32,7 @@ def test_metrics_are_the_paper_definitions():
 
 
 def test_baselines_match_direct_numpy(model, data):
-    p = model.projector
+    p = model.projector.chain(0)
     h = data.descriptors[data.valid][:50]
     hum, rob = np.asarray(p.human), np.asarray(p.robot)
     d2 = ((h[:, None].astype(np.float64) - hum[None]) ** 2).sum(-1)

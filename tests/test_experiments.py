@@ -10,7 +10,7 @@ from jaxproj import datasets, engine, experiments, ik, robot, synthetic, timing
 from jaxproj.skeleton import descriptor
 
 CFG = engine.BuildConfig(
-    landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, input_scale=1.0, seed=0
+    chains="whole", landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, input_scale=1.0
 )
 
 
@@ -36,8 +36,7 @@ def _small_model(extra=None, n=300, seed=0):
     if extra is not None:
         human = np.concatenate([human, extra])
     robot_poses = np.asarray(ik.solve_driven(human))
-    projector = engine.build_from_landmarks(human, robot_poses, CFG)
-    return engine.Model(projector, CFG, 1.0, np.ones(len(human), np.int64), len(d))
+    return engine.from_landmarks(human, robot_poses, CFG, n_train=len(d))
 
 
 # ---------------------------------------------------------------------------- experiments

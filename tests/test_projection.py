@@ -11,7 +11,7 @@ from jaxproj.projection import FullConfig
 from jaxproj.skeleton import descriptor
 
 CFG = engine.BuildConfig(
-    landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, input_scale=1.0, seed=0
+    chains="whole", landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, input_scale=1.0
 )
 
 
@@ -27,8 +27,7 @@ def model():
     d = _descriptors([1, 3])
     human = d[np.random.default_rng(0).choice(len(d), 400, replace=False)]
     robot_poses = np.asarray(ik.solve_driven(human))
-    projector = engine.build_from_landmarks(human, robot_poses, CFG)
-    return engine.Model(projector, CFG, 1.0, np.ones(400, np.int64), len(d))
+    return engine.from_landmarks(human, robot_poses, CFG, n_train=len(d))
 
 
 def _deg(a, b):
@@ -37,7 +36,7 @@ def _deg(a, b):
 
 @pytest.mark.parametrize("objective", ["relaxed", "full"])
 def test_identity_projecting_a_landmark_returns_its_robot_pose(model, objective):
-    p = model.projector
+    p = model.projector.chain(0)
     got, _ = engine.project(model, np.asarray(p.human), objective, batch_size=512)
     err = _deg(got, p.robot).max(axis=1)
     # anchored kernels are exact at their own landmark: identity up to float32 round-off
@@ -45,7 +44,7 @@ def test_identity_projecting_a_landmark_returns_its_robot_pose(model, objective)
 
 
 def test_similarity_perturbed_landmark_stays_near_the_ik(model):
-    p = model.projector
+    p = model.projector.chain(0)
     rng = np.random.default_rng(1)
     h = np.asarray(p.human)
     pert = h + rng.normal(scale=0.03, size=h.shape).astype(np.float32)
@@ -84,7 +83,7 @@ def _full_values(model, d, cfg):
 
     from jaxproj.projection import project_full_one
 
-    fn = jax.jit(jax.vmap(lambda h: project_full_one(model.projector, h, 10, 10, cfg)))
+    fn = jax.jit(jax.vmap(lambda h: project_full_one(model.projector.chain(0), h, 10, 10, cfg)))
     r, f, f0 = fn(d)
     return np.asarray(r), np.asarray(f), np.asarray(f0)
 
@@ -151,7 +150,7 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
     from jaxproj.projection import _cluster, _solve_cluster, _start_value, candidates
     from jaxproj.search import nearest
 
-    p = model.projector
+    p = model.projector.chain(0)
     d = _descriptors([2], actions=[1, 5])[:200]
     cfg = FullConfig(objective="min", include_candidate=True)
     exact, _ = engine.project(model, d, "full", full=cfg)
@@ -202,3 +201,85 @@ def test_k_is_capped_at_a_small_landmark_set():
     assert _deg(got, robot_poses).max() < 0.01  # still exact at the landmarks
     with pytest.raises(ConfigError, match="k=1"):
         engine.build_from_landmarks(human, robot_poses, engine.BuildConfig(k=1))
+
+
+# ------------------------------------------------------------------------ per-chain stacking
+
+
+@pytest.fixture(scope="module")
+def chain_model():
+    d = _descriptors([1, 3])
+    human = d[np.random.default_rng(0).choice(len(d), 400, replace=False)]
+    cfg = dataclasses.replace(CFG, chains="upper")
+    return engine.from_landmarks(human, np.asarray(ik.solve_driven(human)), cfg, n_train=len(d))
+
+
+def test_chain_model_layout_and_padding(chain_model):
+    sp = chain_model.projector
+    lay = sp.layout
+    assert lay.names == ("head", "left_arm", "right_arm")
+    assert lay.inputs == ((0, 1, 2), (3, 4, 5, 6, 7, 8), (9, 10, 11, 12, 13, 14))
+    assert lay.outputs == ((0, 1), (2, 3, 4, 5), (6, 7, 8, 9))
+    k_max = max(lay.landmarks)
+    assert sp.stack.human.shape == (3, k_max, 6) and sp.stack.robot.shape == (3, k_max, 4)
+    for c, k in enumerate(lay.landmarks):
+        # padding: infinitely far (never a neighbour), zero weights (never enters a kernel)
+        assert np.isinf(np.asarray(sp.stack.human_sq[c, k:])).all()
+        assert np.isfinite(np.asarray(sp.stack.human_sq[c, :k])).all()
+        assert not np.asarray(sp.stack.forward.out[c, k:]).any()
+        assert not np.asarray(sp.stack.backward.w[c, :, len(lay.outputs[c]) :]).any()
+    # the head's neck directions repeat across the 400 frames far less than whole poses do
+    assert lay.landmarks[0] <= lay.landmarks[1]
+
+
+@pytest.mark.parametrize("objective", ["relaxed", "full"])
+def test_stacked_chains_equal_each_chain_alone(chain_model, objective):
+    """One vmapped call over the padded stack gives each chain's own answer."""
+    sp = chain_model.projector
+    d = _descriptors([4], actions=[2, 9])[:64]
+    got, value = engine.project(chain_model, d, objective, n_l=5, n_m=5)
+    per_chain = []
+    for c in range(sp.layout.n_chains):
+        p = sp.chain(c)
+        x = d[:, list(sp.layout.inputs[c])]
+        r, v = engine.project(p, x, objective, n_l=5, n_m=5)
+        np.testing.assert_allclose(got[:, list(sp.layout.outputs[c])], r, rtol=0, atol=2e-5)
+        per_chain.append(v)
+    v = np.stack(per_chain, axis=1)
+    want = np.sqrt((v**2).sum(1)) if objective == "relaxed" else v.sum(1)
+    np.testing.assert_allclose(value, want, rtol=1e-4)
+
+
+def test_chain_identity_on_every_chains_landmarks(chain_model):
+    sp = chain_model.projector
+    lay = sp.layout
+    for c in range(lay.n_chains):
+        p = sp.chain(c)
+        got, _ = engine.project(p, np.asarray(p.human), "relaxed", n_l=5, n_m=5)
+        assert _deg(got, p.robot).max() < 0.01, lay.names[c]
+
+
+def test_chain_model_save_load_is_bit_identical(chain_model, tmp_path):
+    engine.save(chain_model, tmp_path / "c.npz")
+    back = engine.load(tmp_path / "c.npz")
+    assert back.projector.layout == chain_model.projector.layout
+    d = _descriptors([4], actions=[9])[:100]
+    for objective in ("relaxed", "full"):
+        a, va = engine.project(chain_model, d, objective, n_l=5, n_m=5)
+        b, vb = engine.project(back, d, objective, n_l=5, n_m=5)
+        np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(va, vb)
+    assert not list(tmp_path.glob(".*.tmp"))  # written under a temporary name, then renamed
+
+
+def test_per_chain_settings_are_validated():
+    with pytest.raises(ConfigError, match="3 chains"):
+        engine.BuildConfig(landmarks=(100, 200))
+    with pytest.raises(ConfigError, match="head: give exactly one"):
+        engine.BuildConfig(landmarks=(None, 200, 200))
+    with pytest.raises(ConfigError, match="unknown chain set"):
+        engine.BuildConfig(chains="legs")
+    cfg = engine.BuildConfig(landmarks=800)
+    assert cfg.chain_config(0).bandwidth == engine.HEAD_BANDWIDTH
+    assert cfg.chain_config(1).landmarks == cfg.chain_config(2).landmarks == 800
+    assert engine.BuildConfig(landmarks=(50, 800, 700)).chain_config(0).landmarks == 50

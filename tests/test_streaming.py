@@ -10,7 +10,6 @@ import pytest
 
 from jaxproj import datasets, engine, ik, robot, streaming
 from jaxproj.exceptions import ConfigError
-from jaxproj.landmarks import training_descriptors
 from jaxproj.skeleton import descriptor
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
 
@@ -19,7 +18,7 @@ STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
 
 @pytest.fixture(scope="module")
 def projector():
-    train = training_descriptors(datasets.msr_action3d(subjects=[1, 3]))
+    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
     uniq = np.unique(train, axis=0)
     idx = np.sort(np.random.default_rng(0).choice(len(uniq), 200, replace=False))
     human = uniq[idx].astype(np.float32)

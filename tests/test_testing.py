@@ -18,7 +18,6 @@ from optax.projections import projection_simplex
 
 from jaxproj import datasets, engine, ik, projection
 from jaxproj.exceptions import ConfigError
-from jaxproj.landmarks import training_descriptors
 from jaxproj.projection import FullConfig
 from jaxproj.search import nearest
 from jaxproj.testing import Reference, simplex_projection
@@ -28,13 +27,13 @@ L = M = 10
 
 @pytest.fixture(scope="module")
 def model():
-    train = training_descriptors(datasets.msr_action3d(subjects=[1, 3]))
+    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
     uniq = np.unique(train, axis=0)
     idx = np.sort(np.random.default_rng(0).choice(len(uniq), 200, replace=False))
     human = uniq[idx].astype(np.float32)
     robot_poses = np.asarray(ik.solve_driven(human), np.float32)
     p = engine.build_from_landmarks(human, robot_poses, engine.BuildConfig())
-    test = training_descriptors(datasets.msr_action3d(subjects=[2]))
+    test = datasets.valid_descriptors(datasets.msr_action3d(subjects=[2]))
     queries = test[np.random.default_rng(1).choice(len(test), 64, replace=False)]
     return p, Reference(p), queries
 
