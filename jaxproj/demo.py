@@ -172,6 +172,8 @@ def _plots(out_dir: Path, data, ev, seqs, sizes: dict, eff: dict) -> list[str]:
             sel,
         )
         names.append(fname)
+    report.plot_per_joint(out_dir / "per_joint_error.png", ev["summary"])
+    names.append("per_joint_error.png")
     report.plot_landmark_size(out_dir / "landmark_size.png", sizes)
     names.append("landmark_size.png")
     report.plot_efficiency(out_dir / "efficiency.png", eff)
@@ -189,6 +191,27 @@ def _sample_motions(data) -> list[str]:
                 out.append(name)
                 break
     return out
+
+
+def _where_md(r: dict) -> list[str]:
+    """The "Where the error is" section, from the smoothed per-method blocks."""
+    s = r["summary"]
+    return [
+        "",
+        "## Where the error is (smoothed)",
+        "",
+        "p95 of M_max with and without the two ElbowYaw joints (ill-conditioned in the IK truth "
+        "itself when the arm is nearly straight), and task-space errors of the projected pose "
+        "against the IK pose from forward kinematics of the MJCF: hand (the wrist point, where "
+        "the hand attaches) and elbow position (cm) and upper-arm (shoulder -> elbow) and "
+        "forearm (elbow -> wrist) direction (deg), median / p95 over the valid frames.",
+        "",
+        report.where_error_table(s),
+        "",
+        "Error per driven joint, p50 / p95 (deg):",
+        "",
+        report.per_joint_table(s),
+    ]
 
 
 def _rollout_md(ro: dict) -> list[str]:
@@ -300,6 +323,7 @@ def _markdown(r: dict) -> str:
     ]
     for m, v in r["smoothness"].items():
         lines.append(f"| {m} | {v['jerk_raw']:.3g} | {v.get('jerk_smoothed', float('nan')):.3g} |")
+    lines += _where_md(r)
     lines += ["", "## Per action (relaxed, smoothed): median M_avg / p95 M_max", ""]
     lines += ["| action | M_avg median | M_max p95 |", "|---|---:|---:|"]
     for a, v in r["per_action"].items():

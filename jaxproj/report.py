@@ -7,7 +7,12 @@ Plots written by ``write_report``:
   views in the body / torso frame, and M_max / M_avg over time per method;
 * ``error_distributions.png`` — cumulative distributions of M_avg and M_max per method;
 * ``landmark_size.png`` — median M_avg and p95 M_max against the landmark count;
-* ``efficiency.png`` — time per projection and accuracy against L = M (when measured).
+* ``efficiency.png`` — time per projection and accuracy against L = M (when measured);
+* ``per_joint_error.png`` — p50 / p95 error per driven joint of the projection methods.
+
+Tables: ``summary_table`` (the headline M_avg / M_max), ``where_error_table`` (M_max with and
+without ElbowYaw, task-space errors per arm) and ``per_joint_table`` (p50 / p95 per driven
+joint), all from the per-method blocks of ``jaxproj.metrics.summarize_errors``.
 """
 
 from __future__ import annotations
@@ -41,6 +46,10 @@ _COLORS = {
     "knn_average": "tab:green",
     "global_elm": "tab:purple",
 }
+
+
+PROJECTION_METHODS: tuple[str, ...] = ("relaxed", "full")
+"""The paper's projection objectives (``plot_per_joint`` shows these by default)."""
 
 
 def _plt():
@@ -240,6 +249,84 @@ def summary_table(summary: dict, methods: list[str] | None = None) -> str:
             f"| {m} | {a['median']:.2f} | {a['mean']:.2f} | {a['p95']:.2f} | "
             f"{x['median']:.2f} | {x['p95']:.2f} | {x['max']:.1f} |"
         )
+    return "\n".join(lines)
+
+
+def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) -> None:
+    """Bars of the p50 (solid) and p95 (light) error per driven joint, one group per joint.
+
+    Args:
+      summary: ``{method: block}`` with ``block["per_joint"][joint]["p50" | "p95"]`` in degrees
+        (``jaxproj.metrics.summarize_errors``), e.g. ``evaluate``'s ``summary``.
+      methods: which methods; default the projection methods present (``PROJECTION_METHODS``),
+        else every method of ``summary``.
+    """
+    methods = methods or [m for m in PROJECTION_METHODS if m in summary] or list(summary)
+    plt = _plt()
+    joints = list(robot.DRIVEN_JOINTS)
+    x = np.arange(len(joints), dtype=np.float64)
+    width = 0.8 / len(methods)
+    fig, ax = plt.subplots(figsize=(11, 4))
+    for i, m in enumerate(methods):
+        pj = summary[m]["per_joint"]
+        pos = x - 0.4 + (i + 0.5) * width
+        c = _COLORS.get(m)
+        ax.bar(pos, [pj[j]["p95"] for j in joints], width, color=c, alpha=0.35,
+               label=f"{m} p95")  # fmt: skip
+        ax.bar(pos, [pj[j]["p50"] for j in joints], width * 0.6, color=c, label=f"{m} p50")
+    ax.set_xticks(x)
+    ax.set_xticklabels(joints, rotation=30, ha="right")
+    ax.set_ylabel("|error| vs IK (deg)")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8, ncol=len(methods))
+    ax.set_title("Error per driven joint (valid frames): median and 95th percentile")
+    _save(plt, fig, path)
+
+
+def _mp(d: dict, digits: int = 1) -> str:
+    """``"median / p95"`` of a ``describe`` dict."""
+    return f"{d['median']:.{digits}f} / {d['p95']:.{digits}f}"
+
+
+def where_error_table(summary: dict, methods: list[str] | None = None) -> str:
+    """Markdown table: where each method's error is.
+
+    Per method: p95 of M_max with and without the two ElbowYaw joints (deg), then per arm
+    (L / R) the hand (wrist point) and elbow position errors (cm) and the upper-arm and forearm
+    direction errors (deg) as ``median / p95``; from ``summary.<method>`` blocks of
+    ``jaxproj.metrics.summarize_errors``.
+    """
+    methods = methods or list(summary)
+    lines = [
+        "| method | M_max p95 | M_max p95 without ElbowYaw | hand L (cm) | hand R (cm) "
+        "| elbow L (cm) | elbow R (cm) | upper arm L (deg) | upper arm R (deg) "
+        "| forearm L (deg) | forearm R (deg) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for m in methods:
+        b = summary[m]
+        ts = b["task_space"]
+        cells = [f"{b['M_max']['p95']:.1f}", f"{b['M_max_no_elbow_yaw']['p95']:.1f}"]
+        for key, digits in (("hand_cm", 2), ("elbow_cm", 2), ("upper_arm_deg", 1),
+                            ("forearm_deg", 1)):  # fmt: skip
+            cells += [_mp(ts["left"][key], digits), _mp(ts["right"][key], digits)]
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def per_joint_table(summary: dict, methods: list[str] | None = None) -> str:
+    """Markdown table: ``p50 / p95`` error (deg) per driven joint (rows) and method (columns)."""
+    methods = methods or list(summary)
+    lines = [
+        "| joint | " + " | ".join(methods) + " |",
+        "|---|" + "---:|" * len(methods),
+    ]
+    for j in robot.DRIVEN_JOINTS:
+        cells = [
+            f"{summary[m]['per_joint'][j]['p50']:.1f} / {summary[m]['per_joint'][j]['p95']:.1f}"
+            for m in methods
+        ]
+        lines.append(f"| {j} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

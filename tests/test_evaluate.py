@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from jaxproj import datasets, engine, evaluate, ik, report, robot
+from jaxproj import datasets, engine, evaluate, ik, metrics, report, robot
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +58,19 @@ def test_evaluate_report_layout_and_ordering(model, data, tmp_path):
         sm = out["smoothness"][m]
         assert sm["jerk_smoothed"] < sm["jerk_raw"]
         assert set(out["per_sequence"][data.names[0]][m]) == {"M_max_mean", "M_avg_mean"}
+    # where the error is (jaxproj.metrics): the new keys, next to the headline
+    for block in (out["summary"], out["unsmoothed"]):
+        for m in evaluate.METHODS:
+            b = block[m]
+            assert set(b) == {"M_max", "M_avg", "per_joint", "M_max_no_elbow_yaw", "task_space"}
+            assert list(b["per_joint"]) == list(robot.DRIVEN_JOINTS)
+            assert all(v["p50"] <= v["p95"] for v in b["per_joint"].values())
+            assert b["M_max_no_elbow_yaw"]["p95"] <= b["M_max"]["p95"]
+            assert b["M_max_no_elbow_yaw"]["n"] == out["valid_frames"]
+            for side in ("left", "right"):
+                ts = b["task_space"][side]
+                assert set(ts) == {"hand_cm", "elbow_cm", "upper_arm_deg", "forearm_deg"}
+                assert all(np.isfinite(v["p95"]) and v["median"] >= 0 for v in ts.values())
     # the learned projection beats snapping to the nearest landmark, here as in the paper
     un = out["unsmoothed"]
     assert un["relaxed"]["M_avg"]["median"] < un["nearest_landmark"]["M_avg"]["median"]
@@ -72,6 +85,15 @@ def test_evaluate_report_layout_and_ordering(model, data, tmp_path):
 def test_plots_are_written(model, data, tmp_path):
     out = evaluate.evaluate(model, data, ("relaxed", "nearest_landmark"), smoothing=None)
     preds, truth = out["_predictions"], out["_truth"]
+    # the headline is unchanged (the paper's frame_errors), the block is metrics' on the same
+    # frames (the truth's FK, computed once, gives what a fresh one does)
+    ok = data.valid
+    for m, pred in preds.items():
+        m_max, m_avg = evaluate.frame_errors(pred[ok], truth[ok])
+        assert out["summary"][m]["M_max"] == evaluate.describe(m_max)
+        assert out["summary"][m]["M_avg"] == evaluate.describe(m_avg)
+        assert out["summary"][m] == out["unsmoothed"][m]
+        assert out["summary"][m]["task_space"] == metrics.task_space_errors(pred[ok], truth[ok])
     report.plot_distributions(tmp_path / "d.png", preds, truth)
     seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
     n = len(seq.valid)
