@@ -1,142 +1,168 @@
-"""Cross-subject accuracy of the projection engine (the paper's protocol on MSR Action3D).
+"""Accuracy on people the landmarks never saw: whole-body vs per-chain, both objectives, the
+baselines, on held-out MSR Action3D subjects and on a second dataset (UTKinect-Action3D).
 
-Landmarks from subjects 1,3,5,7,9 (all actions, valid frames); evaluation on every valid frame of
-the arm-heavy actions (a01-a12, a17-a19) of subjects 2,4,6,8,10, against the analytic IK over
-``robot.DRIVEN_JOINTS``. Prints M_avg / M_max (degrees, the paper's definitions) per objective and
-for the nearest-landmark baseline, where the error is (``jaxproj.metrics.summarize_errors``: p95 of
-M_max without the two ElbowYaw joints, hand (wrist point) position error in cm from forward
-kinematics of the MJCF; the JSON has the whole block: per-joint p50 / p95, elbow position,
-upper-arm / forearm direction), per-joint p95 and the identity error on the landmarks.
+Landmarks and kernels from MSR Action3D subjects 1,3,5,7,9 (all actions, valid frames). Splits:
 
-    python benchmarks/accuracy_cross_subject.py [--landmarks 1644] [--seed 0] [--json OUT]
+* ``msr``: every valid frame of the arm-heavy actions (a01-a12, a17-a19) of subjects 2,4,6,8,10
+  (the paper's cross-subject protocol; 8,355 frames);
+* ``utkinect``: every valid frame of the upper-body segments (throw, push, pull, waveHands,
+  clapHands) of the bundled UTKinect-Action3D recordings (five other people, another room and
+  capture program): cross-dataset.
+
+Unsmoothed, L = M = 10, degrees over ``robot.DRIVEN_JOINTS`` against the analytic IK. Each
+method's block is ``jaxproj.metrics.summarize_errors``: the paper's M_max / M_avg, per-joint p50 /
+p95, M_max without the two ElbowYaw joints, and task-space errors from forward kinematics of the
+MJCF (wrist and elbow position in cm, upper-arm / forearm direction in degrees). The baselines
+(nearest landmark, kNN average, global ELM) run on the same landmarks, per chain for a per-chain
+model. Identity: each chain's landmarks projected through its own kernels.
+
+    python benchmarks/accuracy_cross_subject.py [--chains upper,whole] [--datasets msr,utkinect]
+        [--landmarks 1644] [--seed 0] [--json OUT]
     python benchmarks/accuracy_cross_subject.py --quick    # smoke run (see --help)
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 
 import jax
 import numpy as np
 
-from jaxproj import datasets, engine, ik, metrics
+from jaxproj import datasets, engine, evaluate, ik, metrics
 from jaxproj.projection import FullConfig
-from jaxproj.search import nearest
-from jaxproj.skeleton import descriptor
+
+OBJECTIVES = {
+    "relaxed": ("relaxed", None),
+    "full": ("full", FullConfig()),
+    "full_min_with_candidate": ("full", FullConfig(objective="min", include_candidate=True)),
+}
+BASELINES = ("nearest_landmark", "knn_average", "global_elm")
 
 
-def _frames(subjects, actions=None) -> np.ndarray:
-    seqs = datasets.msr_action3d(subjects=subjects, actions=actions)
-    pos = np.concatenate([s.positions[s.valid] for s in seqs])
-    d, ok = descriptor(pos)
-    return np.asarray(d)[np.asarray(ok)]
+def split(name: str) -> np.ndarray:
+    """``(F, 15)`` valid descriptors of a held-out split (see the module doc)."""
+    if name == "msr":
+        seqs = datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS, actions=datasets.ARM_ACTIONS)
+    elif name == "utkinect":
+        seqs = datasets.utkinect_action3d(actions=datasets.UTK_UPPER_BODY_ACTIONS)
+    else:
+        raise SystemExit(f"unknown split {name!r}")
+    return datasets.valid_descriptors(seqs)
 
 
-def _stats(pred: np.ndarray, truth: np.ndarray, truth_points: np.ndarray) -> dict:
-    """``metrics.summarize_errors`` (headline, per joint, without ElbowYaw, task space), plus the
-    rounded ``per_joint_p95`` this script has always printed."""
-    block = metrics.summarize_errors(pred, truth, truth_points=truth_points)
-    block["per_joint_p95"] = {j: round(v["p95"], 2) for j, v in block["per_joint"].items()}
-    return block
+def identity(model: engine.Model, objective: str, cfg: FullConfig | None) -> dict:
+    """Worst joint error (deg) projecting every chain's landmarks through the model."""
+    sp = model.projector
+    worst = []
+    for c in range(sp.layout.n_chains):
+        p = sp.chain(c)
+        got, _ = engine.project(p, np.asarray(p.human), objective, full=cfg)
+        worst.append(np.degrees(np.abs(got - np.asarray(p.robot))).max(axis=1))
+    w = np.concatenate(worst)
+    return {
+        "median": float(np.median(w)),
+        "p95": float(np.percentile(w, 95)),
+        "max": float(w.max()),
+    }
+
+
+def run(args: argparse.Namespace) -> dict:
+    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TRAIN_SUBJECTS))
+    tests = {name: split(name) for name in args.datasets}
+    if args.quick:
+        train = train[::4]
+        tests = {k: v[::20] for k, v in tests.items()}
+    truth = {k: np.asarray(ik.solve_driven(v)) for k, v in tests.items()}
+    points = {k: metrics.arm_points(v) for k, v in truth.items()}  # one FK per split
+    objectives = dict(OBJECTIVES)
+    if args.quick:
+        objectives.pop("full_min_with_candidate")
+    out: dict = {
+        "train_frames": len(train),
+        "test_frames": {k: len(v) for k, v in tests.items()},
+        "device": str(jax.devices()[0]),
+        "quick": args.quick,
+        "models": {},
+    }
+    for chains in args.chains:
+        cfg = engine.BuildConfig(chains=chains, seed=args.seed)
+        if args.landmarks is not None:
+            cfg = dataclasses.replace(cfg, landmarks=args.landmarks)
+        t0 = time.perf_counter()
+        model = engine.build(train, cfg)
+        rec: dict = {
+            "landmarks": model.landmarks,
+            "bandwidth": list(model.bandwidth),
+            "build_s": time.perf_counter() - t0,
+            "config": dataclasses.asdict(model.config),
+            "identity_M_max": {},
+            "splits": {},
+        }
+        for name, (objective, fc) in objectives.items():
+            rec["identity_M_max"][name] = identity(model, objective, fc)
+        for split_name, d in tests.items():
+            methods = {}
+            for name, (objective, fc) in objectives.items():
+                t0 = time.perf_counter()
+                pred, _ = engine.project(model, d, objective, full=fc)
+                wall = time.perf_counter() - t0
+                methods[name] = metrics.summarize_errors(
+                    pred, truth[split_name], truth_points=points[split_name]
+                ) | {"wall_s": wall}
+            for name in BASELINES:
+                pred = evaluate.predict_method(model, name, d)
+                methods[name] = metrics.summarize_errors(
+                    pred, truth[split_name], truth_points=points[split_name]
+                )
+            rec["splits"][split_name] = methods
+        out["models"][chains] = rec
+    return out
+
+
+def print_table(out: dict) -> None:
+    print(f"landmarks from {out['train_frames']} training frames; held out: {out['test_frames']}")
+    head = (
+        f"{'model':6s} {'split':9s} {'method':24s} {'M_avg med':>9s} {'M_max p95':>9s} "
+        f"{'p95 no EY':>9s} {'hand cm med/p95 (L, R)':>24s}"
+    )
+    for chains, rec in out["models"].items():
+        print(f"\n{chains}: landmarks {rec['landmarks']}, build {rec['build_s']:.1f} s")
+        print(head)
+        for split_name, methods in rec["splits"].items():
+            for name, s in methods.items():
+                hand = [s["task_space"][side]["hand_cm"] for side in metrics.SIDES]
+                print(
+                    f"{chains:6s} {split_name:9s} {name:24s} {s['M_avg']['median']:9.2f} "
+                    f"{s['M_max']['p95']:9.1f} {s['M_max_no_elbow_yaw']['p95']:9.1f} "
+                    + " ".join(f"{h['median']:5.1f}/{h['p95']:5.1f}" for h in hand)
+                )
+        for name, ident in rec["identity_M_max"].items():
+            print(f"  identity {name}: max {ident['max']:.4f} deg")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--landmarks", type=int, default=1644)
+    ap.add_argument("--chains", default="upper,whole", type=lambda s: s.split(","))
+    ap.add_argument("--datasets", default="msr,utkinect", type=lambda s: s.split(","))
+    ap.add_argument("--landmarks", type=int, default=None, help="per arm (default: BuildConfig)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default=None)
     ap.add_argument(
         "--quick",
         action="store_true",
-        help="smoke run: 150 landmarks (unless --landmarks is given) from every 4th training "
-        "frame, every 20th test frame, only the relaxed and full objectives",
+        help="smoke run: every 4th training frame, every 20th test frame, no min variant",
     )
     args = ap.parse_args()
-    if args.quick and args.landmarks == ap.get_default("landmarks"):
+    if args.quick and args.landmarks is None:
         args.landmarks = 150
-
-    train = _frames([1, 3, 5, 7, 9])
-    test = _frames([2, 4, 6, 8, 10], datasets.ARM_ACTIONS)
-    if args.quick:
-        train, test = train[::4], test[::20]
-    truth = np.asarray(ik.solve_driven(test))
-    truth_points = metrics.arm_points(truth)  # one FK of the IK truth serves every method
-    t0 = time.perf_counter()
-    model = engine.build(train, engine.BuildConfig(landmarks=args.landmarks, seed=args.seed))
-    build_s = time.perf_counter() - t0
-    p = model.projector
-    out = {
-        "landmarks": model.n_landmarks,
-        "bandwidth": model.bandwidth,
-        "train_frames": len(train),
-        "test_frames": len(test),
-        "build_s": build_s,
-        "config": vars(model.config).copy(),
-        "device": str(jax.devices()[0]),
-        "quick": args.quick,
-        "methods": {},
-    }
-    nn = jax.jit(jax.vmap(lambda h: nearest(p.human, p.human_sq, h, 1)[0][0]))(test)
-    out["methods"]["nearest_landmark"] = _stats(
-        np.asarray(p.robot)[np.asarray(nn)], truth, truth_points
-    )
-    variants = {
-        "relaxed": ("relaxed", None),
-        "full": ("full", FullConfig()),
-        "full_min_with_candidate": ("full", FullConfig(objective="min", include_candidate=True)),
-        # speed options of the full objective: only the best-starting clusters, 10 steps
-        "full_pruned_2x10": ("full", FullConfig(clusters=2, iterations=10)),
-        "full_pruned_1x10": ("full", FullConfig(clusters=1, iterations=10)),
-    }
-    if args.quick:  # each variant compiles its own program: the smoke run keeps two
-        variants = {k: variants[k] for k in ("relaxed", "full")}
-    preds = {}
-    for name, (objective, cfg) in variants.items():
-        t0 = time.perf_counter()
-        pred, _ = engine.project(model, test, objective, full=cfg)
-        preds[name] = pred = np.asarray(pred)
-        wall = time.perf_counter() - t0
-        out["methods"][name] = _stats(pred, truth, truth_points) | {"wall_s": wall}
-        if name.startswith("full_pruned"):  # the approximation's effect on the answers
-            diff = np.degrees(np.abs(pred - preds["full"])).max(axis=1)
-            out["methods"][name]["vs_full_exact"] = {
-                "frames_over_0.1deg": float(np.mean(diff > 0.1)),
-                "max_deg": float(diff.max()),
-            }
-        ident, _ = engine.project(model, np.asarray(p.human), objective, full=cfg)
-        ie = np.degrees(np.abs(ident - np.asarray(p.robot))).max(axis=1)
-        out["methods"][name]["identity_M_max"] = {
-            "median": float(np.median(ie)),
-            "p95": float(np.percentile(ie, 95)),
-            "max": float(ie.max()),
-        }
-    print(
-        f"{out['landmarks']} landmarks (bandwidth {out['bandwidth']:.4f}) from "
-        f"{out['train_frames']} frames; {out['test_frames']} held-out arm-action frames"
-    )
-    print(
-        f"{'method':26s} {'M_avg med':>9s} {'M_avg mean':>10s} {'M_max med':>9s} {'M_max p95':>9s}"
-        f" {'p95 no EY':>9s} {'hand L cm med/p95':>17s} {'hand R cm med/p95':>17s}"
-    )
-    for name, s in out["methods"].items():
-        hand = {side: s["task_space"][side]["hand_cm"] for side in metrics.SIDES}
-        print(
-            f"{name:26s} {s['M_avg']['median']:9.2f} {s['M_avg']['mean']:10.2f} "
-            f"{s['M_max']['median']:9.2f} {s['M_max']['p95']:9.2f} "
-            f"{s['M_max_no_elbow_yaw']['p95']:9.2f} "
-            + " ".join(f"{h['median']:8.2f}/{h['p95']:8.2f}" for h in hand.values())
-        )
-    for name, s in out["methods"].items():
-        print(f"  {name} per-joint p95 (deg):", s["per_joint_p95"])
-        if "vs_full_exact" in s:
-            print(f"  {name} vs the exact full objective:", s["vs_full_exact"])
-        if "identity_M_max" in s:
-            print(f"  {name} identity M_max (deg):", s["identity_M_max"])
+    out = run(args)
+    print_table(out)
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump(out, fh, indent=2)
+            json.dump(out, fh, indent=1)
 
 
 if __name__ == "__main__":
