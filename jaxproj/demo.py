@@ -1,7 +1,9 @@
 """The main job, end to end on the bundled data: ``jaxproj demo``.
 
-1. build the landmarks and kernel banks from subjects 1,3,5,7,9 (the paper's 1,644 landmarks);
-2. evaluate every method on subjects 2,4,6,8,10 with and without smoothing;
+1. build the per-chain (default) and the whole-body projector from subjects 1,3,5,7,9 (1,644
+   landmarks per arm chain / for the whole body);
+2. evaluate every method on subjects 2,4,6,8,10 with and without smoothing, and both models
+   side by side on them and on the UTKinect-Action3D upper-body segments (cross-dataset);
 3. roll out projected and IK trajectories of held-out arm motions in MuJoCo MJX;
 4. the paper's experiments: eight basic poses and motions, landmark-set sizes, L = M sweep;
 5. write ``report.json``, ``report.md`` and the PNG plots to ``--out``.
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import jax
@@ -74,27 +77,44 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
     t_start = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
-    cfg = engine.BuildConfig(landmarks=1644)
-
-    t0 = time.perf_counter()
+    cfg = engine.BuildConfig(landmarks=1644)  # the default: one projector per chain
     train = _train_descriptors(cfg)
-    model = engine.build(train, cfg)
-    timings["build_s"] = time.perf_counter() - t0
-    _log(
-        f"[1/5] built {model.landmarks} landmarks from {len(train)} frames "
-        f"(bandwidths {', '.join(f'{h:.4f}' for h in model.bandwidth)}) "
-        f"in {timings['build_s']:.1f} s"
-    )
+    models = {}
+    for name, c in (("per_chain", cfg), ("whole_body", replace(cfg, chains="whole"))):
+        t0 = time.perf_counter()
+        models[name] = engine.build(train, c)
+        timings[f"build_{name}_s"] = time.perf_counter() - t0
+        _log(
+            f"[1/5] built the {name} model: {models[name].landmarks} landmarks from "
+            f"{len(train)} frames in {timings[f'build_{name}_s']:.1f} s"
+        )
+    model = models["per_chain"]
     engine.save(model, out_dir / "projector.npz")
+    engine.save(models["whole_body"], out_dir / "projector_whole_body.npz")
 
     t0 = time.perf_counter()
     test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS)
     data = evaluate.prepare(test_seqs)
     ev = evaluate.evaluate(model, data, evaluate.METHODS, progress=progress)
+    splits = {
+        "msr_held_out": data,
+        "utkinect": evaluate.prepare(
+            datasets.utkinect_action3d(actions=datasets.UTK_UPPER_BODY_ACTIONS)
+        ),
+    }
+    comparison: dict = {}
+    for name, m in models.items():
+        for split, d in splits.items():
+            if name == "per_chain" and split == "msr_held_out":
+                block = ev["unsmoothed"]
+            else:
+                block = evaluate.evaluate(m, d, evaluate.METHODS, smoothing=None)["unsmoothed"]
+            comparison.setdefault(name, {})[split] = block
     timings["evaluate_s"] = time.perf_counter() - t0
     _log(
-        f"[2/5] evaluated {len(evaluate.METHODS)} methods on {ev['valid_frames']} frames "
-        f"in {timings['evaluate_s']:.1f} s"
+        f"[2/5] evaluated {len(evaluate.METHODS)} methods x {len(models)} models on "
+        f"{ev['valid_frames']} held-out MSR and {int(splits['utkinect'].valid.sum())} UTKinect "
+        f"frames in {timings['evaluate_s']:.1f} s"
     )
 
     rollout_out = _rollout_section(data, ev, 8 if quick else 32, test_seqs)
@@ -124,6 +144,7 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
     t0 = time.perf_counter()
     result = {
         **{k: v for k, v in ev.items()},
+        "comparison": comparison,
         "rollout": rollout_out,
         "experiments": {"basic_poses": poses, "landmark_size": sizes, "efficiency": eff},
         "build": {
@@ -191,6 +212,38 @@ def _sample_motions(data) -> list[str]:
                 out.append(name)
                 break
     return out
+
+
+def _comparison_md(r: dict) -> list[str]:
+    """Whole-body vs per-chain, per objective and baseline, on both held-out splits."""
+    lines = [
+        "",
+        "## Whole-body vs per-chain projection (unsmoothed)",
+        "",
+        "The same five methods with the paper's whole-body projector (one set of landmarks over "
+        "all 15 descriptor numbers) and with the default per-chain projector (head, left arm, "
+        "right arm, each searched and trained in its own bones; baselines per chain too). "
+        "Held-out MSR Action3D subjects (all actions) and the UTKinect-Action3D upper-body "
+        "segments (other people, another room: cross-dataset). Landmarks from MSR subjects "
+        f"{r['train_subjects']}.",
+        "",
+        "| model | split | method | median M_avg | p95 M_max | p95 M_max w/o ElbowYaw "
+        "| hand cm median / p95 (L, R) |",
+        "|---|---|---|---:|---:|---:|---|",
+    ]
+    for model, splits in r["comparison"].items():
+        for split, methods in splits.items():
+            for name, s in methods.items():
+                hand = " , ".join(
+                    f"{s['task_space'][side]['hand_cm']['median']:.1f} / "
+                    f"{s['task_space'][side]['hand_cm']['p95']:.1f}"
+                    for side in ("left", "right")
+                )
+                lines.append(
+                    f"| {model} | {split} | {name} | {s['M_avg']['median']:.2f} | "
+                    f"{s['M_max']['p95']:.1f} | {s['M_max_no_elbow_yaw']['p95']:.1f} | {hand} |"
+                )
+    return lines
 
 
 def _where_md(r: dict) -> list[str]:
@@ -323,6 +376,7 @@ def _markdown(r: dict) -> str:
     ]
     for m, v in r["smoothness"].items():
         lines.append(f"| {m} | {v['jerk_raw']:.3g} | {v.get('jerk_smoothed', float('nan')):.3g} |")
+    lines += _comparison_md(r)
     lines += _where_md(r)
     lines += ["", "## Per action (relaxed, smoothed): median M_avg / p95 M_max", ""]
     lines += ["| action | M_avg median | M_max p95 |", "|---|---:|---:|"]
