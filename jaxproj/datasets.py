@@ -1,6 +1,8 @@
 """The bundled MSR Action3D skeletons (567 sequences, 20 actions x 10 subjects x 2-3 takes), and
 a UTKinect-Action3D subset (10 recordings; section at the end).
 
+(Over 500 lines on purpose: each archive's format is documented, written and read in one place.)
+
 ``msr_action3d()`` returns every sequence as a ``MotionSequence`` with ``(T, 20, 3)`` float32
 positions in metres, Kinect SDK joint order (``jaxproj.skeleton.JOINT_NAMES``), camera frame with y
 up, z away from the sensor and the subject's right side at larger x. Frames where the skeleton was

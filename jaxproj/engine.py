@@ -1,5 +1,8 @@
 """The projection engine's public API: build, project, save, load.
 
+(Over 500 lines on purpose: the model's config, build, batched projection and file format are one
+unit that changes together; the per-query algorithm lives in ``projection``.)
+
 ``build`` turns training recordings into a ``Model``: mean-shift landmarks of the human
 descriptors (``jaxproj.landmarks``), their robot poses by the analytic IK (``jaxproj.ik``), and
 the forward / backward ELM kernel banks (``jaxproj.kernels``). ``project`` maps human

@@ -1,5 +1,8 @@
 """Physics check of retargeted motions: batched MuJoCo MJX rollouts of the NAO H25.
 
+(Over 500 lines on purpose: the MJX setup, the batched rollout and its summary share the model
+setup and contact groups; splitting them would expose those internals.)
+
 A retargeted motion is a ``(T, 26)`` joint-angle trajectory (rad, ``robot.JOINT_NAMES`` order)
 sampled at the Kinect rate. ``simulate`` plays a padded batch of them on the bundled MJCF with the
 torso welded to the world (``robot.load_model("fixed")``), gravity on, through the 25 position
