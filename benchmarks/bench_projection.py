@@ -97,10 +97,10 @@ from harness import (  # noqa: E402
 from jaxproj import datasets, engine, ik  # noqa: E402
 from jaxproj import streaming as jaxproj_streaming  # noqa: E402
 from jaxproj.exceptions import ConfigError, JaxprojError  # noqa: E402
-from jaxproj.projection import FullConfig, Projector  # noqa: E402
+from jaxproj.projection import FullConfig, Projector, StackedProjector  # noqa: E402
 from jaxproj.skeleton import descriptor  # noqa: E402
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams  # noqa: E402
-from jaxproj.testing import Reference  # noqa: E402
+from jaxproj.testing import Reference, StackedReference  # noqa: E402
 from jaxproj.timing import compile_timed  # noqa: E402
 
 TRAIN_SUBJECTS = (1, 3, 5, 7, 9)
@@ -129,15 +129,25 @@ def shuffled(d: np.ndarray, seed: int = 0) -> np.ndarray:
     return d[np.random.default_rng(seed).permutation(len(d))]
 
 
-def subsample_projector(train: np.ndarray, n: int, config: engine.BuildConfig) -> Projector:
-    """A projector on ``n`` distinct training descriptors (seed 0) and their IK poses."""
+def subsample_model(train: np.ndarray, n: int, config: engine.BuildConfig) -> engine.Model:
+    """A model on ``n`` distinct training descriptors (seed 0) and their IK poses (each chain
+    of a per-chain model keeps the distinct rows of its own columns)."""
     uniq = np.unique(train, axis=0)
     if n > len(uniq):
         raise ConfigError(f"N={n} exceeds the {len(uniq)} distinct training descriptors")
     idx = np.sort(np.random.default_rng(0).choice(len(uniq), n, replace=False))
     human = uniq[idx].astype(np.float32)
     robot_poses = np.asarray(ik.solve_driven(human), np.float32)
-    return engine.build_from_landmarks(human, robot_poses, config)
+    return engine.from_landmarks(human, robot_poses, config)
+
+
+def _retrain_banks(model: engine.Model) -> None:
+    """Train every chain's two kernel banks again on its landmarks (the ``banks_s`` timing)."""
+    sp = model.projector
+    for c in range(sp.layout.n_chains):
+        p = sp.chain(c)
+        cc = model.config.chain_config(c)
+        jax.block_until_ready(engine.build_from_landmarks(p.human, p.robot, cc))
 
 
 def build_models(
@@ -146,35 +156,35 @@ def build_models(
     device: jax.Device,
     log: Callable[[str], None],
     subsample_all: bool = False,
-) -> tuple[dict[int, Projector], list[dict]]:
-    """Build one projector per landmark count; also return their build records."""
-    models: dict[int, Projector] = {}
+    chains: str = "upper",
+) -> tuple[dict[int, engine.Model], list[dict]]:
+    """Build one model per landmark count (per arm chain for ``chains="upper"``); also return
+    their build records."""
+    models: dict[int, engine.Model] = {}
     records = []
     for n in landmarks:
         sub = subsample_all or n == SYNTHETIC_N
-        cfg = engine.BuildConfig() if sub else engine.BuildConfig(landmarks=n)
+        cfg = engine.BuildConfig(chains=chains, landmarks=n)
         times = []
         for _ in range(2):
             t0 = time.perf_counter()
-            if sub:
-                p = subsample_projector(train, n, cfg)
-            else:
-                p = engine.build(train, cfg).projector
-            jax.block_until_ready(p)
+            model = subsample_model(train, n, cfg) if sub else engine.build(train, cfg)
+            jax.block_until_ready(model.projector)
             times.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        jax.block_until_ready(
-            engine.build_from_landmarks(np.asarray(p.human), np.asarray(p.robot), cfg)
-        )
+        _retrain_banks(model)
         banks_s = time.perf_counter() - t0
-        models[n] = jax.device_put(p, device)
+        models[n] = dataclasses.replace(model, projector=jax.device_put(model.projector, device))
+        p = model.projector
         rec = record(
             "build",
             objective="build",
             N=n,
+            chains=chains,
+            landmarks_per_chain=model.landmarks,
             device=device.platform,
             compile_s=max(times[0] - times[1], 0.0),
-            n_landmarks=p.n_landmarks,
+            n_landmarks=max(model.landmarks.values()),
             build_s=times[1],
             first_build_s=times[0],
             banks_s=banks_s,
@@ -182,9 +192,10 @@ def build_models(
         )
         records.append(rec)
         log(
-            f"build N={n}: K={p.n_landmarks}, {times[1]:.2f} s (first {times[0]:.2f} s), "
-            f"banks {banks_s:.2f} s"
+            f"build N={n} ({chains}): K={model.landmarks}, {times[1]:.2f} s "
+            f"(first {times[0]:.2f} s), banks {banks_s:.2f} s"
         )
+        del p
     return models, records
 
 
@@ -192,7 +203,12 @@ def build_models(
 
 
 def time_reference(
-    ref: Reference, h: np.ndarray, objective: str, n_l: int, n_m: int, full: FullConfig
+    ref: Reference | StackedReference,
+    h: np.ndarray,
+    objective: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
 ) -> tuple[np.ndarray, float]:
     """Answers ``(Q, n)`` for queries ``h (Q, m)`` and the median-free mean us per query.
 
@@ -261,7 +277,7 @@ def bench_streaming(
 
 
 def bench_projection(
-    p: Projector,
+    p: Projector | StackedProjector,
     h_all: np.ndarray,
     objective: str,
     n_l: int,
@@ -400,11 +416,14 @@ def run(
     rollout: bool = True,
     log: Callable[[str], None] | None = None,
     full: FullConfig | None = None,
+    chains: str = "upper",
     **plan_overrides: Any,
 ) -> list[dict]:
     """Run the benchmark suite; returns the records (header first, target checks last).
 
-    ``full`` sets the full objective's solver (default ``FullConfig()``, the exact full
+    ``chains`` is the model's chain set (``"upper"``, the default per-chain engine, or
+    ``"whole"``, the paper's whole-body projector); every record names it. ``full`` sets the
+    full objective's solver (default ``FullConfig()``, the exact full
     objective); the reference runs the same configuration, and every full record carries it.
     """
     dev = get_device(device)
@@ -414,12 +433,12 @@ def run(
     log(f"bench on {records[0]['device_kind']} ({records[0]['cpu_usable']} usable CPU cores)")
     train = descriptors(TRAIN_SUBJECTS)
     test = shuffled(descriptors(TEST_SUBJECTS))
-    models, builds = build_models(train, plan.landmarks, dev, log, plan.subsample_all)
+    models, builds = build_models(train, plan.landmarks, dev, log, plan.subsample_all, chains)
     records += builds
     full = FullConfig() if full is None else full
     for n in plan.landmarks:
-        p = models[n]
-        ref = Reference(p)
+        p = models[n].projector
+        ref = StackedReference(p)
         for objective, n_l, n_m in plan.configs:
             if max(n_l, n_m) > p.n_landmarks:
                 continue
@@ -431,7 +450,8 @@ def run(
                 rec = bench_projection(
                     p, test, objective, n_l, n_m, batch, dev, plan, ans, full, estimate
                 )
-                rec.update(N=n, reference_us_per_projection=ref_us, reference_queries=nq)
+                rec.update(N=n, chains=chains, reference_us_per_projection=ref_us)
+                rec.update(reference_queries=nq)
                 if objective == "full":
                     rec["full_config"] = dataclasses.asdict(full)
                 if rec.get("us_per_projection"):
@@ -448,7 +468,8 @@ def run(
         pos = np.concatenate([s.positions[s.valid] for s in seqs[:20]])
         rec = bench_streaming(models[n_stream], pos, dev, plan.stream_frames)
         rec["N"] = n_stream
-        rec["n_landmarks"] = models[n_stream].n_landmarks
+        rec["chains"] = chains
+        rec["n_landmarks"] = max(models[n_stream].landmarks.values())
         records.append(rec)
         log(f"streaming N={n_stream}: median {rec['median_us']:.0f} us, p99 {rec['p99_us']:.0f} us")
     if rollout:
@@ -479,6 +500,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             repeats=args.repeats,
             ref_queries=args.ref_queries,
             full=harness.full_config(args.full_clusters, args.full_iterations),
+            chains=args.chains,
         )
     except JaxprojError as e:
         print(f"bench_projection: error: {e}", file=sys.stderr)

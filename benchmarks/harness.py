@@ -449,6 +449,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``benchmarks/bench_projection.py``."""
     parser.add_argument("--quick", action="store_true", help="a subset that runs in minutes")
     parser.add_argument("--device", default="cpu", choices=("cpu", "gpu"))
+    parser.add_argument(
+        "--chains",
+        default="upper",
+        choices=("upper", "whole"),
+        help="the model: per-chain (the default engine) or the paper's whole-body projector",
+    )
     parser.add_argument("--json", default=None, metavar="OUT", help="write the records here")
     parser.add_argument("--landmarks", type=_ints, default=None, help="override N, e.g. 86,1644")
     parser.add_argument("--batches", type=_ints, default=None, help="override batch sizes")
