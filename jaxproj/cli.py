@@ -147,9 +147,14 @@ def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def _load(data: str, subjects: list[int] | None):
+def _load(data: str, subjects: list[int] | None, split: str):
+    """Recordings of ``--data``; ``--subjects`` defaults to the MSR Action3D protocol's
+    ``split`` (train / test subjects) on the bundled MSR data, to every subject elsewhere."""
     from jaxproj import datasets
     from jaxproj._progress import bar
+
+    if subjects is None and data in ("bundled", "msr"):
+        subjects = list(datasets.TRAIN_SUBJECTS if split == "train" else datasets.TEST_SUBJECTS)
 
     return datasets.load_sequences(
         data, subjects, progress=lambda files: bar(files, "reading recordings")
@@ -173,7 +178,7 @@ def _build(args: argparse.Namespace) -> int:
         mirror=args.mirror,
     )
     t0 = time.perf_counter()
-    seqs = _load(args.data, args.subjects)
+    seqs = _load(args.data, args.subjects, "train")
     d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
     n_frames = sum(len(s.valid) for s in seqs)
     _log(f"mean shift over {len(d)} descriptors, then the ELM kernel banks ...")
@@ -210,7 +215,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
-    seqs = _load(args.data, args.subjects)
+    seqs = _load(args.data, args.subjects, "test")
     data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
     out = evaluate.evaluate(
         model,
@@ -223,7 +228,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         progress=True,
     )
     out["wall_s"]["total"] = time.perf_counter() - t0
-    out["subjects"] = args.subjects
+    out["subjects"] = sorted({int(s.subject) for s in seqs})
+    out["data"] = args.data
     out["model"] = str(args.model)
     report.write_json(Path(args.json), out)
     print(report.summary_table(out["summary"], methods))
@@ -304,8 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
     pb.add_argument(
         "--subjects",
         type=_parse_ints,
-        default=[1, 3, 5, 7, 9],
-        help="training subjects, comma-separated",
+        default=None,
+        help="training subjects, comma-separated (None: 1,3,5,7,9 of the bundled MSR data; all "
+        "elsewhere)",
     )
     pb.add_argument(
         "--chains",
@@ -339,7 +346,10 @@ def build_parser() -> argparse.ArgumentParser:
     pe.add_argument("--model", required=True, help="projector file from `jaxproj build`")
     pe.add_argument("--data", default="bundled", help="'bundled'/'msr', 'utkinect' or a folder")
     pe.add_argument(
-        "--subjects", type=_parse_ints, default=[2, 4, 6, 8, 10], help="evaluated subjects"
+        "--subjects",
+        type=_parse_ints,
+        default=None,
+        help="evaluated subjects (None: 2,4,6,8,10 of the bundled MSR data; all elsewhere)",
     )
     pe.add_argument(
         "--objective",
