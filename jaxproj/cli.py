@@ -186,10 +186,14 @@ def _build(args: argparse.Namespace) -> int:
     engine.save(model, args.out)
     dt = time.perf_counter() - t0
     lay = model.projector.layout
-    per_chain = ", ".join(
-        f"{name} {k} (bandwidth {h:.4f}, k={kk})"
-        for name, k, h, kk in zip(lay.names, lay.landmarks, model.bandwidth, lay.k, strict=True)
-    )
+    parts = []
+    for c, name in enumerate(lay.names):
+        target = cfg.chain_config(c).landmarks
+        aim = f"target {target}, " if target else ""
+        parts.append(
+            f"{name} {lay.landmarks[c]} ({aim}bandwidth {model.bandwidth[c]:.4f}, k={lay.k[c]})"
+        )
+    per_chain = ", ".join(parts)
     print(
         f"built {cfg.chains} chains: {per_chain} from {model.n_train} valid frames "
         f"(of {n_frames}), hidden={cfg.hidden}, seed={cfg.seed} in {dt:.1f} s -> {args.out}"
