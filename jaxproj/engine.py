@@ -386,9 +386,18 @@ def check_neighbours(model_or_projector: Model | AnyProjector, n_l: int, n_m: in
     p = model_or_projector
     if isinstance(p, Model):
         p = p.projector
+    where = ""
+    if isinstance(p, StackedProjector) and p.layout.n_chains > 1:
+        c = int(np.argmin(p.layout.landmarks))
+        where = (
+            f" (the {p.layout.names[c]} chain has {p.layout.landmarks[c]}: lower L / M, or "
+            "build that chain with more landmarks, e.g. --landmarks H,L,R or a smaller bandwidth)"
+        )
     for name, v in (("L", n_l), ("M", n_m)):
         if not 1 <= v <= p.n_landmarks:
-            raise ConfigError(f"{name}={v} must lie in [1, number of landmarks={p.n_landmarks}]")
+            raise ConfigError(
+                f"{name}={v} must lie in [1, number of landmarks={p.n_landmarks}]{where}"
+            )
 
 
 def _placement(devices: Sequence[jax.Device] | None, batch_size: int) -> Any:

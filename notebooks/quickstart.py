@@ -20,7 +20,7 @@ print("training descriptors:", train.shape)
 
 # %% Build: mean-shift landmarks + forward/backward ELM kernel banks
 model = jaxproj.build(train, jaxproj.BuildConfig(landmarks=400, seed=0))
-print(f"{model.n_landmarks} landmarks, bandwidth {model.bandwidth:.3f}")
+print(f"landmarks per chain {model.landmarks}, bandwidths {model.bandwidth}")
 
 # %% Project a motion of a person the landmarks never saw
 seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]  # high arm wave

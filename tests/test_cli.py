@@ -167,20 +167,12 @@ def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):
     )
     assert code == 0 and "target 60" in out
     report = tmp_path / "r.json"
-    code, out, _ = _run(
-        capsys,
-        "evaluate",
-        "--model",
-        str(model),
-        "--data",
-        str(folder),
-        "--subjects",
-        "2",
-        "--objective",
-        "relaxed",
-        "--json",
-        str(report),
-    )
+    argv_eval = ["evaluate", "--model", str(model), "--data", str(folder), "--subjects", "2"]
+    argv_eval += ["--objective", "relaxed", "--json", str(report)]
+    code, out, err = _run(capsys, *argv_eval)
+    # 448 training frames give the head chain 9 landmarks: L = M = 10 is refused, naming it
+    assert code == 2 and "head chain has 9" in err
+    code, out, _ = _run(capsys, *argv_eval, "--L", "5", "--M", "5")
     assert code == 0
     r = json.loads(report.read_text())
     names = set(r["per_sequence"])

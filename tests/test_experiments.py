@@ -179,7 +179,7 @@ def test_efficiency_study_compiles_only_the_executable_it_times(model_with_poses
 
     def listener(event, duration, **kwargs):
         if event == "/jax/core/compile/backend_compile_duration":
-            if "_project_chunk" in str(kwargs.get("fun_name", "")):
+            if "project_batch" in str(kwargs.get("fun_name", "")):
                 compiles[inside[0]] += 1
 
     monkeypatch.setattr(experiments, "compile_timed", timed_compile)

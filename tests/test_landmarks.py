@@ -63,7 +63,7 @@ def test_bad_arguments_raise_config_error_before_the_descriptors(monkeypatch):
     def no_descriptors(*args, **kwargs):
         raise AssertionError("descriptors computed before the options were checked")
 
-    monkeypatch.setattr(landmarks, "descriptor", no_descriptors)
+    monkeypatch.setattr(landmarks, "valid_descriptors", no_descriptors)
     for bad in (
         dict(bandwidth=0.0),
         dict(bandwidth=float("nan")),
