@@ -397,7 +397,10 @@ def efficiency_study(
         while b > 1 and b * _bytes_per_query(p, n, n) > max_bytes:
             b //= 2
         chunk = jnp.asarray(np.resize(h, (b, h.shape[1])))
-        compiled, compile_s = compile_timed(engine.project_chunk, p, chunk, objective, n, n, full)
+        # the arguments as engine.project passes them, so its call reuses this executable
+        compiled, compile_s = compile_timed(
+            engine.project_chunk, p, chunk, objective=objective, n_l=n, n_m=n, full=full
+        )
         first = time_calls(lambda c=compiled, x=chunk: c(p, x), min_repeats=1, max_repeats=1)
         timed = time_calls(
             lambda c=compiled, x=chunk: c(p, x), min_repeats=repeats, max_repeats=repeats
