@@ -46,6 +46,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
@@ -200,6 +201,10 @@ def train_bank(
 
     Returns:
       The stacked ``ELMBank``.
+
+    Raises:
+      ConfigError: a bad setting, or training that gave non-finite weights (an ill-conditioned
+        ridge system: the message says which setting to change); never a bank with NaN.
     """
     inputs = jnp.asarray(inputs, jnp.float32)
     targets = jnp.asarray(targets, jnp.float32)
@@ -212,7 +217,7 @@ def train_bank(
         raise ConfigError(f"hidden={hidden} must be >= k={k} (an ELM interpolates k samples)")
     if not lam > 0:
         raise ConfigError(f"lam={lam} must be > 0")
-    return _train_bank_jit(
+    bank = _train_bank_jit(
         inputs,
         targets,
         key,
@@ -223,6 +228,16 @@ def train_bank(
         min_scale=min_scale,
         anchor=anchor,
     )
+    bad = ~np.isfinite(np.asarray(bank.out)).all(axis=(1, 2))
+    bad |= ~np.isfinite(np.asarray(bank.offset)).all(axis=1)
+    if bad.any():
+        raise ConfigError(
+            f"ELM training gave non-finite weights for {int(bad.sum())} of {n} kernels (first: "
+            f"kernel {int(np.argmax(bad))}): the ridge system lam I + H H^T is not positive "
+            f"definite in float32 with lam={lam}, hidden={hidden}, input_scale={input_scale}; "
+            "raise lam or lower input_scale"
+        )
+    return bank
 
 
 def _train_bank(

@@ -118,3 +118,16 @@ def test_two_stage_nearest_is_exact_on_large_sets(k, n):
     ref = ((q[:, None].astype(np.float64) - pts[None]) ** 2).sum(-1)
     np.testing.assert_array_equal(np.asarray(idx), np.argsort(ref, axis=1)[:, :n])
     np.testing.assert_allclose(np.asarray(d2), np.sort(ref, axis=1)[:, :n], rtol=1e-4, atol=1e-4)
+
+
+def test_an_ill_conditioned_ridge_system_is_a_config_error_never_nan():
+    """A tiny ridge leaves lam I + H H^T numerically indefinite in float32 (its Cholesky gives
+    NaN): training refuses with a message that says what to change, instead of a NaN bank."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(200, 3)).astype(np.float32)
+    t = rng.normal(size=(200, 2)).astype(np.float32)
+    key = jax.random.PRNGKey(0)
+    with pytest.raises(ConfigError, match="non-finite weights.*raise lam"):
+        train_bank(x, t, key, k=32, hidden=64, lam=1e-8, input_scale=1.0)
+    bank = train_bank(x, t, key, k=32, hidden=64, lam=1e-3, input_scale=1.0)
+    assert np.isfinite(np.asarray(bank.out)).all()
