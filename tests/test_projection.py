@@ -1,6 +1,7 @@
 """Projection engine tests on a small real landmark set (fast: no mean shift here)."""
 
 import dataclasses
+
 import numpy as np
 import pytest
 
@@ -88,13 +89,20 @@ def _full_values(model, d, cfg):
     return np.asarray(r), np.asarray(f), np.asarray(f0)
 
 
-def test_no_recompilation_on_the_second_call(model):
+def test_no_recompilation_on_the_second_call(model, count_compiles):
     d = _descriptors([2], actions=[2])
-    engine.project(model, d[:10], "relaxed", batch_size=256)
-    before = engine.project_chunk._cache_size()
-    engine.project(model, d[10:300], "relaxed", batch_size=256)  # other size, same batch
-    engine.project(model, d[:5], "relaxed", batch_size=256)
-    assert engine.project_chunk._cache_size() == before
+    name = engine.project_chunk.__name__
+    engine.project(model, d[:10], "relaxed", batch_size=256)  # compiles (unless done before)
+    with count_compiles() as compiles:
+        engine.project(model, d[10:300], "relaxed", batch_size=256)  # other size, same batch
+        engine.project(model, d[:5], "relaxed", batch_size=256)
+    assert compiles[name] == 0, compiles
+    # the counter does see compilations: a batch size no other test uses is a new static
+    # configuration, compiled once, then reused
+    with count_compiles() as compiles:
+        engine.project(model, d[:5], "relaxed", batch_size=96)
+        engine.project(model, d[5:200], "relaxed", batch_size=96)
+    assert compiles[name] == 1, compiles
 
 
 def test_save_load_is_bit_identical(model, tmp_path):
@@ -172,7 +180,9 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
         np.testing.assert_allclose(one[i], r, atol=1e-5)
         np.testing.assert_allclose(f_one[i], f, rtol=1e-5, atol=1e-8)
     assert np.abs(one - exact).max() > 1e-3  # a different (cheaper) answer on some queries
-    got, _ = engine.project(model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2))
+    got, _ = engine.project(
+        model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2)
+    )
     assert _deg(got, p.robot).max() < 0.01  # identity survives the pruning
 
 
