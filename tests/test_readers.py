@@ -9,34 +9,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import MSR_ROW, msr_text
 
 from jaxproj.exceptions import InputError
 from jaxproj.readers import Recording, read_skeleton
 from jaxproj.skeleton import JOINT_NAMES, J
-
-# MSR Action3D row (1-based) of each joint, copied from the dataset notes' table; deliberately not
-# derived from readers.MSR_TO_SDK so that the conversion is checked against an independent source.
-MSR_ROW = {
-    "ShoulderLeft": 1, "ShoulderRight": 2, "ShoulderCenter": 3, "Spine": 4, "HipLeft": 5,
-    "HipRight": 6, "HipCenter": 7, "ElbowLeft": 8, "ElbowRight": 9, "WristLeft": 10,
-    "WristRight": 11, "HandLeft": 12, "HandRight": 13, "KneeLeft": 14, "KneeRight": 15,
-    "AnkleLeft": 16, "AnkleRight": 17, "FootLeft": 18, "FootRight": 19, "Head": 20,
-}  # fmt: skip
 
 
 def motion(n_frames: int = 7, seed: int = 0) -> np.ndarray:
     """(T, 20, 3) float64 positions with 6 decimals (exactly representable in every format)."""
     rng = np.random.default_rng(seed)
     return np.round(rng.uniform(-1.5, 3.5, size=(n_frames, 20, 3)), 6)
-
-
-def msr_text(sdk: np.ndarray, newline: str = "\n") -> str:
-    msr = np.zeros((len(sdk), 20, 4))
-    for name, row in MSR_ROW.items():
-        msr[:, row - 1, :3] = sdk[:, J[name]]
-    msr[..., 3] = 0.5
-    lines = [" ".join(f"{v:.6f}" for v in r) for r in msr.reshape(-1, 4)]
-    return newline.join(lines) + newline
 
 
 def utk_text(sdk: np.ndarray, frame_numbers: list[int] | None = None) -> str:
