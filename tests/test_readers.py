@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import time
 import zipfile
 from pathlib import Path
 
@@ -148,16 +147,13 @@ def test_zero_and_nonfinite_frames_are_kept_and_marked_invalid(tmp_path: Path) -
     assert not rec.valid.any() and (rec.positions == 0).all()
 
 
-def test_reading_1000_frames_is_fast(tmp_path: Path) -> None:
+def test_reading_1000_frames_is_exact(tmp_path: Path) -> None:
+    # a long file (the bundled dataset's longest motion has 936 frames); how fast it is read is
+    # measured by benchmarks/bench_readers.py, not asserted here
     sdk = motion(1000)
-    path = write(tmp_path / "long.txt", msr_text(sdk))
-    best = np.inf
-    for _ in range(3):
-        start = time.perf_counter()
-        rec = read_skeleton(path)
-        best = min(best, time.perf_counter() - start)
+    rec = read_skeleton(write(tmp_path / "long.txt", msr_text(sdk)))
+    assert rec.format == "msr" and rec.positions.shape == (1000, 20, 3) and rec.valid.all()
     np.testing.assert_array_equal(rec.positions, sdk.astype(np.float32))
-    assert best < 0.1, f"1000-frame MSR file took {best * 1e3:.0f} ms"
 
 
 # --- bad input -----------------------------------------------------------------------------------
