@@ -232,16 +232,22 @@ def _solve_cluster(
     opt = optax.adam(cfg.learning_rate)
     f = jax.value_and_grad(objective)
 
+    # The two optax calls below run under JAX's standard dtype promotion, because optax 0.2.8
+    # mixes int32 and float32 inside them, whatever we pass in: Adam's bias correction computes
+    # ``decay ** count`` with its int32 step count (``optax.tree.bias_correction``) and the
+    # simplex projection divides by int32 ``arange`` indices (``_projection_unit_simplex``).
+    # Nothing else is inside the block: our own arithmetic (objective, gradient, best-iterate
+    # bookkeeping, ``apply_updates`` of two float32 arrays) follows the caller's promotion mode.
     def step(state: _PGState, _: None) -> tuple[_PGState, None]:
         val, g = f(state.w)
         better = val < state.best_f
         best_w = jnp.where(better, state.w, state.best_w)
         best_f = jnp.where(better, val, state.best_f)
-        # optax's Adam bias correction and simplex projection mix Python floats / int32 counts
-        # with float32: let them promote as written, whatever the caller's promotion mode.
-        with jax.numpy_dtype_promotion("standard"):
+        with jax.numpy_dtype_promotion("standard"):  # optax internals, see above
             upd, opt_state = opt.update(g, state.opt_state, state.w)
-            w = projection_simplex(optax.apply_updates(state.w, upd))
+        w = optax.apply_updates(state.w, upd)
+        with jax.numpy_dtype_promotion("standard"):  # optax internals, see above
+            w = projection_simplex(w)
         return _PGState(w, opt_state, best_w, best_f), None
 
     w0 = c.w0

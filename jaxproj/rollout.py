@@ -30,10 +30,12 @@ and are left out of every statistic of ``RolloutResult`` and ``summarize``; thei
 ``qvel`` rows are still filled (the robot keeps holding the last pose) but mean nothing.
 
 Strict promotion: the tests (``tests/conftest.py``) trace everything under strict dtype / rank
-promotion; MJX's own internals rely on implicit promotion (weak-typed Python scalars, broadcasting
-of rank-mismatched operands), so every MJX call here is traced inside
-``jax.numpy_dtype_promotion("standard")`` / ``jax.numpy_rank_promotion("allow")``. The code of
-this module itself is strict-clean.
+promotion. MJX 3.17's own code relies on implicit promotion in two of the calls made here:
+``mjx.forward`` broadcasts rank-mismatched operands (``smooth.py``: a (3, 3) matrix times a (3,)
+vector) and mixes float32 with bool (``support.py``), ``mjx.implicit`` mixes float32 with bool
+(``derivative.py``). Only those two calls are traced inside ``_mjx_defaults`` (JAX's default
+``"standard"`` dtype / ``"allow"`` rank promotion); ``mjx.kinematics`` is strict-clean and runs
+in the caller's mode, and so does all of this module's own code.
 
 Importing ``mujoco.mjx`` logs "Failed to import warp": harmless, the JAX implementation of MJX is
 used explicitly (``impl="jax"``, on CPU and GPU alike).
@@ -41,7 +43,9 @@ used explicitly (``impl="jax"``, on CPU and GPU alike).
 
 from __future__ import annotations
 
+import contextlib
 import functools
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -256,6 +260,14 @@ def _setup(config: RolloutConfig) -> tuple[_Setup, int]:
     return setup, substeps
 
 
+@contextlib.contextmanager
+def _mjx_defaults() -> Iterator[None]:
+    """Trace the block under JAX's default promotion (``"standard"`` dtype, ``"allow"`` rank),
+    whatever the caller's mode: only for calls into MJX code that needs it (module docstring)."""
+    with jax.numpy_dtype_promotion("standard"), jax.numpy_rank_promotion("allow"):
+        yield
+
+
 def _mjx_step(s: _Setup, d: mjx.Data) -> mjx.Data:
     """One physics step: ``mjx.forward`` + implicitfast integration, as CPU MuJoCo does it.
 
@@ -267,21 +279,22 @@ def _mjx_step(s: _Setup, d: mjx.Data) -> mjx.Data:
     two agree to float32 round-off (tests/test_rollout.py).
     """
     mx = s.mx
-    # MJX internals need implicit promotion; see the module docstring.
-    with jax.numpy_dtype_promotion("standard"), jax.numpy_rank_promotion("allow"):
+    with _mjx_defaults():  # MJX internals need implicit promotion; see the module docstring
         d = mjx.forward(mx, d)
-        bias = mx.actuator_biasprm
-        raw = (
-            mx.actuator_gainprm[:, 0] * d.ctrl
-            + bias[:, 0]
-            + bias[:, 1] * d.actuator_length
-            + bias[:, 2] * d._impl.actuator_velocity
-        )
-        clamped = s.force_limited & (
-            (raw < mx.actuator_forcerange[:, 0]) | (raw > mx.actuator_forcerange[:, 1])
-        )
-        kv = jnp.where(clamped, jnp.zeros_like(bias[:, 2]), bias[:, 2])
-        return mjx.implicit(mx.replace(actuator_biasprm=bias.at[:, 2].set(kv)), d)
+    bias = mx.actuator_biasprm
+    raw = (
+        mx.actuator_gainprm[:, 0] * d.ctrl
+        + bias[:, 0]
+        + bias[:, 1] * d.actuator_length
+        + bias[:, 2] * d._impl.actuator_velocity
+    )
+    clamped = s.force_limited & (
+        (raw < mx.actuator_forcerange[:, 0]) | (raw > mx.actuator_forcerange[:, 1])
+    )
+    kv = jnp.where(clamped, jnp.zeros_like(bias[:, 2]), bias[:, 2])
+    implicit_mx = mx.replace(actuator_biasprm=bias.at[:, 2].set(kv))
+    with _mjx_defaults():  # MJX internals need implicit promotion; see the module docstring
+        return mjx.implicit(implicit_mx, d)
 
 
 def _self_contact(s: _Setup, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
@@ -435,9 +448,7 @@ def _hand_error_jit(
     def sites(q: jax.Array) -> jax.Array:
         q = q.at[rhyp].set(q[lhyp])
         d = d0.replace(qpos=d0.qpos.at[qidx].set(q.astype(d0.qpos.dtype)))
-        # MJX internals need implicit promotion; see the module docstring.
-        with jax.numpy_dtype_promotion("standard"), jax.numpy_rank_promotion("allow"):
-            d = mjx.kinematics(mx, d)
+        d = mjx.kinematics(mx, d)  # strict-clean in MJX 3.17: runs in the caller's mode
         return d.site_xpos[sids]  # (2, 3)
 
     pos = jax.vmap(sites)(jnp.concatenate([qa, qb]))  # one batched FK for both: (2N, 2, 3)

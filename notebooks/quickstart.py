@@ -27,12 +27,12 @@ seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]  # high arm wave
 d, ok = descriptor(seq.positions)
 d, ok = np.asarray(d), np.asarray(ok)
 truth = np.asarray(ik.solve_driven(d))
-results = {}
+results, projections, errors = {}, {}, {}  # smoothed, as projected, (M_max, M_avg) per frame
 for objective in ("relaxed", "full"):
     r, value = jaxproj.project(model, d, objective)
     r_smooth = np.asarray(jaxproj.smooth(r))
     m_max, m_avg = evaluate.frame_errors(r_smooth[ok], truth[ok])
-    results[objective] = r_smooth
+    results[objective], projections[objective], errors[objective] = r_smooth, r, (m_max, m_avg)
     print(f"{objective:8s} median M_avg {np.median(m_avg):5.2f} deg, max M_max {m_max.max():5.1f}")
 
 # %% Joint trajectories: projection vs IK ground truth

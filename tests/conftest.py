@@ -1,10 +1,52 @@
-"""Strict numerics for every test: no implicit dtype or rank promotion in JAX code."""
+"""Strict numerics for every test (no implicit dtype or rank promotion in JAX code), and a
+compilation counter for the no-recompilation tests."""
+
+from __future__ import annotations
+
+import contextlib
+from collections import Counter
+from collections.abc import Callable, Iterator
 
 import jax
 import pytest
+
+BACKEND_COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
+"""The ``jax.monitoring`` duration event JAX records once per XLA compilation (also when the
+executable comes from the persistent compilation cache), with the ``fun_name`` keyword set to
+``"jit(<name of the jitted function>)"``."""
 
 
 @pytest.fixture(autouse=True)
 def _strict_jax():
     with jax.numpy_dtype_promotion("strict"), jax.numpy_rank_promotion("raise"):
         yield
+
+
+@contextlib.contextmanager
+def _count_compiles() -> Iterator[Counter[str]]:
+    """Count the XLA compilations made inside the block, per jitted function.
+
+    Yields a ``Counter`` that fills while the block runs: ``counts[f.__name__]`` is how many
+    programs were compiled for the jitted function ``f`` (small helper programs that eager
+    operations compile, such as ``convert_element_type``, are counted under their own names).
+    Built on the public ``jax.monitoring`` listener API, not on private attributes of jitted
+    functions.
+    """
+    counts: Counter[str] = Counter()
+
+    def listener(event: str, duration: float, **kwargs: str | int) -> None:
+        if event == BACKEND_COMPILE_EVENT:
+            name = str(kwargs.get("fun_name", ""))
+            counts[name.removeprefix("jit(").removesuffix(")")] += 1
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        yield counts
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+
+
+@pytest.fixture
+def count_compiles() -> Callable[[], contextlib.AbstractContextManager[Counter[str]]]:
+    """The ``_count_compiles`` context manager, for tests: ``with count_compiles() as n: ...``."""
+    return _count_compiles

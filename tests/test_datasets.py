@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import MSR_ROW, msr_text
 
 from jaxproj import datasets
 from jaxproj.datasets import (
@@ -21,13 +22,6 @@ from jaxproj.datasets import (
 from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.skeleton import JOINT_NAMES, J
 
-# Joint -> MSR row (1-based), from the dataset notes; independent of readers.MSR_TO_SDK.
-MSR_ROW = {
-    "ShoulderLeft": 1, "ShoulderRight": 2, "ShoulderCenter": 3, "Spine": 4, "HipLeft": 5,
-    "HipRight": 6, "HipCenter": 7, "ElbowLeft": 8, "ElbowRight": 9, "WristLeft": 10,
-    "WristRight": 11, "HandLeft": 12, "HandRight": 13, "KneeLeft": 14, "KneeRight": 15,
-    "AnkleLeft": 16, "AnkleRight": 17, "FootLeft": 18, "FootRight": 19, "Head": 20,
-}  # fmt: skip
 ARMS = [J[f"{part}{side}"] for part in ("Elbow", "Wrist", "Hand") for side in ("Left", "Right")]
 NON_ARM = [j for j in range(20) if j not in ARMS]
 CVPR12_EXCLUDED = {
@@ -209,10 +203,7 @@ def test_bundled_archive_layout() -> None:
 
 def _write_raw(path: Path, rows: np.ndarray) -> None:
     """rows: (T, 20, 4) x y z c in SDK order -> MSR text (MSR row order)."""
-    msr = np.zeros_like(rows)
-    for name, row in MSR_ROW.items():
-        msr[:, row - 1] = rows[:, J[name]]
-    path.write_text("".join(" ".join(f"{v:.6f}" for v in r) + "\n" for r in msr.reshape(-1, 4)))
+    path.write_text(msr_text(rows[..., :3], rows[..., 3]))
 
 
 @pytest.fixture

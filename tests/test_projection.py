@@ -88,13 +88,20 @@ def _full_values(model, d, cfg):
     return np.asarray(r), np.asarray(f), np.asarray(f0)
 
 
-def test_no_recompilation_on_the_second_call(model):
+def test_no_recompilation_on_the_second_call(model, count_compiles):
     d = _descriptors([2], actions=[2])
-    engine.project(model, d[:10], "relaxed", batch_size=256)
-    before = engine.project_chunk._cache_size()
-    engine.project(model, d[10:300], "relaxed", batch_size=256)  # other size, same batch
-    engine.project(model, d[:5], "relaxed", batch_size=256)
-    assert engine.project_chunk._cache_size() == before
+    name = engine.project_chunk.__name__
+    engine.project(model, d[:10], "relaxed", batch_size=256)  # compiles (unless done before)
+    with count_compiles() as compiles:
+        engine.project(model, d[10:300], "relaxed", batch_size=256)  # other size, same batch
+        engine.project(model, d[:5], "relaxed", batch_size=256)
+    assert compiles[name] == 0, compiles
+    # the counter does see compilations: a batch size no other test uses is a new static
+    # configuration, compiled once, then reused
+    with count_compiles() as compiles:
+        engine.project(model, d[:5], "relaxed", batch_size=96)
+        engine.project(model, d[5:200], "relaxed", batch_size=96)
+    assert compiles[name] == 1, compiles
 
 
 def test_save_load_is_bit_identical(model, tmp_path):
@@ -146,7 +153,6 @@ def test_bad_neighbour_counts_are_config_errors(model):
 
 
 def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
-
     from jaxproj.projection import _cluster, _solve_cluster, _start_value, candidates
     from jaxproj.search import nearest
 
@@ -167,10 +173,24 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
         r, f = _solve_cluster(p, h, c, start[j], cfg)
         return np.clip(r, p.lower, p.upper), f
 
-    for i in range(0, 200, 40):
+    # The engine (jitted, vmapped) and by_hand (eager) round differently, and 30 Adam steps pass
+    # that on by the answer's own sensitivity: ~1e-6 rad for most queries, but where the
+    # objective is flat near the warm start, whether an iterate beats f(w0) can flip with one
+    # rounding (seen: two float32 paths 9.6e-3 rad apart on one of these 200 queries). So each
+    # comparison's tolerance is 10x the answer's sensitivity to a float32-sized change of the
+    # query, h (1 +- 2^-23) (at least 1e-6 rad: a few float32 steps of an angle), and most of
+    # the sample must be well-conditioned (sensitivity < 1e-5) for the check to mean something.
+    eps = np.float32(np.finfo(np.float32).eps)
+    well_conditioned = 0
+    for i in range(0, 200, 20):
         r, f = by_hand(d[i])
-        np.testing.assert_allclose(one[i], r, atol=1e-5)
-        np.testing.assert_allclose(f_one[i], f, rtol=1e-5, atol=1e-8)
+        nearby = [by_hand(d[i] * (1 + s)) for s in (eps, -eps)]
+        moved = max(max(np.abs(rs - r).max() for rs, _ in nearby), 1e-6)
+        f_moved = max(max(abs(float(fs - f)) for _, fs in nearby), 1e-6 * abs(float(f)))
+        np.testing.assert_allclose(one[i], r, atol=10 * moved)
+        np.testing.assert_allclose(f_one[i], f, rtol=0, atol=10 * f_moved)
+        well_conditioned += moved < 1e-5
+    assert well_conditioned >= 8
     assert np.abs(one - exact).max() > 1e-3  # a different (cheaper) answer on some queries
     got, _ = engine.project(
         model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2)

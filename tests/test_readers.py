@@ -3,40 +3,22 @@
 from __future__ import annotations
 
 import io
-import time
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import MSR_ROW, msr_text
 
 from jaxproj.exceptions import InputError
 from jaxproj.readers import Recording, read_skeleton
 from jaxproj.skeleton import JOINT_NAMES, J
-
-# MSR Action3D row (1-based) of each joint, copied from the dataset notes' table; deliberately not
-# derived from readers.MSR_TO_SDK so that the conversion is checked against an independent source.
-MSR_ROW = {
-    "ShoulderLeft": 1, "ShoulderRight": 2, "ShoulderCenter": 3, "Spine": 4, "HipLeft": 5,
-    "HipRight": 6, "HipCenter": 7, "ElbowLeft": 8, "ElbowRight": 9, "WristLeft": 10,
-    "WristRight": 11, "HandLeft": 12, "HandRight": 13, "KneeLeft": 14, "KneeRight": 15,
-    "AnkleLeft": 16, "AnkleRight": 17, "FootLeft": 18, "FootRight": 19, "Head": 20,
-}  # fmt: skip
 
 
 def motion(n_frames: int = 7, seed: int = 0) -> np.ndarray:
     """(T, 20, 3) float64 positions with 6 decimals (exactly representable in every format)."""
     rng = np.random.default_rng(seed)
     return np.round(rng.uniform(-1.5, 3.5, size=(n_frames, 20, 3)), 6)
-
-
-def msr_text(sdk: np.ndarray, newline: str = "\n") -> str:
-    msr = np.zeros((len(sdk), 20, 4))
-    for name, row in MSR_ROW.items():
-        msr[:, row - 1, :3] = sdk[:, J[name]]
-    msr[..., 3] = 0.5
-    lines = [" ".join(f"{v:.6f}" for v in r) for r in msr.reshape(-1, 4)]
-    return newline.join(lines) + newline
 
 
 def utk_text(sdk: np.ndarray, frame_numbers: list[int] | None = None) -> str:
@@ -165,16 +147,13 @@ def test_zero_and_nonfinite_frames_are_kept_and_marked_invalid(tmp_path: Path) -
     assert not rec.valid.any() and (rec.positions == 0).all()
 
 
-def test_reading_1000_frames_is_fast(tmp_path: Path) -> None:
+def test_reading_1000_frames_is_exact(tmp_path: Path) -> None:
+    # a long file (the bundled dataset's longest motion has 936 frames); how fast it is read is
+    # measured by benchmarks/bench_readers.py, not asserted here
     sdk = motion(1000)
-    path = write(tmp_path / "long.txt", msr_text(sdk))
-    best = np.inf
-    for _ in range(3):
-        start = time.perf_counter()
-        rec = read_skeleton(path)
-        best = min(best, time.perf_counter() - start)
+    rec = read_skeleton(write(tmp_path / "long.txt", msr_text(sdk)))
+    assert rec.format == "msr" and rec.positions.shape == (1000, 20, 3) and rec.valid.all()
     np.testing.assert_array_equal(rec.positions, sdk.astype(np.float32))
-    assert best < 0.1, f"1000-frame MSR file took {best * 1e3:.0f} ms"
 
 
 # --- bad input -----------------------------------------------------------------------------------

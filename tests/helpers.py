@@ -1,0 +1,37 @@
+"""Helpers shared by several test modules (import them as ``from helpers import ...``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxproj.skeleton import J
+
+# MSR Action3D row (1-based) of each joint, copied from the dataset notes' table; deliberately not
+# derived from readers.MSR_TO_SDK, so that the conversion is checked against an independent source.
+MSR_ROW: dict[str, int] = {
+    "ShoulderLeft": 1, "ShoulderRight": 2, "ShoulderCenter": 3, "Spine": 4, "HipLeft": 5,
+    "HipRight": 6, "HipCenter": 7, "ElbowLeft": 8, "ElbowRight": 9, "WristLeft": 10,
+    "WristRight": 11, "HandLeft": 12, "HandRight": 13, "KneeLeft": 14, "KneeRight": 15,
+    "AnkleLeft": 16, "AnkleRight": 17, "FootLeft": 18, "FootRight": 19, "Head": 20,
+}  # fmt: skip
+
+
+def msr_text(sdk: np.ndarray, confidence: float | np.ndarray = 0.5, newline: str = "\n") -> str:
+    """An MSR Action3D ``*_skeleton3D.txt`` file: 20 rows ``x y z c`` per frame, in MSR row order.
+
+    Args:
+      sdk: ``(T, 20, 3)`` positions in Kinect SDK joint order (``skeleton.JOINT_NAMES``).
+      confidence: the fourth column, a scalar or ``(T, 20)`` in SDK order.
+      newline: the line terminator (every line ends with it).
+
+    Returns:
+      The text, every value with 6 decimals as in the dataset's files.
+    """
+    sdk = np.asarray(sdk, dtype=np.float64)
+    rows = np.zeros((len(sdk), 20, 4))
+    rows[..., :3] = sdk
+    rows[..., 3] = confidence
+    msr = np.zeros_like(rows)
+    for name, row in MSR_ROW.items():
+        msr[:, row - 1] = rows[:, J[name]]
+    return "".join(" ".join(f"{v:.6f}" for v in r) + newline for r in msr.reshape(-1, 4))
