@@ -56,15 +56,6 @@ def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs) ->
     for name, b in batches.items():
         res = rollout.simulate(b, lengths[picks])
         out[name] = rollout.summarize(res, lengths[picks], b)
-    # kinematic hand-position error between projected and IK poses, over all valid frames
-    valid = data.valid
-    proj = np.asarray(driven_to_full(ev["_predictions"]["relaxed"][valid]))
-    ik_full = np.asarray(driven_to_full(ev["_truth"][valid]))
-    hand = rollout.hand_error_cm(proj, ik_full)
-    out["hand_error_cm"] = {
-        "left": evaluate.describe(hand[:, 0]),
-        "right": evaluate.describe(hand[:, 1]),
-    }
     out["wall_s"] = time.perf_counter() - t0  # the whole section, as the demo's timings say
     return out
 
@@ -290,14 +281,6 @@ def _rollout_md(ro: dict) -> list[str]:
             f"{lim['target_frames']} | {sp['max_ratio']:.2f} ({sp['worst_joint']}) | "
             f"{sp['motions_over_limit']} |"
         )
-    h = ro["hand_error_cm"]
-    lines += [
-        "",
-        f"Hand-position error of the relaxed projection against the IK pose (MJX kinematics, "
-        f"all {h['left']['n']} valid frames): left median {h['left']['median']:.2f} cm, p95 "
-        f"{h['left']['p95']:.2f} cm; right median {h['right']['median']:.2f} cm, p95 "
-        f"{h['right']['p95']:.2f} cm.",
-    ]
     return lines
 
 

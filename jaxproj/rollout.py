@@ -56,6 +56,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxproj import robot
+from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
 
 CONTACT_GROUPS: tuple[str, ...] = ("arm_torso", "arm_head", "arm_arm")
@@ -369,7 +370,7 @@ def _rollout_one(
     return qpos, qvel, contact, depth, vmax, frames, rms
 
 
-@functools.partial(jax.jit, static_argnames=("substeps",))
+@jit(static_argnames=("substeps",), precision=None)  # MJX keeps its own defaults
 def _simulate_jit(
     s: _Setup, targets: jax.Array, lengths: jax.Array, substeps: int
 ) -> RolloutResult:
@@ -438,7 +439,7 @@ def _kin_setup() -> tuple[mjx.Model, mjx.Data, jax.Array, jax.Array]:
     return mx, d0, qidx, jnp.asarray(sids, dtype=jnp.int32)
 
 
-@jax.jit
+@jit(precision=None)
 def _hand_error_jit(
     mx: mjx.Model, d0: mjx.Data, qidx: jax.Array, sids: jax.Array, qa: jax.Array, qb: jax.Array
 ) -> jax.Array:
