@@ -171,7 +171,7 @@ def _build(args: argparse.Namespace) -> int:
         landmarks=_one_or_tuple(args.landmarks),
         bandwidth=_one_or_tuple(args.bandwidth),
         k=args.k,
-        hidden=args.hidden if args.hidden is not None else max(args.k, 96),
+        hidden=args.hidden if args.hidden is not None or args.k is None else max(args.k, 192),
         lam=args.lam,
         input_scale=args.input_scale,
         seed=args.seed,
@@ -325,20 +325,24 @@ def build_parser() -> argparse.ArgumentParser:
         help="upper: one projector per chain (head, left arm, right arm); whole: the paper's "
         "whole-body projector",
     )
-    size = pb.add_mutually_exclusive_group(required=True)
+    size = pb.add_mutually_exclusive_group()
     size.add_argument(
         "--landmarks",
         type=_parse_ints,
         help="target landmark count, bisected: one number for each arm (head: bandwidth "
-        f"{HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644",
+        f"{HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644 (neither this nor --bandwidth: "
+        "engine.DEFAULTS, the tuned bandwidths)",
     )
     size.add_argument(
         "--bandwidth", type=_parse_floats, help="mean-shift bandwidth: one, or one per chain"
     )
-    pb.add_argument("--k", type=int, default=96, help="training neighbours per ELM kernel")
-    pb.add_argument("--hidden", type=int, default=None, help="hidden units (None: max(k, 96))")
-    pb.add_argument("--lam", type=float, default=1e-3, help="ELM ridge regulariser")
-    pb.add_argument("--input-scale", type=float, default=0.5, help="hidden-weight std")
+    tuned = "None: engine.DEFAULTS of the chain set"
+    pb.add_argument("--k", type=int, default=None, help=f"training neighbours per kernel ({tuned})")
+    pb.add_argument(
+        "--hidden", type=int, default=None, help=f"hidden units ({tuned}; with --k: max(k, 192))"
+    )
+    pb.add_argument("--lam", type=float, default=None, help=f"ELM ridge regulariser ({tuned})")
+    pb.add_argument("--input-scale", type=float, default=None, help=f"hidden-weight std ({tuned})")
     pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
     pb.add_argument("--mirror", action="store_true", help="mirror imitation")
     pb.add_argument("--out", required=True, help="output projector .npz")

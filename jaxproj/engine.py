@@ -49,12 +49,26 @@ FORMAT_VERSION = 3
 """3: one projector per kinematic chain (``chain<c>.*`` arrays, the layout in the metadata);
 2: kernel output weights stored ``(n_kernels, d_out, hidden)``; 1: ``(hidden, d_out)``."""
 
-HEAD_BANDWIDTH = 0.04
+HEAD_BANDWIDTH = 0.01125
 """Mean-shift bandwidth of the head chain when ``BuildConfig.landmarks`` is one number (that
 number is then the count of each arm chain, and of the whole-body chain). The neck direction of
 a Kinect skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count
-target would bisect the bandwidth over many slow mean-shift runs; one run at this bandwidth
-gives ~120 head landmarks on subjects 1,3,5,7,9 (measured in ``benchmarks/RESULTS.md``)."""
+target would bisect the bandwidth over many mean-shift runs; one run at this bandwidth (tuned
+leave-one-training-subject-out, ``benchmarks/TUNING.md``) gives ~800 head landmarks on subjects
+1,3,5,7,9."""
+
+DEFAULTS: dict[str, dict[str, object]] = {
+    "upper": dict(
+        bandwidth=(HEAD_BANDWIDTH, 0.01875, 0.01875), k=96, hidden=192, lam=1e-4, input_scale=0.5
+    ),
+    "whole": dict(landmarks=1644, k=96, hidden=96, lam=1e-3, input_scale=0.5),
+}
+"""What a ``BuildConfig`` setting left at ``None`` means, per chain set. ``"upper"``: tuned per
+chain on the training subjects only (leave-one-training-subject-out over 1,3,5,7,9; the grid,
+fold means and the rule are in ``benchmarks/TUNING.md``): mean-shift bandwidths (head, left arm,
+right arm; the right arm takes the left arm's tuned value), 192 hidden units, ridge 1e-4.
+``"whole"``: the paper's 1644 landmarks and the whole-body engine's earlier defaults, so that
+its answers stay those measured before chains existed."""
 
 PerChain = tuple  # a tuple with one value per chain, in chain order
 
@@ -95,6 +109,7 @@ class BuildConfig:
       landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
         number sets each arm chain (and the whole-body chain); the head then uses
         ``HEAD_BANDWIDTH``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
+        With neither ``landmarks`` nor ``bandwidth`` given, ``DEFAULTS[chains]`` decides.
       bandwidth: mean-shift bandwidth, used as is (per chain where ``landmarks`` is ``None``).
       bones: descriptor bone subset (``skeleton.descriptor``); the IK needs ``"upper"`` bones.
       mirror: mirror imitation (human left drives robot right).
@@ -104,19 +119,20 @@ class BuildConfig:
       hidden: hidden units per kernel (``>= k``).
       lam: ridge regulariser of the ELMs.
       input_scale: standard deviation of the random hidden weights.
+      (``k``, ``hidden``, ``lam``, ``input_scale`` left at ``None``: ``DEFAULTS[chains]``.)
       seed: PRNG seed of the random hidden layers (chain 0 uses ``PRNGKey(seed)``, chain ``c``
         ``fold_in(PRNGKey(seed), c)``).
     """
 
-    landmarks: int | PerChain | None = 1644
+    landmarks: int | PerChain | None = None
     bandwidth: float | PerChain | None = None
     chains: str = "upper"
     bones: str = "upper"
     mirror: bool = False
-    k: int | PerChain = 96
-    hidden: int | PerChain = 96
-    lam: float | PerChain = 1e-3
-    input_scale: float | PerChain = 0.5
+    k: int | PerChain | None = None
+    hidden: int | PerChain | None = None
+    lam: float | PerChain | None = None
+    input_scale: float | PerChain | None = None
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -137,11 +153,17 @@ class BuildConfig:
         chains = ik.chain_set(self.chains)
         n, name = len(chains), chains[c].name
 
+        defaults = DEFAULTS[self.chains]
+        sizes_given = self.landmarks is not None or self.bandwidth is not None
+
         def get(field_name: str) -> object:
-            return _per_chain(getattr(self, field_name), c, n, field_name)
+            value = getattr(self, field_name)
+            if value is None and (field_name not in ("landmarks", "bandwidth") or not sizes_given):
+                value = defaults.get(field_name)
+            return _per_chain(value, c, n, field_name)
 
         landmarks, bandwidth = get("landmarks"), get("bandwidth")
-        if name == "head" and not isinstance(self.landmarks, tuple) and bandwidth is None:
+        if name == "head" and isinstance(self.landmarks, int) and bandwidth is None:
             landmarks, bandwidth = None, HEAD_BANDWIDTH
         if (landmarks is None) == (bandwidth is None):
             raise ConfigError(f"chain {name}: give exactly one of landmarks (a count) or bandwidth")
