@@ -169,9 +169,9 @@ def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):
     report = tmp_path / "r.json"
     argv_eval = ["evaluate", "--model", str(model), "--data", str(folder), "--subjects", "2"]
     argv_eval += ["--objective", "relaxed", "--json", str(report)]
-    code, out, err = _run(capsys, *argv_eval)
-    # 448 training frames give the head chain 9 landmarks: L = M = 10 is refused, naming it
-    assert code == 2 and "head chain has 9" in err
+    # more neighbours than the smallest chain's landmarks: refused, naming the chain
+    code, out, err = _run(capsys, *argv_eval, "--L", "999")
+    assert code == 2 and "chain has" in err and "L=999" in err
     code, out, _ = _run(capsys, *argv_eval, "--L", "5", "--M", "5")
     assert code == 0
     r = json.loads(report.read_text())
