@@ -227,11 +227,13 @@ def build_from_landmarks(
 ) -> Projector:
     """Train both kernel banks of one projector on given landmark pairs ``(K, m)``, ``(K, n)``.
 
-    Each kernel trains on ``min(config.k, K)`` neighbours (see ``BuildConfig.k``); ``config``'s
-    ``k``, ``hidden``, ``lam``, ``input_scale`` must be single numbers. ``key`` defaults to
-    ``PRNGKey(config.seed)``; ``lower`` / ``upper`` ``(n,)`` are the limits of the joints the
-    robot landmarks hold (default: all of ``robot.DRIVEN_JOINTS``).
+    Each kernel trains on ``min(config.k, K)`` neighbours (see ``BuildConfig.k``); a
+    ``BuildConfig`` gives its first chain's kernel settings (``chain_config(0)``). ``key``
+    defaults to ``PRNGKey(config.seed)``; ``lower`` / ``upper`` ``(n,)`` are the limits of the
+    joints the robot landmarks hold (default: all of ``robot.DRIVEN_JOINTS``).
     """
+    if isinstance(config, BuildConfig):
+        config = config.chain_config(0)
     key = jax.random.PRNGKey(config.seed) if key is None else key
     k_fwd, k_bwd = jax.random.split(key)
     if config.k < 2 or len(human) < 2:

@@ -216,7 +216,7 @@ def test_k_is_capped_at_a_small_landmark_set():
     robot_poses = np.asarray(ik.solve_driven(human))
     cfg = engine.BuildConfig()  # default k (96) > 40 landmarks
     p = engine.build_from_landmarks(human, robot_poses, cfg)
-    assert p.forward.k == p.backward.k == 40 and cfg.k > 40
+    assert p.forward.k == p.backward.k == 40 and cfg.chain_config(0).k > 40
     got, _ = engine.project(p, human, "relaxed", batch_size=64)
     assert _deg(got, robot_poses).max() < 0.01  # still exact at the landmarks
     with pytest.raises(ConfigError, match="k=1"):
