@@ -16,6 +16,11 @@ from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
 
 
+KERNELS = engine.BuildConfig(chains="whole", k=96, hidden=96, lam=1e-3, input_scale=0.5)
+"""The kernel settings this file's float32 tolerances were measured with (the whole-body
+defaults; the tuned per-chain defaults, hidden 192 and ridge 1e-4, round differently)."""
+
+
 @pytest.fixture(scope="module")
 def projector():
     train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
@@ -23,7 +28,7 @@ def projector():
     idx = np.sort(np.random.default_rng(0).choice(len(uniq), 200, replace=False))
     human = uniq[idx].astype(np.float32)
     robot_poses = np.asarray(ik.solve_driven(human), np.float32)
-    return engine.build_from_landmarks(human, robot_poses, engine.BuildConfig())
+    return engine.build_from_landmarks(human, robot_poses, KERNELS)
 
 
 @pytest.fixture(scope="module")
