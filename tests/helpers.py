@@ -35,3 +35,19 @@ def msr_text(sdk: np.ndarray, confidence: float | np.ndarray = 0.5, newline: str
     for name, row in MSR_ROW.items():
         msr[:, row - 1] = rows[:, J[name]]
     return "".join(" ".join(f"{v:.6f}" for v in r) + newline for r in msr.reshape(-1, 4))
+
+
+def small_projector():
+    """A whole-body ``Projector`` on 200 distinct training descriptors of subjects 1 and 3 (seed
+    0) and their IK poses, with the kernel settings the streaming and oracle tests' float32
+    tolerances were measured with (the whole-body defaults; the tuned per-chain defaults, hidden
+    192 and ridge 1e-4, round differently)."""
+    from jaxproj import datasets, engine, ik
+
+    kernels = engine.BuildConfig(chains="whole", k=96, hidden=96, lam=1e-3, input_scale=0.5)
+    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
+    uniq = np.unique(train, axis=0)
+    idx = np.sort(np.random.default_rng(0).choice(len(uniq), 200, replace=False))
+    human = uniq[idx].astype(np.float32)
+    robot_poses = np.asarray(ik.solve_driven(human), np.float32)
+    return engine.build_from_landmarks(human, robot_poses, kernels)

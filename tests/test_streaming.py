@@ -7,8 +7,9 @@ and both kernel banks (``engine.build_from_landmarks``); recordings are subject 
 import jax
 import numpy as np
 import pytest
+from helpers import small_projector
 
-from jaxproj import datasets, engine, ik, robot, streaming
+from jaxproj import datasets, engine, robot, streaming
 from jaxproj.exceptions import ConfigError
 from jaxproj.skeleton import descriptor
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
@@ -16,19 +17,9 @@ from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
 
 
-KERNELS = engine.BuildConfig(chains="whole", k=96, hidden=96, lam=1e-3, input_scale=0.5)
-"""The kernel settings this file's float32 tolerances were measured with (the whole-body
-defaults; the tuned per-chain defaults, hidden 192 and ridge 1e-4, round differently)."""
-
-
 @pytest.fixture(scope="module")
 def projector():
-    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
-    uniq = np.unique(train, axis=0)
-    idx = np.sort(np.random.default_rng(0).choice(len(uniq), 200, replace=False))
-    human = uniq[idx].astype(np.float32)
-    robot_poses = np.asarray(ik.solve_driven(human), np.float32)
-    return engine.build_from_landmarks(human, robot_poses, KERNELS)
+    return small_projector()
 
 
 @pytest.fixture(scope="module")

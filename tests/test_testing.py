@@ -14,9 +14,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import small_projector
 from optax.projections import projection_simplex
 
-from jaxproj import datasets, engine, ik, projection
+from jaxproj import datasets, engine, projection
 from jaxproj.exceptions import ConfigError
 from jaxproj.projection import FullConfig
 from jaxproj.search import nearest
@@ -25,19 +26,9 @@ from jaxproj.testing import Reference, simplex_projection
 L = M = 10
 
 
-KERNELS = engine.BuildConfig(chains="whole", k=96, hidden=96, lam=1e-3, input_scale=0.5)
-"""The kernel settings this file's float32 tolerances were measured with (the whole-body
-defaults; the tuned per-chain defaults, hidden 192 and ridge 1e-4, round differently)."""
-
-
 @pytest.fixture(scope="module")
 def model():
-    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))
-    uniq = np.unique(train, axis=0)
-    idx = np.sort(np.random.default_rng(0).choice(len(uniq), 200, replace=False))
-    human = uniq[idx].astype(np.float32)
-    robot_poses = np.asarray(ik.solve_driven(human), np.float32)
-    p = engine.build_from_landmarks(human, robot_poses, KERNELS)
+    p = small_projector()
     test = datasets.valid_descriptors(datasets.msr_action3d(subjects=[2]))
     queries = test[np.random.default_rng(1).choice(len(test), 64, replace=False)]
     return p, Reference(p), queries
