@@ -73,7 +73,7 @@ def test_motions_of_similar_length_share_one_compilation(model, motion, count_co
         retarget(positions[:33], valid[:33], model=model)
     assert n["_motion"] == 0
     with count_compiles() as n:  # a longer motion takes the next bucket: the counter works
-        retarget(np.concatenate([positions] * 3)[:100], np.ones(100, bool), model=model)
+        retarget(np.resize(positions, (100, 20, 3)), np.ones(100, bool), model=model)
     assert n["_motion"] == 1
 
 
