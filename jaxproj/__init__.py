@@ -4,11 +4,14 @@ Pipeline (one module per stage): ``readers`` / ``datasets`` / ``skeleton`` (data
 bone descriptor) -> ``robot`` / ``ik`` (NAO H25 model and the analytic IK ground truth) ->
 ``meanshift`` (generic mean shift, bandwidth search) -> ``landmarks`` (mean-shift modes of the
 training descriptors + their IK) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -> ``projection``
-(relaxed / full objectives) -> ``smoothing`` -> ``retarget`` (whole motions); ``engine`` holds the
-public build / project / save / load API. ``synthetic`` (the paper's basic poses and motions) and
-``experiments`` (the paper's studies on them) reproduce the paper's section IV.
+(relaxed / full objectives; one projector per kinematic chain, stacked) -> ``smoothing`` /
+``streaming`` -> ``retarget`` (whole motions, one compiled call); ``engine`` holds the public
+build / project / save / load API; ``metrics`` / ``evaluate`` score against the IK. ``synthetic``
+(the paper's basic poses and motions) and ``experiments`` (the paper's studies on them) reproduce
+the paper's section IV.
 
-Jit policy: public entry points are jitted; helpers and loops inside them are not.
+Jit, precision, configs, errors and progress follow one policy each, stated in the README's
+Development section (jit: ``jaxproj._jit``).
 """
 
 __version__ = "0.1.0"
