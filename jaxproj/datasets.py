@@ -71,7 +71,8 @@ import jax
 import numpy as np
 
 from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.readers import MSR_TO_SDK, _read_msr_rows, _read_utkinect_rows
+from jaxproj.readers import MSR_FPS, MSR_TO_SDK, _read_msr_rows, _read_utkinect_rows
+from jaxproj.readers import UTK_FPS as _UTK_FPS
 from jaxproj.skeleton import JOINT_NAMES, N_JOINTS
 
 DATA_PATH = Path(__file__).with_name("data") / "msr_action3d.npz"
@@ -113,8 +114,9 @@ UTK_UPPER_BODY_ACTIONS: tuple[int, ...] = (6, 7, 8, 9, 10)
 """1-based numbers of the upper-body-rich UTKinect actions: throw, push, pull, waveHands,
 clapHands."""
 
-UTK_FPS = 30.0
-"""Nominal capture rate of UTKinect-Action3D (frames/s, from the dataset's description).
+UTK_FPS = _UTK_FPS
+"""Nominal capture rate of UTKinect-Action3D (frames/s, from the dataset's description;
+``readers.UTK_FPS``).
 
 Only tracked frames were saved, so frame numbers jump; ``times = frame_numbers / UTK_FPS`` are
 seconds since the capture's frame 0 and are approximate (the rate is nominal, not measured). The
@@ -147,8 +149,9 @@ class MotionSequence:
       valid: ``(T,)`` bool, frame is not all zeros and all finite.
       frame_numbers: ``(T,)`` int64 source frame numbers, strictly increasing (UTKinect, whose
         frame numbers jump over untracked frames); ``None`` where frames are consecutive (MSR).
-      times: ``(T,)`` float64 seconds, ``frame_numbers / UTK_FPS`` (approximate); ``None`` with
-        ``frame_numbers``.
+      times: ``(T,)`` float64 seconds: ``frame_numbers / UTK_FPS`` (UTKinect, approximate), the
+        reader's time axis (folder files, see ``jaxproj.readers``); ``None`` for MSR Action3D
+        (``sequence_times`` then assumes ``readers.MSR_FPS``).
     """
 
     name: str
@@ -160,6 +163,19 @@ class MotionSequence:
     valid: np.ndarray
     frame_numbers: np.ndarray | None = None
     times: np.ndarray | None = None
+
+
+def sequence_times(seq: MotionSequence) -> np.ndarray:
+    """``(T,)`` float64 seconds of each frame of ``seq``, from its first frame.
+
+    ``seq.times`` when the sequence has them (UTKinect; folder files: the reader's time axis),
+    otherwise frames ``1 / readers.MSR_FPS`` apart (MSR Action3D has no timing; 15 frames/s is
+    an assumption, see ``jaxproj.readers``).
+    """
+    if seq.times is not None:
+        t = np.asarray(seq.times, np.float64)
+        return t - t[0]
+    return np.arange(len(seq.valid), dtype=np.float64) / MSR_FPS
 
 
 # --- bundling -------------------------------------------------------------------------------------
@@ -274,7 +290,7 @@ def bundle_utkinect_action3d(
     labels = _read_utk_labels(src / _UTK_LABELS)
     names, numbers, frames, positions, segments = [], [], [], [], []
     for path in files:
-        frame, xyz = _read_utkinect_rows(path)
+        frame, xyz = _read_utkinect_rows(path, order=False)
         if frame[0] < 0 or frame[-1] >= 2**31 or (np.diff(frame) <= 0).any():
             raise InputError(
                 path,
@@ -708,7 +724,11 @@ def load_sequences(
         rec = read_skeleton(f)
         conf = np.ones(rec.valid.shape + (N_JOINTS,), np.float32)
         action = int(act.group(1)) if act else 0
-        seqs.append(MotionSequence(f.stem, action, subject, 0, rec.positions, conf, rec.valid))
+        seqs.append(
+            MotionSequence(
+                f.stem, action, subject, 0, rec.positions, conf, rec.valid, times=rec.times
+            )
+        )
     if not seqs:
         raise InputError(folder, f"no recordings found (for subjects {subjects})")
     return seqs

@@ -4,7 +4,9 @@
    landmarks per arm chain / for the whole body);
 2. evaluate every method on subjects 2,4,6,8,10 with and without smoothing, and both models
    side by side on them and on the UTKinect-Action3D upper-body segments (cross-dataset);
-3. roll out projected and IK trajectories of held-out arm motions in MuJoCo MJX;
+3. roll out held-out arm motions in MuJoCo MJX: the robot-feasible relaxed projection (what
+   ``jaxproj retarget`` writes for a robot, ``jaxproj.feasible``) beside the raw relaxed
+   projection and the IK;
 4. the paper's experiments: eight basic poses and motions, landmark-set sizes, L = M sweep;
 5. write ``report.json``, ``report.md`` and the PNG plots to ``--out``.
 """
@@ -19,7 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxproj import datasets, engine, evaluate, report, robot
+from jaxproj import datasets, engine, evaluate, feasible, report, robot
 from jaxproj.ik import driven_to_full
 
 TRAIN_SUBJECTS = datasets.TRAIN_SUBJECTS
@@ -53,6 +55,10 @@ def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs) ->
             b[row, : e - a] = np.asarray(driven_to_full(per_frame[a:e]))
             b[row, e - a :] = b[row, e - a - 1]
         batches[name] = b
+    times = np.tile(np.arange(t_max) * out["frame_dt"], (len(picks), 1))
+    batches["relaxed_feasible"] = feasible.make_feasible(
+        batches["relaxed"], times, lengths[picks]
+    )
     for name, b in batches.items():
         res = rollout.simulate(b, lengths[picks])
         out[name] = rollout.summarize(res, lengths[picks], b)
@@ -90,6 +96,7 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
     test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS)
     data = evaluate.prepare(test_seqs)
     ev = evaluate.evaluate(model, data, evaluate.METHODS, progress=progress)
+    ev["feasibility"] = {m: ev["feasibility"][m] for m in ("ik", "relaxed", "full")}
     splits = {
         "msr_held_out": data,
         "utkinect": evaluate.prepare(
@@ -102,7 +109,9 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
             if name == "per_chain" and split == "msr_held_out":
                 block = ev["unsmoothed"]
             else:
-                block = evaluate.evaluate(m, d, evaluate.METHODS, smoothing=None)["unsmoothed"]
+                block = evaluate.evaluate(
+                    m, d, evaluate.METHODS, smoothing=None, feasibility=None
+                )["unsmoothed"]
             comparison.setdefault(name, {})[split] = block
     timings["evaluate_s"] = time.perf_counter() - t0
     _log(
@@ -265,7 +274,10 @@ def _rollout_md(ro: dict) -> list[str]:
     lines = ["", "## MJX rollout (torso fixed, position actuators, gravity on)", ""]
     lines.append(
         f"{len(ro['motions'])} held-out arm motions tracked in MuJoCo MJX "
-        f"({ro['wall_s']:.1f} s): the IK trajectories and the relaxed projections."
+        f"({ro['wall_s']:.1f} s): the IK trajectories, the relaxed projections and the "
+        "relaxed projections made robot-feasible (`relaxed_feasible`, what `jaxproj retarget` "
+        "writes for a robot). Tracking is against each trajectory's own targets; the peak "
+        "speed is the simulated robot's."
     )
     lines += [
         "",
@@ -274,7 +286,7 @@ def _rollout_md(ro: dict) -> list[str]:
         "(achieved / target) | peak speed / NAO limit | motions over the speed limit |",
         "|---|---:|---:|---|---:|---|---:|---:|",
     ]
-    for name in ("ik", "relaxed"):
+    for name in ("ik", "relaxed", "relaxed_feasible"):
         x = ro[name]
         t, c = x["tracking_error_deg"], x["self_collision_frames"]
         lim, sp = x["joint_limit_violations"], x["speed"]
@@ -283,6 +295,51 @@ def _rollout_md(ro: dict) -> list[str]:
             f"/ {c['arm_arm']} / {c['any']} | {c['motions']} | {lim['achieved_frames']} / "
             f"{lim['target_frames']} | {sp['max_ratio']:.2f} ({sp['worst_joint']}) | "
             f"{sp['motions_over_limit']} |"
+        )
+    return lines
+
+
+def _feasibility_md(r: dict) -> list[str]:
+    """Before / after the feasibility filter, from the smoothed evaluation."""
+    fz = r["feasibility"]
+    cfg = next(iter(fz.values()))["config"]
+    lines = [
+        "",
+        "## Robot-feasible output (held-out MSR subjects, smoothed, 15 fps)",
+        "",
+        f"`jaxproj.feasible` (on by default in `jaxproj retarget`): joint limits, "
+        f"{100 * cfg['speed_fraction']:.0f} % of the NAO's no-load speeds and "
+        f"{cfg['accel']:.0f} rad/s^2, zero-phase. Speed figures against the full no-load limits; "
+        "errors against the IK of each frame; the last columns compare the filtered motion with "
+        "the unfiltered one.",
+        "",
+        "| trajectory | motions over speed limit (before -> after) | frames over | max step "
+        "(deg) | max accel (rad/s^2) | median M_avg (deg) | p95 M_max w/o ElbowYaw | hand p95 "
+        "cm (L, R) | change vs unfiltered: joint deg p95 / hand cm p95 |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, b in fz.items():
+        bef, aft, err = b["before"], b["after"], b["after_errors"]
+        unf = r["summary"].get(name)
+        m_avg = f"{err['M_avg']['median']:.2f}"
+        no_ey = f"{err['M_max_no_elbow_yaw']['p95']:.1f}"
+        def hand_p95(block: dict) -> str:
+            return ", ".join(
+                f"{block['task_space'][side]['hand_cm']['p95']:.1f}" for side in ("left", "right")
+            )
+
+        hand = hand_p95(err)
+        if unf is not None:
+            m_avg = f"{unf['M_avg']['median']:.2f} -> {m_avg}"
+            no_ey = f"{unf['M_max_no_elbow_yaw']['p95']:.1f} -> {no_ey}"
+            hand = f"{hand_p95(unf)} -> {hand}"
+        vs = b["vs_unfiltered"]
+        lines.append(
+            f"| {name} | {bef['motions_over_speed_limit']} -> {aft['motions_over_speed_limit']} of "
+            f"{bef['motions']} | {bef['speed_violation_frames']} -> {aft['speed_violation_frames']}"
+            f" | {bef['max_step_deg']:.0f} -> {aft['max_step_deg']:.0f} | {bef['max_accel']:.0f} "
+            f"-> {aft['max_accel']:.0f} | {m_avg} | {no_ey} | {hand} | "
+            f"{vs['joint_deg']['p95']:.1f} / {vs['hand_cm']['p95']:.1f} |"
         )
     return lines
 
@@ -369,6 +426,7 @@ def _markdown(r: dict) -> str:
     for a, v in r["per_action"].items():
         x = v["relaxed"]
         lines.append(f"| {a} | {x['M_avg']['median']:.2f} | {x['M_max']['p95']:.1f} |")
+    lines += _feasibility_md(r)
     lines += _rollout_md(r["rollout"]) + _experiments_md(r["experiments"])
     lines += ["", "## Plots", ""]
     lines += [f"![{p}]({p})" for p in r["plots"]]

@@ -36,10 +36,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj import ik, metrics, robot
+from jaxproj import feasible, ik, metrics, robot
 from jaxproj._jit import jit
 from jaxproj._progress import bar
-from jaxproj.datasets import ACTION_NAMES, MotionSequence
+from jaxproj.datasets import ACTION_NAMES, MotionSequence, sequence_times
 from jaxproj.engine import Model, project
 from jaxproj.exceptions import ConfigError, JaxprojError
 from jaxproj.metrics import describe, frame_errors, summarize_errors
@@ -65,6 +65,10 @@ class EvalData:
       truth: ``(F, n)`` IK of every frame (driven joints, rad).
       offsets: ``(S + 1,)`` sequence ``s`` is frames ``offsets[s]:offsets[s + 1]``.
       names, actions, subjects: ``(S,)`` per-sequence metadata.
+      times: ``(F,)`` float64 seconds of each frame from its sequence's first frame
+        (``datasets.sequence_times``: the recording's own time axis, or MSR's assumed 15 fps).
+      timed: whether any sequence carried its own times (then the smoother's gains follow each
+        frame's time step; otherwise they are the per-frame gains as given).
     """
 
     descriptors: np.ndarray
@@ -74,6 +78,8 @@ class EvalData:
     names: list[str]
     actions: np.ndarray
     subjects: np.ndarray
+    times: np.ndarray | None = None
+    timed: bool = False
 
 
 def prepare(
@@ -96,6 +102,8 @@ def prepare(
         names=[s.name for s in sequences],
         actions=np.array([s.action for s in sequences]),
         subjects=np.array([s.subject for s in sequences]),
+        times=np.concatenate([sequence_times(s) for s in sequences]),
+        timed=any(s.times is not None for s in sequences),
     )
 
 
@@ -284,6 +292,82 @@ def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.n
     return out, lengths
 
 
+def _motion_times(data: EvalData, t_max: int) -> np.ndarray:
+    """``(S, T_max)`` seconds of each motion's frames; padding continues at the last step."""
+    lengths = np.diff(data.offsets)
+    times = data.times if data.times is not None else np.concatenate(
+        [np.arange(n, dtype=np.float64) / FPS for n in lengths]
+    )
+    out = np.zeros((len(lengths), t_max))
+    for s, n in enumerate(lengths):
+        t = times[data.offsets[s] : data.offsets[s + 1]]
+        step = t[-1] - t[-2] if n > 1 else 1.0 / FPS
+        out[s, :n] = t
+        out[s, n:] = t[-1] + step * np.arange(1, t_max - n + 1)
+    return out
+
+
+def _limits_summary(motions: np.ndarray, times: np.ndarray, lengths: np.ndarray) -> dict:
+    """``feasible.feasibility_report`` of each motion ``(S, T, 26)``, pooled over motions."""
+    reps = [feasible.feasibility_report(m[:n], t[:n]) for m, t, n in zip(motions, times, lengths,
+                                                                        strict=True)]  # fmt: skip
+    return {
+        "motions": len(reps),
+        "motions_over_speed_limit": sum(r["speed_violation_frames"] > 0 for r in reps),
+        "speed_violation_frames": sum(r["speed_violation_frames"] for r in reps),
+        "steps_over_30deg": sum(r["steps_over_30deg"] for r in reps),
+        "max_speed_ratio": max(r["max_speed_ratio"] for r in reps),
+        "max_step_deg": max(r["max_step_deg"] for r in reps),
+        "accel_violation_frames": sum(r["accel_violation_frames"] for r in reps),
+        "max_accel": max(r["max_accel"] for r in reps),
+        "limit_violation_frames": sum(r["limit_violation_frames"] for r in reps),
+    }
+
+
+def feasibility_block(
+    data: EvalData,
+    motions: np.ndarray,
+    truth_v: np.ndarray,
+    truth_points: np.ndarray,
+    config: feasible.FeasibleConfig = feasible.DEFAULT_FEASIBLE,
+) -> dict:
+    """What the feasibility filter buys and costs for one method's motions.
+
+    Args:
+      data: the evaluated frames.
+      motions: ``(S, T_max, 10)`` driven-joint motions as scored (filled, maybe smoothed).
+      truth_v, truth_points: IK truth of the valid frames and its ``metrics.arm_points``.
+      config: the filter's settings.
+
+    Returns:
+      ``{"before": limits, "after": limits, "after_errors": {M_max, M_avg, task_space, ...}
+      (``metrics.summarize_errors`` of the filtered motion against the IK), "vs_unfiltered":
+      {joint_deg, hand_cm}}`` — limits from ``feasibility_report`` pooled over the motions
+      (speed-limit frames, max step, acceleration, joint limits); ``vs_unfiltered`` describes the
+      per-frame mean joint change (deg) and the wrist displacement (cm, both arms pooled) of
+      the filtered motion against the unfiltered one, valid frames.
+    """
+    lengths = np.diff(data.offsets)
+    t_max = motions.shape[1]
+    times = _motion_times(data, t_max)
+    full26 = np.tile(robot.STANDING_POSTURE, motions.shape[:2] + (1,)).astype(np.float32)
+    full26[..., robot.DRIVEN_INDEX] = motions
+    safe = feasible.make_feasible(full26, times, lengths, config)
+    flat = lambda m: np.concatenate([m[s, :n] for s, n in enumerate(lengths)])[data.valid]  # noqa: E731
+    before, after = flat(motions), flat(safe[..., robot.DRIVEN_INDEX])
+    hand = metrics.arm_errors(metrics.arm_points(after), metrics.arm_points(before)).hand
+    return {
+        "config": dataclasses.asdict(config),
+        "before": _limits_summary(full26, times, lengths),
+        "after": _limits_summary(safe, times, lengths),
+        "after_errors": summarize_errors(after, truth_v, truth_points=truth_points),
+        "vs_unfiltered": {
+            "joint_deg": describe(np.degrees(np.abs(after - before)).mean(axis=1)),
+            "hand_cm": describe(100.0 * hand.reshape(-1)),
+        },
+    }
+
+
 def evaluate(
     model: Model,
     data: EvalData,
@@ -295,11 +379,14 @@ def evaluate(
     full: FullConfig | None = None,
     devices: Sequence[jax.Device] | None = None,
     progress: bool = False,
+    feasibility: feasible.FeasibleConfig | None = feasible.DEFAULT_FEASIBLE,
 ) -> dict:
     """Evaluate ``methods`` on ``data``; returns the JSON-ready report (see README).
 
     ``devices`` is passed to ``engine.project`` (``None``: the default device); ``progress``
-    shows a bar over the methods on a terminal.
+    shows a bar over the methods on a terminal. ``feasibility``: also run each method's scored
+    motions (and the IK's) through ``jaxproj.feasible`` and report before / after
+    (``feasibility_block``) under ``"feasibility"``; ``None`` skips it.
     """
     lengths = np.diff(data.offsets)
     h = data.descriptors[data.valid]
@@ -322,8 +409,11 @@ def evaluate(
         "smoothness": {},
         "per_action": {},
         "per_sequence": {n: {} for n in data.names},
+        "feasibility": {},
         "wall_s": {},
     }
+    t_max = int(lengths.max())
+    motion_times = _motion_times(data, t_max) if data.timed else None
     predictions: dict[str, np.ndarray] = {}
     for method in bar(methods, "evaluating methods", enabled=progress):
         t0 = time.perf_counter()
@@ -336,7 +426,7 @@ def evaluate(
         motions, _ = _per_motion(data, pred)
         jerk_raw = mean_squared_jerk(motions, lengths)
         if smoothing is not None:
-            sm = np.asarray(smooth_batch(motions, lengths, smoothing))
+            sm = np.asarray(smooth_batch(motions, lengths, smoothing, times=motion_times))
             lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
             sm = np.clip(sm, lo, hi)
             flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
@@ -351,6 +441,10 @@ def evaluate(
             out["summary"][method] = copy.deepcopy(out["unsmoothed"][method])
             out["smoothness"][method] = {"jerk_raw": jerk_raw}
         predictions[method] = np.concatenate([motions[s, :n] for s, n in enumerate(lengths)])
+        if feasibility is not None:
+            out["feasibility"][method] = feasibility_block(
+                data, motions, truth_v, truth_points, feasibility
+            )
         for a in np.unique(data.actions):
             sel = data.actions[seq_of_frame] == a
             label = ACTION_NAMES[a - 1] if 1 <= a <= len(ACTION_NAMES) else "unknown action"
@@ -364,6 +458,10 @@ def evaluate(
                 "M_max_mean": float(m_max[sel].mean()) if sel.any() else 0.0,
                 "M_avg_mean": float(m_avg[sel].mean()) if sel.any() else 0.0,
             }
+    if feasibility is not None:  # the IK truth itself, as a trajectory for the robot
+        out["feasibility"]["ik"] = feasibility_block(
+            data, truth_motion, truth_v, truth_points, feasibility
+        )
     out["_predictions"] = predictions  # (F, n) per method, dropped before writing JSON
     out["_truth"] = np.concatenate([truth_motion[s, :n] for s, n in enumerate(lengths)])
     return out

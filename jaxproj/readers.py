@@ -7,13 +7,28 @@ Supported formats (``read_skeleton(path, format=...)``):
   SDK order with ``MSR_TO_SDK``); the confidence column is not kept.
 - ``"utkinect"``: UTKinect-Action3D ``joints_sXX_eYY.txt``: one line per frame, the frame number
   then 60 values (20 joints x ``x y z``, SDK order). A line whose frame number repeats an earlier
-  line's is dropped (the first one is kept); lines stay in file order.
-- ``"npz"``: a NumPy archive with key ``positions`` ``(T, 20, 3)`` (metres, SDK order) and an
-  optional ``valid`` ``(T,)`` bool mask, which is honoured.
+  line's is dropped (the first one is kept); frames are ordered by frame number (the file's own
+  order in every recording of the dataset).
+- ``"npz"``: a NumPy archive with key ``positions`` ``(T, 20, 3)`` (metres, SDK order), an
+  optional ``valid`` ``(T,)`` bool mask, which is honoured, and optional timing: ``times``
+  ``(T,)`` seconds (strictly increasing) or ``fps`` (a scalar).
 - ``"csv"``: comma-separated, 60 numeric columns per row (``x, y, z`` per joint, SDK order); one
   header line of non-numeric column names is allowed and skipped.
 - ``"auto"`` (default): ``.npz`` / ``.csv`` by extension (or a zip signature / commas in the first
   line), otherwise by the column count of the first non-blank line (4 -> msr, 61 -> utkinect).
+
+Time axis: every ``Recording`` carries ``times`` ``(T,)`` float64 seconds from the recording's
+first frame and ``time_source``, which says where they came from:
+
+- UTKinect: the frame numbers at the dataset's nominal 30 frames/s (``UTK_FPS``), so frames the
+  tracker dropped leave gaps (``"frame numbers at 30 fps"``);
+- MSR Action3D: the files hold no timing; frames are assumed ``MSR_FPS`` = 15 frames/s apart (the
+  rate the dataset's skeleton sequences are usually quoted at; an assumption, ``"assumed 15
+  fps"``);
+- NPZ: the file's ``times`` or ``fps`` when present (``"file"``), otherwise like CSV;
+- CSV: no timing in the format; frames are assumed ``KINECT_FPS`` = 30 frames/s apart (the
+  Kinect v1 sensor's rate, ``"assumed 30 fps"``);
+- ``read_skeleton(..., fps=F)`` (the CLI's ``--fps``) overrides all of these with ``t / F``.
 
 Every problem with the file raises ``jaxproj.exceptions.InputError`` with a one-line message naming
 the file, the problem and, where local, the 1-based line (text) or 0-based frame (npz).
@@ -26,6 +41,7 @@ conversion for the whole file); a 1000-frame MSR file reads in about 10-20 ms.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 from dataclasses import dataclass
@@ -34,7 +50,7 @@ from typing import Literal
 
 import numpy as np
 
-from jaxproj.exceptions import InputError
+from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.skeleton import N_JOINTS
 
 Format = Literal["auto", "msr", "utkinect", "npz", "csv"]
@@ -43,6 +59,13 @@ FORMATS: tuple[str, ...] = ("auto", "msr", "utkinect", "npz", "csv")
 
 MSR_TO_SDK: tuple[int, ...] = (6, 3, 2, 19, 0, 7, 9, 11, 1, 8, 10, 12, 4, 13, 15, 17, 5, 14, 16, 18)
 """0-based MSR Action3D row index of each SDK joint: ``sdk = msr[..., MSR_TO_SDK, :]``."""
+
+MSR_FPS = 15.0
+"""Frame rate assumed for MSR Action3D skeleton files (frames/s): the files carry no timing."""
+KINECT_FPS = 30.0
+"""Frame rate assumed for CSV (and NPZ without timing): the Kinect v1 sensor's rate, frames/s."""
+UTK_FPS = 30.0
+"""Nominal capture rate of UTKinect-Action3D (frames/s): ``times = frame_numbers / UTK_FPS``."""
 
 _MSR_COLUMNS = 4
 _UTK_COLUMNS = 1 + 3 * N_JOINTS
@@ -60,21 +83,42 @@ class Recording:
         marked invalid in the file (npz ``valid``).
       source: the path the recording was read from.
       format: the format it was read as (``"msr"``, ``"utkinect"``, ``"npz"`` or ``"csv"``).
+      times: ``(T,)`` float64 seconds since the first frame, strictly increasing (see the module
+        docstring for where they come from).
+      time_source: how ``times`` were obtained, in words (e.g. ``"assumed 15 fps"``).
     """
 
     positions: np.ndarray
     valid: np.ndarray
     source: str
     format: str
+    times: np.ndarray
+    time_source: str
+
+    @property
+    def fps(self) -> float:
+        """Median frame rate, frames/s (``1 / median(diff(times))``; the nominal rate of a
+        one-frame recording)."""
+        if len(self.times) < 2:
+            return float(self._nominal_fps)
+        return float(1.0 / np.median(np.diff(self.times)))
+
+    @property
+    def _nominal_fps(self) -> float:
+        return {"msr": MSR_FPS, "utkinect": UTK_FPS}.get(self.format, KINECT_FPS)
 
 
-def read_skeleton(path: str | os.PathLike[str], format: Format = "auto") -> Recording:
+def read_skeleton(
+    path: str | os.PathLike[str], format: Format = "auto", fps: float | None = None
+) -> Recording:
     """Read a skeleton file into a ``Recording`` (``(T, 20, 3)`` float32 positions, SDK order).
 
     Args:
       path: the file.
       format: ``"auto"`` (detect; see the module docstring), ``"msr"``, ``"utkinect"``, ``"npz"``
         or ``"csv"``.
+      fps: frames per second; when given, ``times = arange(T) / fps`` replaces whatever timing
+        the file has or the format assumes.
 
     Returns:
       ``Recording`` with ``positions`` ``(T, 20, 3)`` float32 and ``valid`` ``(T,)`` bool.
@@ -85,18 +129,31 @@ def read_skeleton(path: str | os.PathLike[str], format: Format = "auto") -> Reco
     """
     if format not in FORMATS:
         raise InputError(path, f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise ConfigError(f"fps must be a positive number of frames per second, got {fps}")
     data = _read_bytes(path)
     if format == "auto":
         format = _detect(path, data)
+    times: np.ndarray | None = None
     if format == "npz":
-        positions, valid = _parse_npz(path, data)
+        positions, valid, times, source = _parse_npz(path, data)
     elif format == "msr":
         positions, valid = _read_msr_rows(path, data)[:, list(MSR_TO_SDK), :3], None
+        source = f"assumed {MSR_FPS:g} fps"
     elif format == "utkinect":
-        positions, valid = _read_utkinect_rows(path, data)[1], None
+        frames, positions = _read_utkinect_rows(path, data)
+        valid, times = None, (frames - frames[0]) / UTK_FPS
+        source = f"frame numbers at {UTK_FPS:g} fps"
     else:
         positions, valid = _parse_csv(path, data), None
-    return _recording(positions, valid, str(path), format)
+        source = f"assumed {KINECT_FPS:g} fps"
+    if fps is not None:
+        times, source = None, f"given {fps:g} fps"
+    if times is None:
+        rate = fps or (MSR_FPS if format == "msr" else KINECT_FPS)
+        times = np.arange(len(positions), dtype=np.float64) / rate
+    rec = _recording(positions, valid, str(path), format)
+    return dataclasses.replace(rec, times=np.asarray(times, np.float64), time_source=source)
 
 
 # --- helpers ------------------------------------------------------------------------------------
@@ -256,12 +313,13 @@ def _read_msr_rows(path: str | os.PathLike[str], data: bytes | None = None) -> n
 
 
 def _read_utkinect_rows(
-    path: str | os.PathLike[str], data: bytes | None = None
+    path: str | os.PathLike[str], data: bytes | None = None, *, order: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
     """UTKinect text -> (``(T,)`` int64 frame numbers, ``(T, 20, 3)`` float64 positions, SDK order).
 
-    A line whose frame number repeats an earlier line's is dropped (the first one is kept); lines
-    stay in file order.
+    A line whose frame number repeats an earlier line's is dropped (the first one is kept); the
+    frames come out ordered by frame number (``order=False``: in file order, for the bundler,
+    which refuses a file out of order).
     """
     if data is None:
         data = _read_bytes(path)
@@ -273,8 +331,9 @@ def _read_utkinect_rows(
     if bad.size:
         i = int(bad[0])
         raise InputError(path, f"line {lines[i]}: frame number {frame[i]:g} is not an integer")
-    _, first = np.unique(frame, return_index=True)
-    keep = np.sort(first)  # first occurrence of each frame number, in file order
+    _, keep = np.unique(frame, return_index=True)  # first line of each number, by frame number
+    if not order:
+        keep = np.sort(keep)
     return frame[keep].astype(np.int64), table[keep, 1:].reshape(-1, N_JOINTS, 3)
 
 
@@ -308,7 +367,10 @@ def _parse_csv(path: str | os.PathLike[str], data: bytes) -> np.ndarray:
     return table.reshape(-1, N_JOINTS, 3)
 
 
-def _parse_npz(path: str | os.PathLike[str], data: bytes) -> tuple[np.ndarray, np.ndarray | None]:
+def _parse_npz(
+    path: str | os.PathLike[str], data: bytes
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, str]:
+    """NPZ -> (positions, valid or None, times or None, time source)."""
     if data[:4] != b"PK\x03\x04":
         raise InputError(path, "not an npz archive (not a zip file)")
     try:
@@ -319,7 +381,11 @@ def _parse_npz(path: str | os.PathLike[str], data: bytes) -> tuple[np.ndarray, n
                 raise InputError(path, f"missing key 'positions' (keys found: {found})")
             positions = archive["positions"]
             valid = archive["valid"] if "valid" in keys else None
-            for key, value in (("positions", positions), ("valid", valid)):
+            times = archive["times"] if "times" in keys else None
+            rate = archive["fps"] if "fps" in keys and times is None else None
+            for key, value in (
+                ("positions", positions), ("valid", valid), ("times", times), ("fps", rate)
+            ):
                 if value is not None and not isinstance(value, np.ndarray):
                     raise InputError(
                         path, f"corrupt or unreadable npz archive (member {key!r} is not .npy)"
@@ -348,7 +414,35 @@ def _parse_npz(path: str | os.PathLike[str], data: bytes) -> tuple[np.ndarray, n
             if not np.issubdtype(valid.dtype, np.integer) or not np.isin(valid, (0, 1)).all():
                 raise InputError(path, f"valid has dtype {valid.dtype}, expected bool")
             valid = valid.astype(bool)
-    return positions, valid
+    source = f"assumed {KINECT_FPS:g} fps"
+    if times is not None:
+        times = _check_times(path, times, shape[0])
+        source = "file"
+    elif rate is not None:
+        if rate.shape != () or not np.issubdtype(rate.dtype, np.number) or not (
+            np.isfinite(rate) and rate > 0
+        ):
+            raise InputError(path, f"fps must be one positive number, got {rate!r}")
+        times = np.arange(shape[0], dtype=np.float64) / float(rate)
+        source = f"file ({float(rate):g} fps)"
+    return positions, valid, times, source
+
+
+def _check_times(path: str | os.PathLike[str], times: np.ndarray, n: int) -> np.ndarray:
+    """Validate a file's ``times``: ``(n,)`` finite, strictly increasing; returned from 0."""
+    if times.shape != (n,):
+        raise InputError(path, f"times has shape {times.shape}, expected ({n},)")
+    if not np.issubdtype(times.dtype, np.number):
+        raise InputError(path, f"times has dtype {times.dtype}, expected numbers (seconds)")
+    t = times.astype(np.float64)
+    if not np.isfinite(t).all():
+        raise InputError(path, f"times[{int(np.argmax(~np.isfinite(t)))}] is not finite")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        i = int(np.argmax(steps <= 0)) + 1
+        raise InputError(path, f"times must increase strictly: times[{i}] = {t[i]:g} after "
+                               f"{t[i - 1]:g}")  # fmt: skip
+    return t - t[0]
 
 
 def _recording(
@@ -361,4 +455,5 @@ def _recording(
     if valid is not None:
         ok &= valid
     pos[~ok] = 0.0
-    return Recording(positions=pos, valid=ok, source=source, format=format)
+    times = np.arange(len(pos), dtype=np.float64)
+    return Recording(pos, ok, source, format, times, "frame index")

@@ -13,8 +13,14 @@ documented rule, so a motion never dies halfway and never contains NaN:
 * leading invalid frames take the first valid frame's angles;
 * a motion with no valid frame at all takes ``robot.STANDING_POSTURE`` throughout.
 
-Smoothing (``jaxproj.smoothing``) then runs over the driven joints of the filled motion, and the
-result is clipped to the joint limits (the smoother's trend term can overshoot them).
+Smoothing (``jaxproj.smoothing``) then runs over the driven joints of the filled motion, with
+gains for each frame's own time step, and the result is clipped to the joint limits (the
+smoother's trend term can overshoot them). With ``feasible`` (off by default here; on by default
+for what ``jaxproj retarget`` writes for the robot) the motion last goes through
+``jaxproj.feasible``: joint limits, speed limits and an acceleration bound.
+
+Time: ``times`` (seconds per frame, e.g. ``Recording.times``) drive the smoother's gains and the
+feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apart.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from jaxproj import ik, robot
 from jaxproj._jit import jit
 from jaxproj.engine import Model, check_neighbours, project_batch
 from jaxproj.exceptions import ConfigError
+from jaxproj.feasible import FeasibleConfig, feasible_motion
 from jaxproj.projection import FullConfig, Projector
 from jaxproj.skeleton import descriptor
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_motion
@@ -45,10 +52,12 @@ class RetargetResult:
     Attributes:
       angles: ``(T, 26)`` float32 radians in ``robot.JOINT_NAMES`` order.
       valid: ``(T,)`` bool, false where the input frame was invalid (its angles were filled).
+      times: ``(T,)`` float64 seconds of the frames (as given, or ``t / smoothing.rate``).
     """
 
     angles: np.ndarray
     valid: np.ndarray
+    times: np.ndarray
 
 
 def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
@@ -83,6 +92,8 @@ def _motion(
     valid: jax.Array,
     length: jax.Array,
     gains: jax.Array,
+    dt: jax.Array,
+    feasible_params: jax.Array | None,
     *,
     method: str,
     n_l: int,
@@ -91,6 +102,7 @@ def _motion(
     bones: str | tuple[str, ...],
     mirror: bool,
     smooth: bool,
+    zero_phase: bool,
 ) -> tuple[jax.Array, jax.Array]:
     """One padded motion ``(T, 20, 3)`` -> ``((T, 26) angles, (T,) valid)`` (see module doc)."""
     d, ok = descriptor(positions, bones=bones, mirror=mirror)
@@ -107,12 +119,15 @@ def _motion(
         q = jnp.clip(q, lo, hi)
     standing = jnp.asarray(robot.STANDING_POSTURE[robot.DRIVEN_INDEX], q.dtype)
     q = jnp.where(jnp.any(ok), q, standing)
-    return ik.driven_to_full(q), ok
+    q = ik.driven_to_full(q)
+    if feasible_params is not None:
+        q = feasible_motion(q, dt, length, feasible_params, zero_phase=zero_phase)
+    return q, ok
 
 
 _motion_jit = jit(
     _motion,
-    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth"),
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth", "zero_phase"),
 )
 
 
@@ -128,8 +143,11 @@ def retarget(
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
     smoothing: SmoothingParams | None = PAPER_SMOOTHING,
+    times: np.ndarray | None = None,
+    feasible: FeasibleConfig | None = None,
 ) -> RetargetResult:
-    """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip).
+    """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip
+    [-> feasible]).
 
     Args:
       positions: ``(T, 20, 3)`` joint positions, Kinect SDK order.
@@ -140,12 +158,16 @@ def retarget(
       full: settings of the full objective (default ``FullConfig()``).
       bones, mirror: descriptor options for the IK; a model fixes its own (its config's).
       smoothing: smoother gains, or ``None`` for no smoothing.
+      times: ``(T,)`` seconds of the frames, strictly increasing (``Recording.times``);
+        ``None``: frames ``1 / smoothing.rate`` apart (15 fps with the paper's gains).
+      feasible: make the output robot-feasible (``jaxproj.feasible``), or ``None`` (default).
 
     Returns:
-      ``RetargetResult`` with ``(T, 26)`` angles and ``(T,)`` validity.
+      ``RetargetResult`` with ``(T, 26)`` angles, ``(T,)`` validity and ``(T,)`` times.
 
     Raises:
-      ConfigError: bad shapes, a learned method without a model, bad ``L`` / ``M``.
+      ConfigError: bad shapes, a learned method without a model, bad ``L`` / ``M``, times not
+        increasing.
     """
     positions = np.asarray(positions, dtype=np.float32)
     if positions.ndim != 3 or positions.shape[1:] != (20, 3) or positions.shape[0] < 1:
@@ -166,15 +188,31 @@ def retarget(
         bones, mirror = model.config.bones, model.config.mirror
     else:
         ik.bone_index(bones)  # ConfigError for a subset the IK cannot use
+    params = smoothing or PAPER_SMOOTHING
+    if times is None:
+        stamps = np.arange(t, dtype=np.float64) / params.rate
+    else:
+        stamps = np.asarray(times, np.float64)
+        if stamps.shape != (t,) or not np.isfinite(stamps).all():
+            raise ConfigError(f"times must be ({t},) finite seconds, got shape {stamps.shape}")
+        if (np.diff(stamps) <= 0).any():
+            i = int(np.argmax(np.diff(stamps) <= 0)) + 1
+            raise ConfigError(f"times must increase strictly (frame {i}: {stamps[i]:g} s after "
+                              f"{stamps[i - 1]:g} s)")  # fmt: skip
     size = _bucket(t)
     pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
+    dt = np.diff(stamps, prepend=stamps[0])
+    dt = np.concatenate([dt, np.full(size - t, dt[-1] if t > 1 else 1.0 / params.rate)])
+    gains = params.gains() if times is None else params.gains(dt)
     angles, ok_out = _motion_jit(
         p,
         pos,
         ok,
         np.int32(t),
-        (smoothing or PAPER_SMOOTHING).gains(),
+        gains,
+        dt.astype(np.float32),
+        None if feasible is None else feasible.params(),
         method=method,
         n_l=n_l,
         n_m=n_m,
@@ -182,5 +220,6 @@ def retarget(
         bones=bones,
         mirror=mirror,
         smooth=smoothing is not None,
+        zero_phase=feasible is not None and feasible.zero_phase,
     )
-    return RetargetResult(np.asarray(angles)[:t], np.asarray(ok_out)[:t])
+    return RetargetResult(np.asarray(angles)[:t], np.asarray(ok_out)[:t], stamps)

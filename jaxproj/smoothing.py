@@ -13,6 +13,20 @@ happened into it. ``eta`` is in the units of ``y`` (radians; the norm runs over 
 given, usually ``robot.DRIVEN_JOINTS``). Defaults are the paper's: alpha 0.75, gamma 0.3,
 eta 0.15.
 
+Frame rate. The update is per frame, so fixed gains smooth a 30 fps recording over half the time
+of a 15 fps one. The gains are therefore stated at a reference rate (``SmoothingParams.rate``,
+15 frames/s: the paper's gains on the MSR Action3D rate we validate them on) and converted to
+each frame's own time step ``dt`` (``SmoothingParams.gains(dt)``) so that the filter has the same
+time constants at any rate:
+
+    alpha(dt) = 1 - (1 - alpha) ** (dt * rate)      (the same decay per second)
+    gamma(dt) = 1 - (1 - gamma) ** (dt * rate)
+    eta(dt)   = eta * dt * rate                     (a dead band on speed, rad/s * s)
+
+At ``dt = 1 / rate`` these are the given gains. ``jaxproj.retarget`` uses the recording's own
+time axis (irregular steps included: each frame gets its own gains); ``gains()`` with no ``dt``
+returns the gains as given, per frame, as before.
+
 ``smooth`` handles one motion (``lax.scan`` over time); ``smooth_batch`` vmaps it over a padded
 batch ``(B, T, n)`` with lengths: frames past a motion's length leave its state untouched and
 are returned as the input. ``step`` is one frame of the update: the scan's body, and what
@@ -25,6 +39,7 @@ from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError
@@ -39,6 +54,8 @@ class SmoothingParams:
     alpha: float = 0.75
     gamma: float = 0.3
     eta: float = 0.15
+    rate: float = 15.0
+    """Frames per second at which ``alpha``, ``gamma``, ``eta`` are per-frame values."""
 
     def __post_init__(self) -> None:
         for name in ("alpha", "gamma"):
@@ -47,10 +64,36 @@ class SmoothingParams:
                 raise ConfigError(f"smoothing {name}={v} must lie in [0, 1]")
         if not float(self.eta) >= 0.0:
             raise ConfigError(f"smoothing eta={self.eta} must be >= 0")
+        if not (np.isfinite(self.rate) and float(self.rate) > 0.0):
+            raise ConfigError(f"smoothing rate={self.rate} must be a positive frame rate")
 
-    def gains(self) -> jax.Array:
-        """``(3,)`` float32 ``(alpha, gamma, eta)``: the traced argument of the smoother."""
-        return jnp.asarray((self.alpha, self.gamma, self.eta), jnp.float32)
+    def gains(self, dt: np.ndarray | None = None) -> jax.Array:
+        """The traced argument of the smoother.
+
+        Args:
+          dt: optional ``(T,)`` seconds from the previous frame to each frame (entry 0 is not
+            used: the first frame starts the smoother).
+
+        Returns:
+          ``(3,)`` float32 ``(alpha, gamma, eta)`` as given (per frame at ``rate``) without
+          ``dt``; with it, ``(T, 3)`` float32 gains of each frame for its own time step (see the
+          module doc).
+        """
+        if dt is None:
+            return jnp.asarray((self.alpha, self.gamma, self.eta), jnp.float32)
+        dt = np.asarray(dt, np.float64)
+        if dt.ndim != 1 or not np.isfinite(dt).all() or (dt[1:] <= 0).any():
+            raise ConfigError("dt must be (T,) finite seconds, positive after the first frame")
+        n = np.maximum(dt, 0.0) * float(self.rate)
+        per = np.stack(
+            [
+                1.0 - (1.0 - float(self.alpha)) ** n,
+                1.0 - (1.0 - float(self.gamma)) ** n,
+                float(self.eta) * n,
+            ],
+            axis=-1,
+        )
+        return jnp.asarray(per, jnp.float32)
 
 
 PAPER_SMOOTHING = SmoothingParams()
@@ -90,7 +133,8 @@ def smooth_motion(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Arra
     Args:
       y: ``(T, n)`` a motion padded to ``T`` frames.
       length: ``()`` int, its true length; later frames are returned as the input.
-      gains: ``(3,)`` ``SmoothingParams.gains()``.
+      gains: ``(3,)`` ``SmoothingParams.gains()`` (every frame), or ``(T, 3)``
+        ``SmoothingParams.gains(dt)`` (frame ``t`` uses row ``t``).
 
     Returns:
       ``(T, n)`` the smoothed motion.
@@ -98,8 +142,8 @@ def smooth_motion(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Arra
 
     def scan_step(carry, inp):
         s_prev, b_prev = carry
-        y_t, t = inp
-        s_t, b_t = step(s_prev, b_prev, y_t, gains)
+        y_t, t, g_t = inp
+        s_t, b_t = step(s_prev, b_prev, y_t, g_t)
         live = t < length
         s_t = jnp.where(live, s_t, s_prev)
         b_t = jnp.where(live, b_t, b_prev)
@@ -107,23 +151,29 @@ def smooth_motion(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Arra
 
     s0 = y[0]
     ts = jnp.arange(1, y.shape[0])
-    _, rest = jax.lax.scan(scan_step, (s0, jnp.zeros_like(s0)), (y[1:], ts))
+    per_frame = jnp.broadcast_to(gains, (y.shape[0], 3))[1:]
+    _, rest = jax.lax.scan(scan_step, (s0, jnp.zeros_like(s0)), (y[1:], ts, per_frame))
     return jnp.concatenate([s0[None], rest], axis=0)
 
 
 def _smooth_batch(y: jax.Array, lengths: jax.Array, gains: jax.Array) -> jax.Array:
-    return jax.vmap(smooth_motion, in_axes=(0, 0, None))(y, lengths, gains)
+    per_motion = 0 if gains.ndim == 3 else None  # (B, T, 3) gains of each motion's frames
+    return jax.vmap(smooth_motion, in_axes=(0, 0, per_motion))(y, lengths, gains)
 
 
 _smooth_batch = jit(_smooth_batch)
 
 
-def smooth(y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING) -> jax.Array:
+def smooth(
+    y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING, times: np.ndarray | None = None
+) -> jax.Array:
     """Smooth one motion.
 
     Args:
       y: ``(T, n)`` joint angles over time (T >= 1).
       params: gains; defaults are the paper's.
+      times: optional ``(T,)`` seconds of the frames: the gains follow each frame's time step
+        (``SmoothingParams.gains(dt)``); ``None``: frames ``1 / params.rate`` apart.
 
     Returns:
       ``(T, n)`` smoothed motion, same dtype.
@@ -131,11 +181,21 @@ def smooth(y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING) -> jax.Array
     y = jnp.asarray(y)
     if y.ndim != 2 or y.shape[0] < 1:
         raise ConfigError(f"smooth expects a (T, n) motion with T >= 1, got shape {y.shape}")
-    return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), params.gains())[0]
+    if times is None:
+        gains = params.gains()
+    else:
+        t = np.asarray(times, np.float64)
+        if t.shape != (y.shape[0],):
+            raise ConfigError(f"times must be ({y.shape[0]},) seconds, got shape {t.shape}")
+        gains = params.gains(np.diff(t, prepend=t[0]))
+    return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), gains)[0]
 
 
 def smooth_batch(
-    y: jax.Array, lengths: jax.Array, params: SmoothingParams = PAPER_SMOOTHING
+    y: jax.Array,
+    lengths: jax.Array,
+    params: SmoothingParams = PAPER_SMOOTHING,
+    times: np.ndarray | None = None,
 ) -> jax.Array:
     """Smooth a padded batch of motions in one call.
 
@@ -143,6 +203,9 @@ def smooth_batch(
       y: ``(B, T, n)`` motions padded to a common ``T``.
       lengths: ``(B,)`` int, the true length of each motion (1..T).
       params: gains.
+      times: optional ``(B, T)`` seconds of each motion's frames (increasing over its length;
+        padding entries are not used): gains per frame time step; ``None``: frames
+        ``1 / params.rate`` apart.
 
     Returns:
       ``(B, T, n)``; entries past a motion's length are the input, unchanged.
@@ -150,4 +213,15 @@ def smooth_batch(
     y = jnp.asarray(y)
     if y.ndim != 3:
         raise ConfigError(f"smooth_batch expects (B, T, n) motions, got shape {y.shape}")
-    return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), params.gains())
+    lengths = np.asarray(lengths, np.int64)
+    if times is None:
+        gains = params.gains()
+    else:
+        t = np.asarray(times, np.float64)
+        if t.shape != y.shape[:2]:
+            raise ConfigError(f"times must be {y.shape[:2]} seconds, got shape {t.shape}")
+        dt = np.diff(t, axis=1, prepend=t[:, :1])
+        live = np.arange(t.shape[1])[None] < lengths[:, None]
+        dt = np.where(live, dt, 1.0 / params.rate)  # padding frames are not smoothed
+        gains = jnp.stack([params.gains(row) for row in dt])
+    return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), gains)

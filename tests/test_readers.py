@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from helpers import MSR_ROW, msr_text
 
-from jaxproj.exceptions import InputError
+from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.readers import Recording, read_skeleton
 from jaxproj.skeleton import JOINT_NAMES, J
 
@@ -112,11 +112,40 @@ def test_auto_detects_by_content_when_extension_says_nothing(tmp_path: Path) -> 
     assert read_skeleton(write(tmp_path / "z", utk_text(sdk))).format == "utkinect"
 
 
-def test_utkinect_repeated_frame_numbers_keep_first_in_file_order(tmp_path: Path) -> None:
+def test_utkinect_repeated_frame_numbers_keep_first_then_order_by_frame(tmp_path: Path) -> None:
     sdk = motion(6, seed=1)
     path = write(tmp_path / "joints_s02_e01.txt", utk_text(sdk, [5, 6, 6, 7, 5, 3]))
     rec = read_skeleton(path)
-    np.testing.assert_array_equal(rec.positions, sdk[[0, 1, 3, 5]].astype(np.float32))
+    # frames 3, 5, 6, 7: the first line of each number, ordered by frame number
+    np.testing.assert_array_equal(rec.positions, sdk[[5, 0, 1, 3]].astype(np.float32))
+    np.testing.assert_allclose(rec.times, np.array([0, 2, 3, 4]) / 30.0, rtol=0, atol=1e-12)
+    assert rec.time_source == "frame numbers at 30 fps"
+
+
+def test_time_axis_of_every_format_and_the_fps_override(tmp_path: Path) -> None:
+    sdk = motion(4)
+    msr = read_skeleton(write(tmp_path / "a01_s01_e01_skeleton3D.txt", msr_text(sdk)))
+    np.testing.assert_allclose(msr.times, np.arange(4) / 15.0, rtol=0, atol=1e-12)
+    assert msr.time_source == "assumed 15 fps" and msr.fps == pytest.approx(15.0)
+    csv = read_skeleton(write(tmp_path / "c.csv", csv_text(sdk)))
+    np.testing.assert_allclose(csv.times, np.arange(4) / 30.0, rtol=0, atol=1e-12)
+    utk = read_skeleton(write(tmp_path / "u.txt", utk_text(sdk, [10, 12, 16, 18])))
+    np.testing.assert_allclose(utk.times, np.array([0, 2, 6, 8]) / 30.0, rtol=0, atol=1e-12)
+    over = read_skeleton(tmp_path / "u.txt", fps=24.0)
+    np.testing.assert_allclose(over.times, np.arange(4) / 24.0, rtol=0, atol=1e-12)
+    assert over.time_source == "given 24 fps"
+    times = np.array([1.0, 1.1, 1.25, 1.3])
+    npz = read_skeleton(write(tmp_path / "t.npz", npz_bytes(positions=sdk, times=times)))
+    np.testing.assert_allclose(npz.times, times - 1.0, rtol=0, atol=1e-12)
+    assert npz.time_source == "file"
+    rate = read_skeleton(write(tmp_path / "f.npz", npz_bytes(positions=sdk, fps=np.float64(60))))
+    np.testing.assert_allclose(rate.times, np.arange(4) / 60.0, rtol=0, atol=1e-12)
+    with pytest.raises(InputError, match="increase strictly"):
+        read_skeleton(write(tmp_path / "b.npz", npz_bytes(positions=sdk, times=times[::-1])))
+    with pytest.raises(InputError, match=r"times has shape"):
+        read_skeleton(write(tmp_path / "s.npz", npz_bytes(positions=sdk, times=times[:2])))
+    with pytest.raises(ConfigError, match="fps"):
+        read_skeleton(tmp_path / "u.txt", fps=0.0)
 
 
 def test_zero_and_nonfinite_frames_are_kept_and_marked_invalid(tmp_path: Path) -> None:
