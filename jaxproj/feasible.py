@@ -8,8 +8,8 @@ while staying as close as it can to it:
 
 * positions within ``[robot.LOWER, robot.UPPER]`` on every frame (hard);
 * speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * VELOCITY_LIMITS`` per joint (hard);
-* acceleration ``|v_t - v_{t-1}| <= accel * min(dt_t, dt_{t-1})`` (``v_t`` the speed of step
-  ``t``), a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint: full speed in ~0.1 s).
+* acceleration ``|v_t - v_{t-1}| / ((dt_t + dt_{t-1}) / 2) <= accel`` (``v_t`` the speed of
+  step ``t``), a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint).
   The NAO's documentation gives no acceleration limit; the bound is ours: full speed in ~0.1 s,
   so the speed limit is never reached by a jump. Chosen on the training subjects (MSR Action3D
   1,3,5,7,9, arm actions, relaxed projection, smoothed): median M_avg against the IK 3.42 deg at
@@ -37,6 +37,13 @@ ElbowYaw, handled explicitly on the target before the scan step (the ``(Elbow)Ya
   (within ``wrap_band`` of the limit) while the filter holds the other end keeps the held end
   until the target has stayed there ``wrap_patience`` seconds: flicker is ignored, a real move
   to the other end is followed (late by the patience, at the speed limit).
+
+Irregular time steps (frames the tracker dropped: UTKinect's frame numbers jump): the filter runs
+on a uniform grid (step: the motion's shortest step; at most ``4 T`` grid points), onto which
+the targets are interpolated linearly, and its result is read back at the motion's own times
+by linear interpolation. Times on the grid (UTKinect: frame numbers) read back exact grid
+values; between two read-back frames the speed is an average of the grid's speeds and the
+change of speed an average of its accelerations, so the limits hold at any timing.
 
 The filter works on the 26-joint configuration (``robot.JOINT_NAMES``); joints that do not move
 are left exactly as they are. ``feasibility_report`` measures a motion against the limits
@@ -178,7 +185,7 @@ def _forward(y: jax.Array, dt: jax.Array, params: jax.Array) -> jax.Array:
         cap = _stop_speed(jnp.abs(err), amax, step)
         want = jnp.sign(err) * jnp.minimum(jnp.abs(err) / step, cap)
         want = jnp.clip(want, -_stop_speed(q - lo, amax, step), _stop_speed(hi - q, amax, step))
-        window = amax * jnp.minimum(step, dt_prev)
+        window = amax * 0.5 * (step + dt_prev)
         v_new = jnp.clip(jnp.clip(want, v - window, v + window), -vmax, vmax)
         q_new = jnp.clip(q + v_new * step, lo, hi)
         v_new = (q_new - q) / step
@@ -235,6 +242,19 @@ def _steps(times: np.ndarray) -> np.ndarray:
     return np.concatenate([first, dt], axis=-1)
 
 
+def _grid(t: np.ndarray) -> tuple[float, int]:
+    """Uniform grid of one motion's times ``t`` ``(n,)``: (step, number of points)."""
+    if len(t) < 2:
+        return 1.0, 1
+    span = t[-1] - t[0]
+    step = max(float(np.diff(t).min()), span / (4 * (len(t) - 1)))
+    return step, int(np.ceil(span / step - 1e-9)) + 1
+
+
+def _bucket(n: int) -> int:
+    return max(16, 1 << (int(n) - 1).bit_length())
+
+
 def make_feasible(
     angles: np.ndarray,
     times: np.ndarray,
@@ -250,7 +270,7 @@ def make_feasible(
       config: the limits and options.
 
     Returns:
-      float32 array of ``angles``' shape.
+      float32 array of ``angles``' shape (entries past a motion's length: the input).
 
     Raises:
       ConfigError: shapes that do not match, non-finite values, times not increasing.
@@ -274,12 +294,33 @@ def make_feasible(
     dt = _steps(t)
     if (dt[:, 1:][live[:, 1:]] <= 0).any():
         raise ConfigError("times must increase strictly over each motion's length")
-    q_safe = np.where(live[..., None], q, 0.0).astype(np.float32)
-    out = _feasible_batch(
-        q_safe, dt.astype(np.float32), n.astype(np.int32), config.params(),
-        zero_phase=config.zero_phase,
-    )  # fmt: skip
-    out = np.where(live[..., None], np.asarray(out), q)
+    grids = [_grid(t[b, : n[b]]) for b in range(len(n))]
+    size = _bucket(max(g for _, g in grids))
+    targets = np.zeros((len(n), size, q.shape[-1]), np.float32)
+    steps = np.ones((len(n), size), np.float32)
+    for b, (step, g) in enumerate(grids):
+        tb, qb = t[b, : n[b]], q[b, : n[b]]
+        tg = np.minimum(tb[0] + step * np.arange(g), tb[-1])
+        for j in range(q.shape[-1]):
+            targets[b, :g, j] = np.interp(tg, tb, qb[:, j])
+        targets[b, g:] = targets[b, g - 1]
+        steps[b] = step
+    grid_out = np.asarray(
+        _feasible_batch(
+            targets, steps, np.array([g for _, g in grids], np.int32), config.params(),
+            zero_phase=config.zero_phase,
+        )  # fmt: skip
+    )
+    out = q.copy()
+    for b, (step, g) in enumerate(grids):
+        tb = t[b, : n[b]]
+        x = np.clip((tb - tb[0]) / step, 0.0, g - 1)
+        i0 = np.minimum(np.floor(x + 1e-9).astype(np.int64), g - 1)
+        i1 = np.minimum(i0 + 1, g - 1)
+        w = np.clip(x - i0, 0.0, 1.0)[:, None]
+        on_grid = (w < 1e-6)[:, 0]
+        mixed = (1.0 - w) * grid_out[b, i0] + w * grid_out[b, i1]
+        out[b, : n[b]] = np.where(on_grid[:, None], grid_out[b, i0], mixed)
     return out[0] if one else out
 
 
@@ -324,7 +365,7 @@ def feasibility_report(
                    max_step_deg=0.0, max_step_joint="", steps_over_30deg=0)  # fmt: skip
     if len(step) > 1:
         v = step / dt
-        acc = np.abs(np.diff(v, axis=0)) / np.minimum(dt[1:], dt[:-1])
+        acc = np.abs(np.diff(v, axis=0)) / (0.5 * (dt[1:] + dt[:-1]))
         out["accel_violation_frames"] = int((acc > 1.01 * config.accel).any(axis=1).sum())
         out["max_accel"] = float(acc.max())
     else:

@@ -36,7 +36,7 @@ from jaxproj import ik, robot
 from jaxproj._jit import jit
 from jaxproj.engine import Model, check_neighbours, project_batch
 from jaxproj.exceptions import ConfigError
-from jaxproj.feasible import FeasibleConfig, feasible_motion
+from jaxproj.feasible import FeasibleConfig, make_feasible
 from jaxproj.projection import FullConfig, Projector
 from jaxproj.skeleton import descriptor
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_motion
@@ -92,8 +92,6 @@ def _motion(
     valid: jax.Array,
     length: jax.Array,
     gains: jax.Array,
-    dt: jax.Array,
-    feasible_params: jax.Array | None,
     *,
     method: str,
     n_l: int,
@@ -102,7 +100,6 @@ def _motion(
     bones: str | tuple[str, ...],
     mirror: bool,
     smooth: bool,
-    zero_phase: bool,
 ) -> tuple[jax.Array, jax.Array]:
     """One padded motion ``(T, 20, 3)`` -> ``((T, 26) angles, (T,) valid)`` (see module doc)."""
     d, ok = descriptor(positions, bones=bones, mirror=mirror)
@@ -119,15 +116,12 @@ def _motion(
         q = jnp.clip(q, lo, hi)
     standing = jnp.asarray(robot.STANDING_POSTURE[robot.DRIVEN_INDEX], q.dtype)
     q = jnp.where(jnp.any(ok), q, standing)
-    q = ik.driven_to_full(q)
-    if feasible_params is not None:
-        q = feasible_motion(q, dt, length, feasible_params, zero_phase=zero_phase)
-    return q, ok
+    return ik.driven_to_full(q), ok
 
 
 _motion_jit = jit(
     _motion,
-    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth", "zero_phase"),
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth"),
 )
 
 
@@ -146,8 +140,8 @@ def retarget(
     times: np.ndarray | None = None,
     feasible: FeasibleConfig | None = None,
 ) -> RetargetResult:
-    """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip
-    [-> feasible]).
+    """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
+    then, with ``feasible``, ``feasible.make_feasible``).
 
     Args:
       positions: ``(T, 20, 3)`` joint positions, Kinect SDK order.
@@ -203,7 +197,7 @@ def retarget(
     pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
     dt = np.diff(stamps, prepend=stamps[0])
-    dt = np.concatenate([dt, np.full(size - t, dt[-1] if t > 1 else 1.0 / params.rate)])
+    dt = np.concatenate([dt, np.full(size - t, 1.0 / params.rate)])
     gains = params.gains() if times is None else params.gains(dt)
     angles, ok_out = _motion_jit(
         p,
@@ -211,8 +205,6 @@ def retarget(
         ok,
         np.int32(t),
         gains,
-        dt.astype(np.float32),
-        None if feasible is None else feasible.params(),
         method=method,
         n_l=n_l,
         n_m=n_m,
@@ -220,6 +212,8 @@ def retarget(
         bones=bones,
         mirror=mirror,
         smooth=smoothing is not None,
-        zero_phase=feasible is not None and feasible.zero_phase,
     )
-    return RetargetResult(np.asarray(angles)[:t], np.asarray(ok_out)[:t], stamps)
+    angles = np.asarray(angles)[:t]
+    if feasible is not None:
+        angles = make_feasible(angles, stamps, config=feasible)
+    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps)

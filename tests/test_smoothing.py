@@ -136,3 +136,29 @@ def test_step_follows_the_documented_rule():
     s2, b2 = smoothing.step(jnp.asarray(s_prev), jnp.asarray(b_prev), jnp.asarray(s_prev), wide)
     np.testing.assert_array_equal(np.asarray(s2), s_prev)
     np.testing.assert_allclose(np.asarray(b2), (1 - gamma) * b_prev, atol=1e-7)
+
+
+def test_default_gains_behave_the_same_at_15_and_30_fps() -> None:
+    """Gains follow the time step (``SmoothingParams.gains(dt)``): the same continuous motion
+    sampled at 15 and 30 fps smooths to nearly the same curve; per-frame gains do not."""
+
+    def signal(t: np.ndarray) -> np.ndarray:
+        base = np.stack([np.sin(2 * np.pi * 0.4 * t), 0.8 * (t > 1.75)], axis=1)  # off-grid step
+        return (2.0 * base).astype(np.float32)
+
+    t15 = np.arange(60) / 15.0
+    t30 = np.arange(120) / 30.0
+    y15 = np.asarray(smooth(signal(t15), PAPER_SMOOTHING, times=t15))
+    y30 = np.asarray(smooth(signal(t30), PAPER_SMOOTHING, times=t30))
+    timed = np.abs(y30[::2] - y15).max()
+    per_frame = np.abs(np.asarray(smooth(signal(t30)))[::2] - y15).max()
+    assert timed < 0.35 * per_frame, (timed, per_frame)
+    assert timed < 0.15  # rad, on a 4 rad peak-to-peak signal with a 1.6 rad step
+    # at the reference rate the time-step gains are the given gains
+    np.testing.assert_allclose(
+        np.asarray(PAPER_SMOOTHING.gains(np.full(5, 1 / 15)))[1:],
+        np.tile(np.asarray(PAPER_SMOOTHING.gains()), (4, 1)),
+        rtol=1e-6,
+    )
+    with pytest.raises(ConfigError, match="rate"):
+        SmoothingParams(rate=0.0)
