@@ -15,7 +15,7 @@ from pathlib import Path
 
 from jaxproj import __version__
 from jaxproj.engine import HEAD_BANDWIDTH
-from jaxproj.exceptions import ConfigError, InputError, JaxprojError
+from jaxproj.exceptions import ConfigError, JaxprojError
 
 METHODS = ("ik", "relaxed", "full")
 
@@ -63,9 +63,8 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _retarget(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from jaxproj import engine, robot
+    from jaxproj import engine, feasible
+    from jaxproj.motion_io import Motion, save_motion
     from jaxproj.readers import read_skeleton
     from jaxproj.retarget import retarget
     from jaxproj.smoothing import PAPER_SMOOTHING
@@ -86,7 +85,10 @@ def _retarget(args: argparse.Namespace) -> int:
                     f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
                 )
         bones, mirror = model.config.bones, model.config.mirror
-    rec = read_skeleton(args.input, format=args.format)
+    out = Path(args.out)
+    if out.suffix.lower() not in (".npz", ".csv", ".json"):
+        raise ConfigError(f"--out {out}: use a .npz, .csv or .json file name")
+    rec = read_skeleton(args.input, format=args.format, fps=args.fps)
     result = retarget(
         rec.positions,
         rec.valid,
@@ -97,24 +99,35 @@ def _retarget(args: argparse.Namespace) -> int:
         bones=bones,
         mirror=mirror,
         smoothing=PAPER_SMOOTHING if args.smooth else None,
+        times=rec.times,
     )
-    out = Path(args.out)
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        with open(out, "wb") as fh:
-            np.savez(
-                fh,
-                angles=result.angles,
-                joint_names=np.array(robot.JOINT_NAMES),
-                valid=result.valid,
-                driven_joints=np.array(robot.DRIVEN_JOINTS),
-                method=np.array(args.method),
-                smoothed=np.array(bool(args.smooth)),
-            )
-    except OSError as e:
-        raise InputError(out, f"cannot write output: {e.strerror or e}") from None
+    angles = result.angles
+    before = feasible.feasibility_report(angles, result.times)
+    if args.feasible:
+        angles = feasible.make_feasible(angles, result.times)
+    after = feasible.feasibility_report(angles, result.times)
+    meta = {
+        "method": args.method,
+        "smoothed": bool(args.smooth),
+        "feasible": bool(args.feasible),
+        "source": str(args.input),
+        "time_source": rec.time_source,
+        "fps": round(rec.fps, 6),
+    }
+    motion = Motion(angles, result.times, result.valid, rec.positions, meta)
+    save_motion(out, motion, joints=args.joints)
     n, nv = len(result.valid), int(result.valid.sum())
-    print(f"{args.input}: {n} frames ({nv} valid) -> {out} [method={args.method}]")
+    print(
+        f"{args.input}: {n} frames ({nv} valid, {result.times[-1]:.2f} s, {rec.time_source}) -> "
+        f"{out} [method={args.method}]"
+    )
+    label = "feasible" if args.feasible else "not filtered (--no-feasible)"
+    print(
+        f"  speed-limit frames {before['speed_violation_frames']} -> "
+        f"{after['speed_violation_frames']}, max step {before['max_step_deg']:.1f} -> "
+        f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
+        f"{after['max_accel']:.0f} rad/s^2 [{label}]"
+    )
     return 0
 
 
@@ -271,7 +284,12 @@ def build_parser() -> argparse.ArgumentParser:
         "retarget", formatter_class=fmt, help="retarget a skeleton recording to NAO joint angles"
     )
     pr.add_argument("input", help="recording: MSR Action3D / UTKinect text, NPZ or CSV")
-    pr.add_argument("--out", required=True, help="output .npz (angles, joint_names, valid)")
+    pr.add_argument(
+        "--out",
+        required=True,
+        help="output: .npz (angles, times, valid, joint_names, positions, meta), .csv (time + 26 "
+        "joints, rad) or .json (NAOqi ALMotion.angleInterpolation arguments)",
+    )
     pr.add_argument(
         "--format",
         default="auto",
@@ -303,7 +321,29 @@ def build_parser() -> argparse.ArgumentParser:
         "--smooth",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="double exponential smoothing (alpha 0.75, gamma 0.3, eta 0.15)",
+        help="double exponential smoothing (alpha 0.75, gamma 0.3, eta 0.15 per frame at 15 fps; "
+        "scaled to each frame's time step)",
+    )
+    pr.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate of the input (None: the file's own timing: UTKinect frame numbers at "
+        "30 fps, MSR Action3D 15 fps, CSV / NPZ 30 fps unless the NPZ has times or fps)",
+    )
+    pr.add_argument(
+        "--feasible",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="make the output robot-feasible: joint limits, 90%% of the NAO's speed limits, "
+        "80 rad/s^2 (jaxproj.feasible)",
+    )
+    pr.add_argument(
+        "--joints",
+        default="upper",
+        choices=("upper", "body"),
+        help="joints in a .json output: upper = NAOqi's Head, LArm, RArm chains (the legs stay "
+        "with the robot's own balance); body = all 26",
     )
     pr.set_defaults(func=_retarget)
 

@@ -43,7 +43,8 @@ def test_retarget_msr_text_with_lost_frames(tmp_path, capsys):
     src = tmp_path / "a13_s02_e02_skeleton3D.txt"
     _write_msr(src, seq.positions)
     out = tmp_path / "out.npz"
-    code, stdout, _ = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth")
+    argv = ["retarget", str(src), "--out", str(out), "--no-smooth", "--no-feasible"]
+    code, stdout, _ = _run(capsys, *argv)
     assert code == 0 and "valid" in stdout
     res = np.load(out)
     angles, valid = res["angles"], res["valid"]
@@ -67,13 +68,60 @@ def test_retarget_smoothing_changes_the_motion_and_stays_in_limits(tmp_path, cap
     src = tmp_path / "m.npz"
     np.savez(src, positions=seq.positions)
     a, b = tmp_path / "a.npz", tmp_path / "b.npz"
-    assert _run(capsys, "retarget", str(src), "--out", str(a))[0] == 0
-    assert _run(capsys, "retarget", str(src), "--out", str(b), "--no-smooth")[0] == 0
+    assert _run(capsys, "retarget", str(src), "--out", str(a), "--no-feasible")[0] == 0
+    argv = ["retarget", str(src), "--out", str(b), "--no-smooth", "--no-feasible"]
+    assert _run(capsys, *argv)[0] == 0
     sa, sb = np.load(a)["angles"], np.load(b)["angles"]
     assert not np.allclose(sa, sb)
     assert (sa >= robot.LOWER).all() and (sa <= robot.UPPER).all()
     jerk = [np.mean(np.diff(x[:, robot.DRIVEN_INDEX], n=3, axis=0) ** 2) for x in (sa, sb)]
     assert jerk[0] < jerk[1]
+
+
+def _utk_text(positions: np.ndarray, frames: np.ndarray) -> str:
+    pairs = zip(frames, positions, strict=True)
+    rows = [f"{f} " + " ".join(f"{v:.6f}" for v in p.reshape(-1)) for f, p in pairs]
+    return "\n".join(rows) + "\n"
+
+
+def test_retarget_utkinect_to_robot_files_with_time_and_no_speed_violation(tmp_path, capsys):
+    """The issue's path: a UTKinect recording -> CSV and NAOqi JSON a NAO can play."""
+    import json
+
+    from jaxproj.motion_io import load_motion
+
+    from jaxproj.feasible import feasibility_report
+
+    seq = datasets.utkinect_action3d(subjects=[3], segments=False)[0]
+    n = 160
+    src = tmp_path / "joints_s03_e01.txt"
+    src.write_text(_utk_text(seq.positions[:n], seq.frame_numbers[:n]))
+    want_t = (seq.frame_numbers[:n] - seq.frame_numbers[0]) / 30.0
+    raw = tmp_path / "raw.npz"
+    assert _run(capsys, "retarget", str(src), "--out", str(raw), "--no-feasible")[0] == 0
+    raw_m = load_motion(raw)
+    np.testing.assert_allclose(raw_m.times, want_t, rtol=0, atol=1e-9)
+    assert feasibility_report(raw_m.angles, raw_m.times)["speed_violation_frames"] > 0
+    for ext in ("csv", "json", "npz"):
+        out = tmp_path / f"motion.{ext}"
+        code, stdout, _ = _run(capsys, "retarget", str(src), "--out", str(out))
+        assert code == 0 and "speed-limit frames" in stdout and "[feasible]" in stdout
+        m = load_motion(out)
+        np.testing.assert_allclose(m.times, want_t, rtol=0, atol=1e-6)
+        rep = feasibility_report(m.angles, m.times)
+        assert rep["speed_violation_frames"] == 0 and rep["limit_violation_frames"] == 0
+    doc = json.loads((tmp_path / "motion.json").read_text())
+    assert set(doc) >= {"names", "angleLists", "timeLists", "isAbsolute"}
+    assert doc["isAbsolute"] is True and len(doc["names"]) == 14
+    assert all(len(a) == n for a in doc["angleLists"]) and doc["timeLists"][0][0] > 0
+    header = (tmp_path / "motion.csv").read_text().splitlines()[0].split(",")
+    assert header == ["time", *robot.JOINT_NAMES]
+    # --fps replaces the file's timing
+    fast = tmp_path / "fast.npz"
+    assert _run(capsys, "retarget", str(src), "--out", str(fast), "--fps", "60")[0] == 0
+    np.testing.assert_allclose(load_motion(fast).times, np.arange(n) / 60.0, atol=1e-9)
+    code, _, err = _run(capsys, "retarget", str(src), "--out", str(tmp_path / "x.txt"))
+    assert code == 2 and ".npz, .csv or .json" in err
 
 
 def test_retarget_csv_and_no_valid_frame(tmp_path, capsys):
