@@ -94,9 +94,14 @@ class Camera:
     lookat: tuple[float, float, float] = (0.0, 0.0, -0.02)
 
     def __post_init__(self) -> None:
-        values = (self.azimuth, self.elevation, self.distance, *self.lookat)
-        if len(self.lookat) != 3 or not all(math.isfinite(float(v)) for v in values):
+        try:
+            lookat = tuple(float(v) for v in self.lookat)
+            values = (float(self.azimuth), float(self.elevation), float(self.distance), *lookat)
+        except (TypeError, ValueError):
+            values, lookat = (math.nan,), ()
+        if len(lookat) != 3 or not all(math.isfinite(v) for v in values):
             raise ConfigError(f"camera values must be finite numbers, lookat 3 of them: {self}")
+        object.__setattr__(self, "lookat", lookat)
         if not -90.0 < self.elevation < 90.0:
             raise ConfigError(
                 f"camera elevation must lie in (-90, 90) degrees, got {self.elevation}"
@@ -216,9 +221,10 @@ class _HumanPanel:
 
         from jaxproj.skeleton import body_frame
 
-        p = np.asarray(positions, dtype=np.float32)
+        raw = np.asarray(positions, dtype=np.float32)
+        p = np.where(np.isfinite(raw), raw, 0.0)  # non-finite frames: not ok, drawn empty
         rot, ok = body_frame(jnp.asarray(p))
-        rot, ok = np.asarray(rot), np.asarray(ok)
+        rot, ok = np.asarray(rot), np.asarray(ok) & np.isfinite(raw).all(axis=(1, 2))
         centred = np.where(ok[:, None, None], p - p[:, J["HipCenter"] : J["HipCenter"] + 1], 0.0)
         self.points = np.einsum("tij,tkj->tki", rot, centred)  # (T, 20, 3) body frame
         self.ok = ok & np.isfinite(self.points).all(axis=(1, 2))
