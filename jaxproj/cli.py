@@ -265,6 +265,30 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected WIDTHxHEIGHT in pixels, e.g. 480x360, got {text!r}"
+        ) from None
+    return width, height
+
+
+def _render(args: argparse.Namespace) -> int:
+    from jaxproj import render
+    from jaxproj.motion_io import load_motion
+
+    out = Path(args.out)
+    render.check_video_path(out)  # before the (slow) rendering
+    motion = load_motion(args.motion)
+    path, n, backend, fps = render.render_to_file(
+        motion, out, fps=args.fps, backend=args.backend, size=args.size, stride=args.stride
+    )
+    print(f"{args.motion}: {n} frames -> {path} [backend={backend}, {fps:g} fps]")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
     fmt = argparse.ArgumentDefaultsHelpFormatter
@@ -423,6 +447,29 @@ def build_parser() -> argparse.ArgumentParser:
     pd.add_argument("--out", default="jaxproj-report", help="report folder")
     pd.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
     pd.set_defaults(func=_demo)
+
+    pv = sub.add_parser(
+        "render", formatter_class=fmt, help="render a robot motion file to an MP4 / GIF video"
+    )
+    pv.add_argument("motion", help="motion file: .npz, .csv or NAOqi .json (jaxproj.motion_io)")
+    pv.add_argument(
+        "--out", required=True, help="output video: .mp4 (needs imageio-ffmpeg) or .gif"
+    )
+    pv.add_argument(
+        "--backend",
+        default="auto",
+        choices=("auto", "mujoco", "matplotlib"),
+        help="robot panel: MuJoCo OpenGL (needs MUJOCO_GL=egl / osmesa or a display), matplotlib "
+        "stick figure, or auto (MuJoCo, else matplotlib)",
+    )
+    pv.add_argument("--stride", type=int, default=1, help="render every N-th frame")
+    pv.add_argument(
+        "--size", type=_parse_size, default=(480, 360), help="one panel's WIDTHxHEIGHT, pixels"
+    )
+    pv.add_argument(
+        "--fps", type=float, default=None, help="playback rate (None: the motion's rate / stride)"
+    )
+    pv.set_defaults(func=_render)
 
     return p
 

@@ -1,0 +1,353 @@
+"""Rendering (jaxproj.render): frames from both backends, the no-OpenGL fallback, videos, the
+notebook helper and the `jaxproj render` command. CPU only, small motions and sizes."""
+
+import base64
+import gc
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import types
+import warnings
+
+import imageio.v2 as iio2
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from jaxproj import render, robot
+from jaxproj.cli import main
+from jaxproj.exceptions import ConfigError, InputError
+from jaxproj.motion_io import Motion, save_motion
+from jaxproj.render import RenderError, render_frames, render_motion, save_video, show
+from jaxproj.skeleton import J
+
+SIZE = (120, 90)  # one panel, (width, height)
+LABEL_ROWS = 20  # the text line at the top of a matplotlib panel
+
+
+def _skeleton(arm_up: float = 0.0) -> np.ndarray:
+    """(20, 3) a person facing the sensor (Kinect frame: y up, facing -z); ``arm_up`` raises
+    the left forearm (m)."""
+    p = {
+        "HipCenter": (0.0, 0.0, 2.0), "Spine": (0.0, 0.1, 2.0),
+        "ShoulderCenter": (0.0, 0.45, 2.0), "Head": (0.0, 0.65, 2.0),
+        "ShoulderLeft": (-0.18, 0.42, 2.0), "ElbowLeft": (-0.22, 0.15, 2.0),
+        "WristLeft": (-0.24, -0.08 + arm_up, 2.0 - arm_up / 2),
+        "HandLeft": (-0.25, -0.15 + arm_up, 2.0),
+        "ShoulderRight": (0.18, 0.42, 2.0), "ElbowRight": (0.22, 0.15, 2.0),
+        "WristRight": (0.24, -0.08, 2.0), "HandRight": (0.25, -0.15, 2.0),
+        "HipLeft": (-0.1, -0.05, 2.0), "KneeLeft": (-0.1, -0.45, 2.0),
+        "AnkleLeft": (-0.1, -0.85, 2.0), "FootLeft": (-0.1, -0.9, 1.92),
+        "HipRight": (0.1, -0.05, 2.0), "KneeRight": (0.1, -0.45, 2.0),
+        "AnkleRight": (0.1, -0.85, 2.0), "FootRight": (0.1, -0.9, 1.92),
+    }  # fmt: skip
+    out = np.zeros((20, 3), np.float32)
+    for name, xyz in p.items():
+        out[J[name]] = xyz
+    return out
+
+
+def _arm_up() -> np.ndarray:
+    q = robot.STANDING_POSTURE.copy()
+    q[robot.IDX["LShoulderPitch"]] = -1.4  # left arm raised forward-up
+    q[robot.IDX["LShoulderRoll"]] = 0.3
+    return q
+
+
+def _motion(angles: list[np.ndarray], positions: bool = True, fps: float = 15.0) -> Motion:
+    n = len(angles)
+    pos = None
+    if positions:
+        pos = np.stack([_skeleton(0.3 * i) for i in range(n)])
+    return Motion(np.stack(angles), np.arange(n) / fps, np.ones(n, bool), pos, {"method": "ik"})
+
+
+def _ink(img: np.ndarray) -> int:
+    """Pixels that are not (near) white: what was drawn on a matplotlib panel."""
+    return int((img.astype(int).sum(axis=-1) < 3 * 230).sum())
+
+
+def _changed(a: np.ndarray, b: np.ndarray) -> int:
+    return int((np.abs(a.astype(int) - b.astype(int)).sum(axis=-1) > 30).sum())
+
+
+def test_matplotlib_frames_have_both_panels(capsys):
+    stand = robot.STANDING_POSTURE
+    m = _motion([stand, stand, _arm_up(), _arm_up(), stand])
+    frames = render_frames(m, backend="matplotlib", size=SIZE)
+    w, h = SIZE
+    assert frames.shape == (5, h, 2 * w, 3) and frames.dtype == np.uint8
+    human, nao = frames[:, :, :w], frames[:, :, w:]
+    for t in range(5):
+        assert _ink(human[t, LABEL_ROWS:]) > 150  # a skeleton is drawn
+        assert _ink(nao[t, LABEL_ROWS:]) > 150  # and a robot
+    # the robot panel follows the angles: same angles, same picture (below the clock line) ...
+    assert _changed(nao[0, LABEL_ROWS:], nao[1, LABEL_ROWS:]) == 0
+    assert _changed(nao[2, LABEL_ROWS:], nao[3, LABEL_ROWS:]) == 0
+    # ... arm up vs arm down differ, and the human panel follows the positions
+    assert _changed(nao[1, LABEL_ROWS:], nao[2, LABEL_ROWS:]) > 40
+    assert _changed(human[0, LABEL_ROWS:], human[1, LABEL_ROWS:]) > 10
+    assert capsys.readouterr().err == ""  # matplotlib asked for: no fallback message
+
+
+def test_without_positions_only_the_robot_and_stride():
+    m = _motion([robot.STANDING_POSTURE] * 5, positions=False)
+    frames = render_frames(m, backend="matplotlib", size=SIZE, stride=2)
+    assert frames.shape == (3, SIZE[1], SIZE[0], 3)  # frames 0, 2, 4; one panel
+
+
+def test_bad_options():
+    m = _motion([robot.STANDING_POSTURE], positions=False)
+    for kw, match in (
+        ({"backend": "vulkan"}, "backend"),
+        ({"size": (10, 10)}, "size"),
+        ({"size": (120.5, 90)}, "size"),
+        ({"stride": 0}, "stride"),
+        ({"camera": "front"}, "Camera"),
+    ):
+        with pytest.raises(ConfigError, match=match):
+            render_frames(m, **kw)
+    with pytest.raises(ConfigError, match="elevation"):
+        render.Camera(elevation=90.0)
+
+
+def _no_gl(*args, **kwargs):
+    raise RenderError("MuJoCo cannot create an OpenGL context for rendering (test): fix it")
+
+
+def test_auto_falls_back_to_matplotlib_with_one_stderr_line(monkeypatch, capsys):
+    monkeypatch.setattr(render, "_create_renderer", _no_gl)
+    m = _motion([robot.STANDING_POSTURE, _arm_up()], positions=False)
+    frames = render_frames(m, backend="auto", size=SIZE)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no OpenGL" in err and "matplotlib" in err
+    assert "MUJOCO_GL=egl" in err
+    np.testing.assert_array_equal(frames, render_frames(m, backend="matplotlib", size=SIZE))
+    with pytest.raises(RenderError, match="OpenGL"):
+        render_frames(m, backend="mujoco", size=SIZE)
+
+
+def _gl_expected_missing() -> bool:
+    """GLFW (MuJoCo's default) cannot open a context without a display."""
+    env = os.environ
+    return not env.get("MUJOCO_GL") and not env.get("DISPLAY") and not env.get("WAYLAND_DISPLAY")
+
+
+def _check_mujoco_frames(frames: np.ndarray) -> None:
+    """Real MuJoCo images: not blank, and the raised arm shows."""
+    assert frames.shape == (2, SIZE[1], SIZE[0], 3) and frames.dtype == np.uint8
+    for f in frames:
+        lit = (f.astype(int).sum(axis=-1) > 60).sum()  # the background is black
+        assert lit > 0.03 * f.shape[0] * f.shape[1]
+    assert _changed(frames[0], frames[1]) > 40
+
+
+def test_real_mujoco_renderer_renders_or_says_what_is_missing():
+    """No mock: MuJoCo's renderer under this process's MUJOCO_GL. It must render real pixels,
+    or (and only where no OpenGL can exist: GLFW without a display) raise the clear error."""
+    m = _motion([robot.STANDING_POSTURE, _arm_up()], positions=False)
+    try:
+        frames = render_frames(m, backend="mujoco", size=SIZE)
+    except RenderError as e:
+        msg = str(e)
+        assert "MUJOCO_GL" in msg and "backend='matplotlib'" in msg and "\n" not in msg
+        assert os.environ.get("MUJOCO_GL") or "needs a display" in msg
+        return
+    assert not _gl_expected_missing(), "GLFW rendered without a display?"
+    _check_mujoco_frames(frames)
+
+
+_EGL_SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import numpy as np
+    try:
+        from jaxproj import render, robot
+        from jaxproj.motion_io import Motion
+    except Exception as e:  # mujoco could not load EGL at import
+        print(json.dumps({"status": "import", "msg": repr(e)})); sys.exit()
+    q = robot.STANDING_POSTURE.copy()
+    up = q.copy(); up[robot.IDX["LShoulderPitch"]] = -1.4; up[robot.IDX["LShoulderRoll"]] = 0.3
+    m = Motion(np.stack([q, up]), np.arange(2) / 15, np.ones(2, bool))
+    try:
+        f = render.render_frames(m, backend="mujoco", size=(120, 90))
+    except render.RenderError as e:
+        print(json.dumps({"status": "render_error", "msg": str(e)})); sys.exit()
+    np.save(sys.argv[1], f)
+    print(json.dumps({"status": "ok"}))
+    """
+)
+
+
+def test_mujoco_renderer_with_egl_in_a_fresh_process(tmp_path):
+    """MUJOCO_GL is read when mujoco is imported: try EGL (NVIDIA or Mesa) in a new process."""
+    env = {**os.environ, "MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}
+    out = tmp_path / "frames.npy"
+    proc = subprocess.run(
+        [sys.executable, "-c", _EGL_SCRIPT, str(out)],
+        env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    if result["status"] == "import":
+        pytest.skip(f"mujoco cannot load EGL on this machine: {result['msg']}")
+    if result["status"] == "render_error":
+        assert "MUJOCO_GL=egl" in result["msg"] and "backend='matplotlib'" in result["msg"]
+        return
+    assert result["status"] == "ok"
+    _check_mujoco_frames(np.load(out))
+    assert "Exception ignored" not in proc.stderr  # the GL context was freed, not left to exit
+
+
+def _frames(n: int = 6, h: int = 48, w: int = 64) -> np.ndarray:
+    """Distinct, compressible frames: a bright square moving over a dark gradient."""
+    f = np.zeros((n, h, w, 3), np.uint8)
+    f[..., 2] = np.linspace(0, 120, w, dtype=np.uint8)
+    for i in range(n):
+        f[i, 8:24, 4 + 6 * i : 20 + 6 * i] = (250, 200, 40)
+    return f
+
+
+def _read_mp4(path) -> tuple[int, tuple[int, ...], float]:
+    """(frames, frame shape, fps) through imageio's ffmpeg reader, which leaves its pipes to
+    the garbage collector when closed (ResourceWarning, an error under pytest): ignored here."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResourceWarning)
+        with iio2.get_reader(path, format="FFMPEG") as r:
+            n = r.count_frames()
+            first = r.get_data(0)
+            fps = r.get_meta_data()["fps"]
+        gc.collect()
+    return n, first.shape, fps
+
+
+@pytest.fixture
+def no_sigint_fork(monkeypatch):
+    """imageio's ffmpeg *reader* starts ffmpeg with a preexec_fn, a fork that JAX warns about
+    (and pytest makes warnings errors); the library's own writer never forks."""
+    monkeypatch.setenv("IMAGEIO_FFMPEG_NO_PREVENT_SIGINT", "1")
+
+
+def test_save_video_gif_and_mp4_read_back(tmp_path, no_sigint_fork):
+    frames = _frames()
+    gif = save_video(frames, tmp_path / "a.gif", fps=10)
+    back = iio.imread(gif, index=None)
+    assert back.shape == frames.shape
+    assert iio.immeta(gif)["duration"] == 100
+    np.testing.assert_allclose(back[2, 16, 10], frames[2, 16, 10], atol=12)  # the square
+    mp4 = save_video(iter(list(frames)), tmp_path / "sub" / "a.mp4", fps=7.5)  # streamed
+    n, shape, fps = _read_mp4(mp4)
+    assert (n, shape, fps) == (6, (48, 64, 3), 7.5)
+    # H.264 wants even sides: an odd frame is padded by one row / column
+    odd = save_video(_frames(3, 47, 63), tmp_path / "odd.mp4", fps=5)
+    assert _read_mp4(odd)[:2] == (3, (48, 64, 3))
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.gif", "a.mp4", "odd.mp4", "sub"]
+
+
+@pytest.mark.parametrize("ext", ["gif", "mp4"])
+def test_save_video_is_atomic(tmp_path, ext):
+    def broken():
+        yield from _frames(2)
+        raise RuntimeError("renderer died")
+
+    with pytest.raises(RuntimeError, match="renderer died"):
+        save_video(broken(), tmp_path / f"v.{ext}", fps=10)
+    assert os.listdir(tmp_path) == []
+    with pytest.raises(ConfigError, match="uint8"):
+        save_video(_frames(2).astype(np.float32), tmp_path / f"v.{ext}", fps=10)
+    with pytest.raises(ConfigError, match="no frames"):
+        save_video(np.zeros((0, 8, 8, 3), np.uint8), tmp_path / f"v.{ext}", fps=10)
+    assert os.listdir(tmp_path) == []
+
+
+def test_save_video_errors(tmp_path, monkeypatch):
+    with pytest.raises(ConfigError, match=r"\.mp4, \.gif"):
+        save_video(_frames(2), tmp_path / "v.avi", fps=10)
+    with pytest.raises(ConfigError, match="fps"):
+        save_video(_frames(2), tmp_path / "v.gif", fps=0)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(InputError, match="cannot write"):
+        save_video(_frames(2), blocker / "v.gif", fps=10)
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # not installed
+    with pytest.raises(ConfigError, match="pip install imageio-ffmpeg"):
+        save_video(_frames(2), tmp_path / "v.mp4", fps=10)
+
+
+def test_render_motion_plays_in_real_time(tmp_path, no_sigint_fork):
+    m = _motion([robot.STANDING_POSTURE, _arm_up()] * 3, fps=30.0)
+    path = save_motion(tmp_path / "m.npz", m)
+    out = render_motion(path, tmp_path / "m.mp4", backend="matplotlib", size=SIZE, stride=2)
+    assert _read_mp4(out) == (3, (SIZE[1], 2 * SIZE[0], 3), 15.0)  # 30 fps / stride 2
+    res = render.render_to_file(m, tmp_path / "m.gif", backend="matplotlib", size=SIZE, fps=5)
+    assert (res.frames, res.backend, res.fps) == (6, "matplotlib", 5.0)
+    assert iio.imread(res.path, index=None).shape == (6, SIZE[1], 2 * SIZE[0], 3)
+
+
+def test_show_without_and_with_ipython(monkeypatch):
+    m = _motion([robot.STANDING_POSTURE, _arm_up()], positions=False)
+    monkeypatch.setitem(sys.modules, "IPython", None)
+    frames = show(m, backend="matplotlib", size=SIZE)
+    assert isinstance(frames, np.ndarray) and frames.shape == (2, SIZE[1], SIZE[0], 3)
+
+    class HTML:
+        def __init__(self, data):
+            self.data = data
+
+    display = types.ModuleType("IPython.display")
+    display.HTML = HTML
+    monkeypatch.setitem(sys.modules, "IPython", types.ModuleType("IPython"))
+    monkeypatch.setitem(sys.modules, "IPython.display", display)
+    clip = show(m, backend="matplotlib", size=SIZE)
+    prefix = '<img src="data:image/gif;base64,'
+    assert isinstance(clip, HTML) and clip.data.startswith(prefix)
+    gif = base64.b64decode(clip.data[len(prefix) :].split('"')[0])
+    assert gif[:6] == b"GIF89a"
+
+
+def _cli(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_render(tmp_path, capsys, no_sigint_fork):
+    m = _motion([robot.STANDING_POSTURE, _arm_up(), robot.STANDING_POSTURE])
+    src = save_motion(tmp_path / "wave.npz", m)
+    out = tmp_path / "videos" / "wave.gif"
+    code, stdout, err = _cli(
+        capsys, "render", str(src), "--out", str(out), "--backend", "matplotlib", "--size", "120x90"
+    )
+    assert code == 0, err
+    assert stdout.count("\n") == 1 and "3 frames" in stdout and "backend=matplotlib" in stdout
+    assert str(out) in stdout
+    assert iio.imread(out, index=None).shape == (3, 90, 240, 3)
+    # a NAOqi JSON (no human positions) to MP4, every second frame
+    js = save_motion(tmp_path / "wave.json", m)
+    mp4 = tmp_path / "wave.mp4"
+    code, stdout, _ = _cli(
+        capsys, "render", str(js), "--out", str(mp4), "--backend", "matplotlib",
+        "--size", "64x48", "--stride", "2",
+    )  # fmt: skip
+    assert code == 0 and "2 frames" in stdout
+    assert _read_mp4(mp4)[:2] == (2, (48, 64, 3))
+
+
+@pytest.mark.parametrize(
+    "args, problem",
+    [
+        (("missing.npz", "--out", "v.gif"), "missing.npz: no such file"),
+        (("wave.npz", "--out", "v.avi"), "unsupported video extension '.avi'"),
+        (("wave.txt", "--out", "v.gif"), "unsupported motion file extension '.txt'"),
+        (("wave.npz", "--out", "v.gif", "--size", "8x8"), "size must be"),
+    ],
+)
+def test_cli_render_errors(tmp_path, capsys, monkeypatch, args, problem):
+    monkeypatch.chdir(tmp_path)
+    save_motion("wave.npz", _motion([robot.STANDING_POSTURE], positions=False))
+    code, stdout, err = _cli(capsys, "render", *args, "--backend", "matplotlib")
+    assert code == 2 and stdout == ""
+    assert err.startswith("jaxproj: error: ") and err.count("\n") == 1 and problem in err
+    assert sorted(os.listdir(tmp_path)) == ["wave.npz"]
