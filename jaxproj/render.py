@@ -333,6 +333,10 @@ def _create_renderer(model: Any, width: int, height: int) -> Any:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
+            if not hasattr(mujoco, "Renderer"):
+                # mujoco swallows the ImportError of its GL backend (e.g. PyOpenGL missing, or a
+                # MUJOCO_GL backend whose library is absent): import it again to say which
+                import mujoco.rendering.classic.gl_context  # noqa: F401
             return mujoco.Renderer(model, height=height, width=width)
         except Exception as e:  # mujoco.FatalError, RuntimeError (EGL), ImportError, ...
             problem = f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"
