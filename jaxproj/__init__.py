@@ -5,7 +5,9 @@ bone descriptor) -> ``robot`` / ``ik`` (NAO H25 model and the analytic IK ground
 ``meanshift`` (generic mean shift, bandwidth search) -> ``landmarks`` (mean-shift modes of the
 training descriptors + their IK) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -> ``projection``
 (relaxed / full objectives; one projector per kinematic chain, stacked) -> ``smoothing`` /
-``streaming`` -> ``retarget`` (whole motions, one compiled call); ``engine`` holds the public
+``streaming`` -> ``retarget`` (whole motions, one compiled call) -> ``feasible`` (joint, speed
+and acceleration limits) -> ``motion_io`` (NPZ / CSV / NAOqi JSON) and ``render`` (videos);
+``engine`` holds the public
 build / project / save / load API; ``metrics`` / ``evaluate`` score against the IK. ``synthetic``
 (the paper's basic poses and motions) and ``experiments`` (the paper's studies on them) reproduce
 the paper's section IV.

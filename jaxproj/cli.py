@@ -1,7 +1,9 @@
 """The ``jaxproj`` command line.
 
-Subcommands: ``info`` (versions, devices, robot, bundled data) and ``retarget`` (a skeleton
-recording -> NAO joint trajectories). Every user error prints one line naming the file and the
+Subcommands: ``info`` (versions, devices, robot, bundled data), ``retarget`` (a skeleton
+recording -> a robot-feasible NAO joint trajectory as NPZ, CSV or NAOqi JSON), ``render`` (a
+motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch evaluation against the
+IK) and ``demo`` (the main job). Every user error prints one line naming the file and the
 problem on stderr and exits with status 2; no traceback.
 """
 
