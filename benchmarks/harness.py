@@ -57,6 +57,9 @@ class Plan:
     memory_fraction: float = 0.5
     subsample_all: bool = False
     """Build every N by subsampling training frames (fast; for tests), not by mean shift."""
+    public_queries: dict[str, int] = dataclasses.field(default_factory=dict)
+    """Queries of the ``public`` records per objective (``jaxproj.project`` on a host array with
+    its default arguments); none for an objective left out."""
 
 
 def make_plan(
@@ -84,6 +87,7 @@ def make_plan(
             n_check=n_check,
             stream_frames=600,
             max_call_s=60.0,
+            public_queries={"relaxed": 16384, "full": 4096},
         )
     else:
         plan = Plan(
@@ -102,10 +106,15 @@ def make_plan(
             n_check=n_check,
             stream_frames=2000,
             max_call_s=300.0,
+            public_queries={"relaxed": 65536, "full": 4096},
         )
     if device == "gpu":
-        # a GPU's memory is the process's own: let a run take most of what is free
-        plan = dataclasses.replace(plan, batches=(*plan.batches, 65536), memory_fraction=0.85)
+        # a GPU's memory is the process's own: let a run take most of what is free; the public
+        # API on 1 M host poses (the speed issue's figure), the full objective on 256 K
+        plan = dataclasses.replace(
+            plan, batches=(*plan.batches, 65536), memory_fraction=0.85,
+            public_queries={"relaxed": 1 << 20, "full": 1 << 18},
+        )  # fmt: skip
     over: dict[str, Any] = {}
     if landmarks is not None:
         over["landmarks"] = tuple(landmarks)
@@ -237,6 +246,7 @@ def target_checks(records: list[dict], device: str) -> list[dict]:
         out.append(_target(name, value, op, threshold, met))
 
     proj = dict(kind="projection", N=1644)
+    pub = dict(kind="public", N=1644)
 
     def full_name(name: str, recs: list[dict]) -> str:
         """Say so when the full records are of the pruned (approximate) full objective."""
@@ -255,20 +265,27 @@ def target_checks(records: list[dict], device: str) -> list[dict]:
         check("relaxed L=M=10, N~1644, batch 4096: us/projection",
               r10, "us_per_projection", "<=", 10.0)  # fmt: skip
         check("relaxed L=M=10, N~1644, batch 4096: speedup vs reference",
-              r10, "speedup", ">=", 50.0)  # fmt: skip
+              r10, "speedup", ">=", 20.0)  # fmt: skip
+        check("public jaxproj.project relaxed L=M=10, N~1644: us/projection",
+              _find(records, objective="relaxed", L=10, M=10, **pub), "us_per_projection",
+              "<=", 10.0)  # fmt: skip
         check(full_name("full L=M=10, N~1644, batch 4096: us/projection", f10),
               f10, "us_per_projection", "<=", 100.0)  # fmt: skip
-        check("streaming latency median (us)",
-              _find(records, kind="streaming"), "median_us", "<=", 200.0)  # fmt: skip
+        stream = _find(records, kind="streaming")
+        check("streaming latency median (us)", stream, "median_us", "<=", 50.0)
+        check("streaming latency p99 (us)", stream, "p99_us", "<=", 150.0)
     else:
-        r10 = _find(records, objective="relaxed", L=10, M=10, **proj)
-        r50 = _find(records, objective="relaxed", L=50, M=50, **proj)
-        f10 = _find(records, objective="full", L=10, M=10, **proj)
-        check("relaxed L=M=10, N~1644: projections/s", r10, "throughput", ">=", 20e6)
-        check("relaxed L=M=50, N~1644: projections/s", r50, "throughput", ">=", 2e6)
-        check(full_name("full L=M=10, N~1644: projections/s", f10), f10, "throughput", ">=", 1e6)
+        r10 = _find(records, objective="relaxed", L=10, M=10, **pub)
+        r50 = _find(records, objective="relaxed", L=50, M=50, **pub)
+        f10 = _find(records, objective="full", L=10, M=10, **pub)
+        check("public jaxproj.project relaxed L=M=10, N~1644, 1 M host poses: projections/s",
+              r10, "throughput", ">=", 20e6)  # fmt: skip
+        check("public jaxproj.project relaxed L=M=50, N~1644: projections/s",
+              r50, "throughput", ">=", 2e6)  # fmt: skip
+        check(full_name("public jaxproj.project full L=M=10, N~1644: projections/s", f10),
+              f10, "throughput", ">=", 2e6)  # fmt: skip
         check("MJX rollout: NAO steps/s (batched)",
-              _find(records, kind="rollout"), "steps_per_s", ">=", 1e6)  # fmt: skip
+              _find(records, kind="rollout"), "steps_per_s", ">=", 2e6)  # fmt: skip
     return out
 
 
@@ -408,6 +425,13 @@ def format_table(records: list[dict]) -> str:
             f"{'proj/s':>12} {'compile':>8} {'ref_us':>9} {'speedup':>8} {'maxdiff°':>9}"
         )
         lines += [table_row(r) for r in proj]
+    public = [r for r in records if r["kind"] == "public"]
+    if public:
+        lines.append(
+            "\npublic jaxproj.project (host array in and out, default batch_size; 'batch' = "
+            "queries per call)"
+        )
+        lines += [table_row(r) for r in public]
     for r in records:
         if r["kind"] == "streaming":
             lines.append(

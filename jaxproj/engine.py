@@ -440,6 +440,17 @@ def _placement(devices: Sequence[jax.Device] | None, batch_size: int) -> Any:
     return NamedSharding(mesh, PartitionSpec("batch"))
 
 
+DEFAULT_BATCH = {"cpu": 4096, "accelerator": 65536}
+"""``project``'s default ``batch_size`` per backend: CPU 4096 (cache-sized sub-batches inside
+anyway), GPU / TPU 65536 (enough queries per call to fill the device)."""
+
+
+def default_batch_size(devices: Sequence[jax.Device] | None = None) -> int:
+    """``DEFAULT_BATCH`` for the platform of ``devices`` (``None``: the default backend)."""
+    platform = jax.default_backend() if not devices else list(devices)[0].platform
+    return DEFAULT_BATCH["cpu" if platform == "cpu" else "accelerator"]
+
+
 def project(
     model: Model | AnyProjector,
     descriptors: np.ndarray,
@@ -448,13 +459,15 @@ def project(
     n_l: int = 10,
     n_m: int = 10,
     full: FullConfig | None = None,
-    batch_size: int = 4096,
+    batch_size: int | None = None,
     devices: Sequence[jax.Device] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Project human descriptors to robot poses.
 
-    Batches are padded to ``batch_size`` so every call compiles once per
-    ``(objective, L, M, full, batch_size)``.
+    The queries go to the device in one transfer, are padded to a multiple of ``batch_size``
+    and run as one jitted call per batch, dispatched back to back without waiting (the device
+    never waits for the host between batches); the answers come back in one transfer. Every
+    call compiles once per ``(objective, L, M, full, batch_size)``.
 
     Args:
       model: a ``Model``, or a bare ``StackedProjector`` / ``Projector``.
@@ -462,7 +475,8 @@ def project(
       objective: ``"relaxed"`` or ``"full"``.
       n_l, n_m: ``L`` human and ``M`` robot neighbours.
       full: settings of the full objective (default ``FullConfig()``).
-      batch_size: queries per jitted call (``>= 1``).
+      batch_size: queries per jitted call (``>= 1``); ``None``: ``default_batch_size`` (4096 on
+        CPU, 65536 on accelerators).
       devices: where to run: ``None`` (default) the default device; one device; or several,
         over which each batch is split along the query axis (``batch_size`` a multiple of
         their number).
@@ -480,23 +494,39 @@ def project(
     h = np.asarray(descriptors, np.float32)
     if h.ndim != 2 or h.shape[1] != m:
         raise ConfigError(f"descriptors must be (B, {m}), got {h.shape}")
+    if batch_size is None:
+        batch_size = default_batch_size(devices)
     if batch_size < 1:
         raise ConfigError(f"batch_size={batch_size} must be >= 1")
     place = _placement(devices, batch_size)
-    outs, vals = [], []
-    for start in range(0, len(h), batch_size):
-        chunk = h[start : start + batch_size]
-        pad = batch_size - len(chunk)
-        if pad:
-            chunk = np.concatenate([chunk, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
-        chunk = jnp.asarray(chunk) if place is None else jax.device_put(chunk, place)
-        r, v = project_chunk(p, chunk, objective=objective, n_l=n_l, n_m=n_m, full=full)
-        outs.append(np.asarray(r)[: batch_size - pad])
-        vals.append(np.asarray(v)[: batch_size - pad])
-    if not outs:
-        n = p.layout.n if isinstance(p, StackedProjector) else p.robot.shape[1]
+    n = p.layout.n if isinstance(p, StackedProjector) else p.robot.shape[1]
+    if len(h) == 0:
         return np.zeros((0, n), np.float32), np.zeros((0,), np.float32)
-    return np.concatenate(outs), np.concatenate(vals)
+    pad = (-len(h)) % batch_size
+    if pad:
+        h = np.concatenate([h, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
+    kw = {"objective": objective, "n_l": n_l, "n_m": n_m, "full": full}
+    if place is None or isinstance(place, jax.Device):
+        # one transfer in, one dispatch per batch without a host sync, one transfer out
+        h_dev = jax.device_put(h, place)
+        outs = [
+            project_chunk(p, h_dev[s : s + batch_size], **kw)
+            for s in range(0, len(h), batch_size)
+        ]
+        r = jnp.concatenate([o[0] for o in outs]) if len(outs) > 1 else outs[0][0]
+        v = jnp.concatenate([o[1] for o in outs]) if len(outs) > 1 else outs[0][1]
+        cut = len(h) - pad
+        return np.asarray(r)[:cut], np.asarray(v)[:cut]
+    outs, vals = [], []
+    for start in range(0, len(h), batch_size):  # several devices: each batch split over them
+        chunk = jax.device_put(h[start : start + batch_size], place)
+        r, v = project_chunk(p, chunk, **kw)
+        outs.append(r)
+        vals.append(v)
+    cut = len(h) - pad
+    return np.concatenate([np.asarray(r) for r in outs])[:cut], np.concatenate(
+        [np.asarray(v) for v in vals]
+    )[:cut]
 
 
 def _padding_query(p: AnyProjector) -> np.ndarray:

@@ -55,7 +55,13 @@ def records():
         ref_queries=64,
         stream_frames=40,
     )
-    plan = dataclasses.replace(plan, subsample_all=True, min_time_s=0.0, max_repeats=2)
+    plan = dataclasses.replace(
+        plan,
+        subsample_all=True,
+        min_time_s=0.0,
+        max_repeats=2,
+        public_queries={"relaxed": 256, "full": 64},
+    )
     return bench.run(True, "cpu", plan=plan, rollout=False, log=lambda s: None)
 
 
@@ -76,6 +82,19 @@ def test_records_have_the_issue_keys_and_finite_numbers(records):
     json.dumps(records)  # serialisable as is
 
 
+def test_public_api_records(records):
+    """``jaxproj.project`` as users call it: a host array, default batch size, checked first."""
+    pub = [r for r in records if r["kind"] == "public"]
+    assert {(r["objective"], r["L"], r["M"], r["batch"]) for r in pub} == {
+        ("relaxed", 10, 10, 256),
+        ("full", 4, 4, 64),
+    }
+    for r in pub:
+        assert r["agrees"] and r["n_checked"] == 64, r
+        assert r["batch_size"] == 4096  # the CPU default
+        assert math.isfinite(r["us_per_projection"]) and r["first_call_s"] > 0
+
+
 def test_reference_agrees_with_the_engine(records):
     for r in records:
         if r["kind"] == "projection" and r["objective"] == "relaxed":
@@ -92,7 +111,7 @@ def test_build_streaming_targets_and_table(records):
     assert stream["frames"] == 40 and stream["compile_s"] >= 0
     assert (stream["L"], stream["M"], stream["N"], stream["n_landmarks"]) == (10, 10, 86, 86)
     targets = [r for r in records if r["kind"] == "target"]
-    assert len(targets) == 4
+    assert len(targets) == 6
     assert all(t["met"] is None for t in targets if "N~1644" in t["target"])  # N=1644 not run
     table = harness.format_table(records)
     assert "relaxed" in table and "targets" in table
