@@ -20,7 +20,7 @@ import zipfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -424,20 +424,80 @@ def check_neighbours(model_or_projector: Model | AnyProjector, n_l: int, n_m: in
             )
 
 
-def _placement(devices: Sequence[jax.Device] | None, batch_size: int) -> Any:
-    """Where each padded batch goes: the default device, one device, or split along the query
-    axis over several (``batch_size`` must then be a multiple of their number)."""
+def _placement(devices: Sequence[jax.Device] | None, batch_size: int) -> Mesh | jax.Device | None:
+    """Where each padded batch goes: the default device (``None``), one device, or a 1-D mesh
+    ``("batch",)`` over several (``batch_size`` must then be a multiple of their number)."""
     if devices is None:
         return None
     devices = list(devices)
     if not devices:
         raise ConfigError("devices must name at least one JAX device (or be None)")
+    if len(set(devices)) != len(devices):
+        raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
     if len(devices) == 1:
         return devices[0]
     if batch_size % len(devices):
         raise ConfigError(f"batch_size={batch_size} must be a multiple of {len(devices)} devices")
-    mesh = Mesh(np.array(devices), ("batch",))
-    return NamedSharding(mesh, PartitionSpec("batch"))
+    return Mesh(np.array(devices), ("batch",))
+
+
+def _sharded_batch(
+    p: AnyProjector,
+    h: jax.Array,
+    *,
+    mesh: Mesh,
+    objective: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
+) -> tuple[jax.Array, jax.Array]:
+    """``project_batch`` with the query axis split over ``mesh``: every device runs the whole
+    one-device program (its own sub-batch loop) on its shard of the queries, the projector
+    replicated; no collective (``shard_map``, see ``project``)."""
+
+    def local(p_local: AnyProjector, h_local: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return project_batch(p_local, h_local, objective, n_l, n_m, full)
+
+    spec = PartitionSpec("batch")
+    return jax.shard_map(
+        local, mesh=mesh, in_specs=(PartitionSpec(), spec), out_specs=(spec, spec)
+    )(p, h)
+
+
+project_sharded = jit(
+    _sharded_batch, static_argnames=("mesh", "objective", "n_l", "n_m", "full")
+)
+"""Jitted ``_sharded_batch``: ``(projector, (B, m) queries sharded over mesh) -> ((B, n), (B,))``
+with ``mesh``, ``objective``, ``n_l``, ``n_m``, ``full`` static."""
+
+
+def resolve_devices(spec: int | str | Sequence[jax.Device] | None) -> list[jax.Device] | None:
+    """Devices from a user's ``--devices`` value: ``None`` / ``1`` -> ``None`` (the default
+    device), ``N`` -> the first ``N`` of ``jax.devices()``, ``"all"`` -> every one of them, a
+    sequence of devices -> as given.
+
+    Raises:
+      ConfigError: ``N`` outside ``1..len(jax.devices())``, or a string other than ``"all"``.
+    """
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        if spec.strip().lower() == "all":
+            found = jax.devices()
+            return found if len(found) > 1 else None
+        try:
+            spec = int(spec)
+        except ValueError:
+            raise ConfigError(f"devices must be a number or 'all', got {spec!r}") from None
+    if isinstance(spec, int):
+        found = jax.devices()
+        if not 1 <= spec <= len(found):
+            raise ConfigError(
+                f"devices={spec}: this machine has {len(found)} JAX device(s) "
+                f"({', '.join(str(d) for d in found)}); use 1..{len(found)} or 'all'"
+            )
+        return found[:spec] if spec > 1 else None
+    return list(spec)
 
 
 DEFAULT_BATCH = {"cpu": 4096, "accelerator": 65536}
@@ -477,9 +537,12 @@ def project(
       full: settings of the full objective (default ``FullConfig()``).
       batch_size: queries per jitted call (``>= 1``); ``None``: ``default_batch_size`` (4096 on
         CPU, 65536 on accelerators).
-      devices: where to run: ``None`` (default) the default device; one device; or several,
-        over which each batch is split along the query axis (``batch_size`` a multiple of
-        their number).
+      devices: where to run: ``None`` (default) the default device; one device; or several
+        (``resolve_devices`` turns ``"all"`` or a count into a list): each batch is split
+        along the query axis over a 1-D mesh of them with ``shard_map``, the projector
+        replicated, and every device runs the one-device program on its shard, with no
+        collective (``batch_size`` a multiple of their number; the padding of the last batch
+        is cut off the answers).
 
     Returns:
       ``(angles, value)``: ``(B, n)`` float32 driven-joint angles (rad, within limits) and
@@ -506,27 +569,24 @@ def project(
     if pad:
         h = np.concatenate([h, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
     kw = {"objective": objective, "n_l": n_l, "n_m": n_m, "full": full}
-    if place is None or isinstance(place, jax.Device):
+    cut = len(h) - pad
+    n_batches = len(h) // batch_size
+    if isinstance(place, Mesh):
+        # every batch split over the devices: (n_batches, batch, m) with the batch axis sharded,
+        # so each device holds its slice of every batch (one transfer in)
+        h3 = h.reshape(n_batches, batch_size, m)
+        h_dev = jax.device_put(h3, NamedSharding(place, PartitionSpec(None, "batch")))
+        outs = [project_sharded(p, h_dev[i], mesh=place, **kw) for i in range(n_batches)]
+    else:
         # one transfer in, one dispatch per batch without a host sync, one transfer out
         h_dev = jax.device_put(h, place)
         outs = [
             project_chunk(p, h_dev[s : s + batch_size], **kw)
             for s in range(0, len(h), batch_size)
         ]
-        r = jnp.concatenate([o[0] for o in outs]) if len(outs) > 1 else outs[0][0]
-        v = jnp.concatenate([o[1] for o in outs]) if len(outs) > 1 else outs[0][1]
-        cut = len(h) - pad
-        return np.asarray(r)[:cut], np.asarray(v)[:cut]
-    outs, vals = [], []
-    for start in range(0, len(h), batch_size):  # several devices: each batch split over them
-        chunk = jax.device_put(h[start : start + batch_size], place)
-        r, v = project_chunk(p, chunk, **kw)
-        outs.append(r)
-        vals.append(v)
-    cut = len(h) - pad
-    return np.concatenate([np.asarray(r) for r in outs])[:cut], np.concatenate(
-        [np.asarray(v) for v in vals]
-    )[:cut]
+    r = jnp.concatenate([o[0] for o in outs]) if len(outs) > 1 else outs[0][0]
+    v = jnp.concatenate([o[1] for o in outs]) if len(outs) > 1 else outs[0][1]
+    return np.asarray(r)[:cut], np.asarray(v)[:cut]
 
 
 def _padding_query(p: AnyProjector) -> np.ndarray:

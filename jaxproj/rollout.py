@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -53,6 +53,7 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from mujoco import mjx
 
 from jaxproj import robot
@@ -378,6 +379,28 @@ def _simulate_jit(
     return RolloutResult(*out)
 
 
+def _simulate_sharded(
+    s: _Setup, targets: jax.Array, lengths: jax.Array, substeps: int, mesh: Mesh
+) -> RolloutResult:
+    """``_simulate_jit``'s body with the motions split over ``mesh`` (``shard_map``): each device
+    rolls out its own motions, the model replicated; no collective."""
+    spec = PartitionSpec("batch")
+
+    def local(s_local: _Setup, q: jax.Array, n: jax.Array) -> RolloutResult:
+        out = jax.vmap(_rollout_one, in_axes=(None, 0, 0, None))(s_local, q, n, substeps)
+        return RolloutResult(*out)
+
+    # check_vma=False: MJX's solver mixes per-device and replicated values inside lax.cond
+    # (its line search), which the varying-axis check rejects; nothing here communicates
+    return jax.shard_map(
+        local, mesh=mesh, in_specs=(PartitionSpec(), spec, spec), out_specs=spec,
+        check_vma=False,
+    )(s, targets, lengths)  # fmt: skip
+
+
+_simulate_sharded = jit(_simulate_sharded, static_argnames=("substeps", "mesh"), precision=None)
+
+
 def _as_batch(targets: object, lengths: object | None) -> tuple[np.ndarray, np.ndarray]:
     q = np.asarray(targets, dtype=np.float32)
     if q.ndim != 3 or q.shape[-1] != robot.N_JOINTS or q.shape[0] < 1 or q.shape[1] < 1:
@@ -404,6 +427,7 @@ def simulate(
     targets: np.ndarray | jax.Array,
     lengths: np.ndarray | jax.Array | None = None,
     config: RolloutConfig = RolloutConfig(),
+    devices: Sequence[jax.Device] | None = None,
 ) -> RolloutResult:
     """Play a padded batch of joint-angle motions on the simulated NAO (MJX, jitted, vmapped).
 
@@ -413,6 +437,10 @@ def simulate(
         motion's length may hold anything (even NaN): they are replaced by the last valid frame
         and excluded from every statistic.
       config: frame period, gain scale, gravity (static: one compile per config, B and T).
+      devices: ``None`` (default device) or several: the motions are split over a 1-D mesh of
+        them (``shard_map``; each device rolls out its share, the model replicated, no
+        collective); the batch is padded with copies of its last motion to a multiple of
+        their number and the padding cut off the result.
 
     Returns:
       ``RolloutResult`` of device arrays (see its docstring for shapes).
@@ -423,7 +451,24 @@ def simulate(
     _check_config(config)
     q, n = _as_batch(targets, lengths)
     setup, substeps = _setup(config)
-    return _simulate_jit(setup, jnp.asarray(q), jnp.asarray(n), substeps)
+    devices = None if devices is None else list(devices)
+    if not devices or len(devices) == 1:
+        dev = devices[0] if devices else None
+        if dev is not None:
+            setup = jax.device_put(setup, dev)
+        return _simulate_jit(setup, jax.device_put(q, dev), jax.device_put(n, dev), substeps)
+    b = len(q)
+    pad = (-b) % len(devices)
+    if pad:
+        q = np.concatenate([q, np.repeat(q[-1:], pad, axis=0)])
+        n = np.concatenate([n, np.repeat(n[-1:], pad)])
+    mesh = Mesh(np.array(devices), ("batch",))
+    shard = NamedSharding(mesh, PartitionSpec("batch"))
+    setup = jax.device_put(setup, NamedSharding(mesh, PartitionSpec()))  # replicated
+    out = _simulate_sharded(
+        setup, jax.device_put(q, shard), jax.device_put(n, shard), substeps, mesh
+    )
+    return RolloutResult(*(x[:b] for x in out)) if pad else out
 
 
 # --- kinematics -------------------------------------------------------------------------------

@@ -1,0 +1,78 @@
+"""Run by tests/test_sharding.py in a fresh process with 4 forced host devices.
+
+Projects the same queries on one device and sharded over 4 (``engine.project(..., devices=)``),
+and inspects the compiled per-device programs; prints one JSON object.
+"""
+
+import json
+import os
+import sys
+
+os.environ["XLA_FLAGS"] = (
+    os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
+).strip()
+
+import jax  # noqa: E402
+import numpy as np  # noqa: E402
+
+from jaxproj import datasets, engine, ik  # noqa: E402
+from jaxproj.projection import FullConfig  # noqa: E402
+
+
+def _model() -> engine.Model:
+    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1]))
+    uniq = np.unique(train, axis=0)
+    idx = np.sort(np.random.default_rng(0).choice(len(uniq), 120, replace=False))
+    human = uniq[idx].astype(np.float32)
+    robot = np.asarray(ik.solve_driven(human), np.float32)
+    cfg = engine.BuildConfig(k=16, hidden=32)
+    return engine.from_landmarks(human, robot, cfg)
+
+
+def _flops(compiled) -> float:
+    cost = compiled.cost_analysis()
+    cost = cost[0] if isinstance(cost, list) else cost
+    return float(cost["flops"])
+
+
+def main() -> None:
+    devices = jax.devices()
+    model = _model()
+    test = datasets.valid_descriptors(datasets.msr_action3d(subjects=[2], actions=[1, 2]))
+    h = np.ascontiguousarray(test[:203])  # not a multiple of the batch: the last one is padded
+    out: dict = {"devices": [str(d) for d in devices]}
+    full = FullConfig(iterations=3)
+    for objective in ("relaxed", "full"):
+        kw = {"n_l": 4, "n_m": 4, "full": full, "batch_size": 64}
+        r1, v1 = engine.project(model, h, objective, **kw)
+        r4, v4 = engine.project(model, h, objective, devices=devices, **kw)
+        out[objective] = {
+            "shape": list(r4.shape),
+            "max_abs_diff": float(np.abs(r1 - r4).max()),
+            "bit_identical": bool(np.array_equal(r1, r4) and np.array_equal(v1, v4)),
+        }
+        # the compiled programs of one 64-query batch: one device vs split over four
+        p = model.projector
+        chunk = jax.device_put(h[:64], devices[0])
+        one = engine.project_chunk.lower(p, chunk, objective, 4, 4, full).compile()
+        mesh = engine._placement(devices, 64)
+        sharded_in = jax.device_put(
+            h[:64], jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
+        )
+        four = engine.project_sharded.lower(
+            p, sharded_in, mesh=mesh, objective=objective, n_l=4, n_m=4, full=full
+        ).compile()
+        text = four.as_text()
+        out[objective].update(
+            flops_one=_flops(one),
+            flops_four=_flops(four),
+            collectives=[
+                op for op in ("all-gather", "all-reduce", "all-to-all", "collective-permute")
+                if op in text
+            ],
+        )
+    json.dump(out, sys.stdout)
+
+
+if __name__ == "__main__":
+    main()
