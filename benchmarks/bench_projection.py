@@ -366,6 +366,7 @@ def bench_public(
     plan: Plan,
     ref_answers: np.ndarray,
     full: FullConfig | None = None,
+    devices: list | None = None,
 ) -> dict:
     """A ``public`` record: ``jaxproj.project`` as users call it -- a host NumPy array of
     ``n_queries`` descriptors in, host arrays out, default ``batch_size`` -- timed end to end
@@ -376,7 +377,9 @@ def bench_public(
         n_landmarks=model.projector.n_landmarks,
     )  # fmt: skip
     h = queries(h_all, n_queries)
-    devices = None if device == jax.devices()[0] else [device]
+    if devices is None and device != jax.devices()[0]:
+        devices = [device]
+    rec["devices"] = [str(d) for d in (devices or [device])]
     rec["batch_size"] = engine.default_batch_size(devices)
 
     def call() -> tuple[np.ndarray, np.ndarray]:
@@ -406,7 +409,9 @@ def bench_public(
 # -------------------------------------------------------------------------------- rollout
 
 
-def bench_rollout(quick: bool, device: jax.Device, frames: int = 30) -> list[dict]:
+def bench_rollout(
+    quick: bool, device: jax.Device, frames: int = 30, devices: list | None = None
+) -> list[dict]:
     """MJX rollout steps/s (``benchmarks/bench_rollout.py``'s ``bench``: synthetic arm motions,
     15 frames/s, 33 physics steps per frame), one record per batch size; motion 0 is checked
     against CPU MuJoCo ``mj_step`` (``mjx_vs_cpu_max_dq_rad``); a ``skipped`` record when MuJoCo
@@ -429,7 +434,7 @@ def bench_rollout(quick: bool, device: jax.Device, frames: int = 30) -> list[dic
         cpu_q, cpu_ncon, _ = mod.cpu_rollout(ref, substeps)
         with jax.default_device(device):
             for b in batches:
-                r = mod.bench(b, frames, 0, 1 if quick else 3, substeps)
+                r = mod.bench(b, frames, 0, 1 if quick else 3, substeps, devices=devices)
                 dq = float(np.abs(np.asarray(r.pop("qpos0")) - cpu_q).max())
                 out.append(
                     rec
@@ -465,6 +470,7 @@ def run(
     log: Callable[[str], None] | None = None,
     full: FullConfig | None = None,
     chains: str = "upper",
+    devices: list | None = None,
     **plan_overrides: Any,
 ) -> list[dict]:
     """Run the benchmark suite; returns the records (header first, target checks last).
@@ -513,7 +519,7 @@ def run(
             n_pub = plan.public_queries.get(objective, 0)
             if n_pub:
                 rec = bench_public(
-                    models[n], test, objective, n_l, n_m, n_pub, dev, plan, ans, full
+                    models[n], test, objective, n_l, n_m, n_pub, dev, plan, ans, full, devices
                 )
                 rec.update(N=n, chains=chains, reference_us_per_projection=ref_us)
                 rec["speedup"] = ref_us / rec["us_per_projection"]
@@ -532,7 +538,7 @@ def run(
         records.append(rec)
         log(f"streaming N={n_stream}: median {rec['median_us']:.0f} us, p99 {rec['p99_us']:.0f} us")
     if rollout:
-        for rec in bench_rollout(quick, dev):
+        for rec in bench_rollout(quick, dev, devices=devices):
             records.append(rec)
             if rec.get("steps_per_s"):
                 log(f"rollout batch {rec['batch']}: {rec['steps_per_s']:.4g} steps/s")
@@ -560,6 +566,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             ref_queries=args.ref_queries,
             full=harness.full_config(args.full_clusters, args.full_iterations),
             chains=args.chains,
+            devices=engine.resolve_devices(args.devices),
         )
     except JaxprojError as e:
         print(f"bench_projection: error: {e}", file=sys.stderr)

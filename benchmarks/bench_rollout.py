@@ -177,18 +177,20 @@ def bench(
     repeat: int,
     substeps: int,
     cfg: rollout.RolloutConfig | None = None,
+    devices: list | None = None,
 ) -> dict:
-    """Time ``rollout.simulate`` on ``batch`` benchmark motions (``cfg`` None: the defaults)."""
+    """Time ``rollout.simulate`` on ``batch`` benchmark motions (``cfg`` None: the defaults;
+    ``devices``: several to shard the motions over, see ``rollout.simulate``)."""
     cfg = cfg or rollout.RolloutConfig()
     q = motions(batch, frames, seed)
     n = np.full(batch, frames, dtype=np.int32)
     t0 = time.perf_counter()
-    res = jax.block_until_ready(rollout.simulate(q, n, cfg))
+    res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices))
     first = time.perf_counter() - t0
     runs = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        res = jax.block_until_ready(rollout.simulate(q, n, cfg))
+        res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices))
         runs.append(time.perf_counter() - t0)
     run = min(runs)
     qpos = np.asarray(res.qpos)

@@ -487,6 +487,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-streaming", action="store_true", help="skip streaming latency")
     parser.add_argument("--no-rollout", action="store_true", help="skip the MJX rollout")
     parser.add_argument(
+        "--devices",
+        default="1",
+        help="JAX devices for the public-API records and the rollout: a count or 'all'",
+    )
+    parser.add_argument(
         "--full-clusters",
         type=int,
         default=0,

@@ -219,16 +219,10 @@ def _build(args: argparse.Namespace) -> int:
 def _evaluate(args: argparse.Namespace) -> int:
     import time
 
-    import jax
-
     from jaxproj import engine, evaluate, report
     from jaxproj.smoothing import PAPER_SMOOTHING
 
-    available = jax.devices()
-    if not 1 <= args.devices <= len(available):
-        raise ConfigError(
-            f"--devices {args.devices}: this machine has {len(available)} JAX device(s)"
-        )
+    devices = engine.resolve_devices(args.devices)
     model = engine.load(args.model)
     engine.check_neighbours(model, args.L, args.M)
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
@@ -243,7 +237,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         n_l=args.L,
         n_m=args.M,
         smoothing=PAPER_SMOOTHING if args.smooth else None,
-        devices=available[: args.devices] if args.devices > 1 else None,
+        devices=devices,
         progress=True,
     )
     out["wall_s"]["total"] = time.perf_counter() - t0
@@ -257,10 +251,11 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from jaxproj import report
+    from jaxproj import engine, report
     from jaxproj.demo import run_demo
 
-    out = run_demo(Path(args.out), quick=args.quick, progress=True)
+    devices = engine.resolve_devices(args.devices)
+    out = run_demo(Path(args.out), quick=args.quick, progress=True, devices=devices)
     print(report.summary_table(out["summary"]))
     t = out["timings"]
     print(f"report: {Path(args.out) / 'report.md'} ({t['total_s']:.0f} s)")
@@ -439,7 +434,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=True,
         help="score the smoothed motions (unsmoothed figures are reported too)",
     )
-    pe.add_argument("--devices", type=int, default=1, help="JAX devices to shard batches over")
+    pe.add_argument(
+        "--devices",
+        default="1",
+        help="JAX devices to shard the queries over: a count or 'all' (shard_map, one device "
+        "program per shard)",
+    )
     pe.add_argument("--json", required=True, help="output report JSON")
     pe.set_defaults(func=_evaluate)
 
@@ -448,6 +448,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pd.add_argument("--out", default="jaxproj-report", help="report folder")
     pd.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
+    pd.add_argument(
+        "--devices",
+        default="1",
+        help="JAX devices for the evaluation and the MJX rollout: a count or 'all'",
+    )
     pd.set_defaults(func=_demo)
 
     pv = sub.add_parser(

@@ -37,7 +37,9 @@ def _train_descriptors(model_cfg: engine.BuildConfig) -> np.ndarray:
     return datasets.valid_descriptors(seqs, bones=model_cfg.bones, mirror=model_cfg.mirror)
 
 
-def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs) -> dict:
+def _rollout_section(
+    data: evaluate.EvalData, ev: dict, n_motions: int, seqs, devices=None
+) -> dict:
     from jaxproj import rollout
 
     t0 = time.perf_counter()
@@ -60,19 +62,26 @@ def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs) ->
         batches["relaxed"], times, lengths[picks]
     )
     for name, b in batches.items():
-        res = rollout.simulate(b, lengths[picks])
+        res = rollout.simulate(b, lengths[picks], devices=devices)
         out[name] = rollout.summarize(res, lengths[picks], b)
     out["wall_s"] = time.perf_counter() - t0  # the whole section, as the demo's timings say
     return out
 
 
-def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> dict:
+def run_demo(
+    out_dir: Path,
+    *,
+    quick: bool = False,
+    progress: bool = False,
+    devices: list[jax.Device] | None = None,
+) -> dict:
     """Run the whole demo and write the report; returns the report dict.
 
     ``quick`` (the tests' setting) uses 400 landmarks per arm chain (and for the whole body)
     instead of the paper's 1644, a two-point landmark-size study (400, 86), fewer rollouts and
     sweep points. ``progress`` shows progress bars on a terminal (stage lines always go to
-    stderr).
+    stderr). ``devices`` (several JAX devices, or ``None`` for the default one) shard the
+    held-out evaluation's projections and the MJX rollout (``engine.resolve_devices``).
     """
     t_start = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -95,7 +104,7 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
     t0 = time.perf_counter()
     test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS)
     data = evaluate.prepare(test_seqs)
-    ev = evaluate.evaluate(model, data, evaluate.METHODS, progress=progress)
+    ev = evaluate.evaluate(model, data, evaluate.METHODS, progress=progress, devices=devices)
     ev["feasibility"] = {m: ev["feasibility"][m] for m in ("ik", "relaxed", "full")}
     splits = {
         "msr_held_out": data,
@@ -120,7 +129,7 @@ def run_demo(out_dir: Path, *, quick: bool = False, progress: bool = False) -> d
         f"frames in {timings['evaluate_s']:.1f} s"
     )
 
-    rollout_out = _rollout_section(data, ev, 8 if quick else 32, test_seqs)
+    rollout_out = _rollout_section(data, ev, 8 if quick else 32, test_seqs, devices)
     timings["rollout_s"] = rollout_out["wall_s"]
     _log(
         f"[3/5] MJX rollout of {len(rollout_out['motions'])} motions "

@@ -1,0 +1,139 @@
+"""Scale-out: the same public calls on one device and sharded over several, in one run.
+
+    python benchmarks/bench_multi_device.py [--devices all] [--queries 4194304]
+        [--full-queries 262144] [--rollout-batch 32768] [--landmarks 1644] [--json OUT]
+
+For 1 device and for the N given (``engine.resolve_devices``): ``jaxproj.project`` on a host
+array of ``--queries`` held-out descriptors (relaxed L = M = 10) and of ``--full-queries`` (full,
+exact), and ``rollout.simulate`` on ``--rollout-batch`` synthetic motions (30 frames, 33
+physics steps each); first calls (compilation) timed apart, then the median of 3 calls. Answers
+are compared between 1 and N devices (relaxed: bit-identical expected; full: max difference in
+degrees; rollout: max |qpos| difference). The compiled program of one batch is inspected on 1 and
+on N devices: XLA's per-device FLOP count and any collective in its HLO.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+_HERE = str(Path(__file__).resolve().parent)
+if _HERE not in sys.path:
+    sys.path.insert(0, _HERE)
+
+import bench_rollout  # noqa: E402
+from bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, queries, shuffled  # noqa: E402
+from harness import header  # noqa: E402
+
+from jaxproj import engine, robot  # noqa: E402
+from jaxproj.projection import FullConfig  # noqa: E402
+
+COLLECTIVES = ("all-gather", "all-reduce", "all-to-all", "collective-permute", "reduce-scatter")
+
+
+def _median_call(fn, repeats: int = 3) -> tuple[float, float, object]:
+    t0 = time.perf_counter()
+    out = fn()
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        runs.append(time.perf_counter() - t0)
+    return first, float(np.median(runs)), out
+
+
+def _program(model, h: np.ndarray, objective: str, devices: list | None, batch: int) -> dict:
+    """XLA's view of the compiled program of one ``batch``-query call on ``devices``."""
+    p = model.projector
+    full = FullConfig()
+    if devices is None:
+        x = jax.device_put(h[:batch])
+        compiled = engine.project_chunk.lower(p, x, objective, 10, 10, full).compile()
+    else:
+        mesh = engine._placement(devices, batch)
+        x = jax.device_put(
+            h[:batch], jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
+        )
+        compiled = engine.project_sharded.lower(
+            p, x, mesh=mesh, objective=objective, n_l=10, n_m=10, full=full
+        ).compile()
+    cost = compiled.cost_analysis()
+    cost = cost[0] if isinstance(cost, list) else cost
+    text = compiled.as_text()
+    return {
+        "batch": batch,
+        "flops_per_device": float(cost.get("flops", float("nan"))),
+        "collectives": [op for op in COLLECTIVES if op in text],
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--devices", default="all")
+    ap.add_argument("--queries", type=int, default=1 << 22)
+    ap.add_argument("--full-queries", type=int, default=1 << 18)
+    ap.add_argument("--rollout-batch", type=int, default=32768)
+    ap.add_argument("--landmarks", type=int, default=1644)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    many = engine.resolve_devices(args.devices)
+    if not many:
+        print("bench_multi_device: needs more than one JAX device", file=sys.stderr)
+        return 2
+    log = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    out: dict = {"header": header(jax.devices()[0]), "devices": [str(d) for d in many]}
+    t0 = time.perf_counter()
+    train = descriptors(TRAIN_SUBJECTS)
+    model = engine.build(train, engine.BuildConfig(landmarks=args.landmarks))
+    out["landmarks"] = model.landmarks
+    log(f"built {model.landmarks} in {time.perf_counter() - t0:.0f} s")
+    test = shuffled(descriptors(TEST_SUBJECTS))
+    for objective, n_q in (("relaxed", args.queries), ("full", args.full_queries)):
+        h = queries(test, n_q)
+        rec: dict = {"queries": n_q}
+        answers = {}
+        for label, devs in (("one", None), ("many", many)):
+            first, sec, (r, _) = _median_call(
+                lambda devs=devs, h=h, o=objective: engine.project(model, h, o, devices=devs)
+            )
+            answers[label] = r
+            rec[label] = {
+                "devices": len(devs or [0]),
+                "first_call_s": first,
+                "call_s": sec,
+                "poses_per_s": n_q / sec,
+                "batch_size": engine.default_batch_size(devs),
+                "program": _program(model, h, objective, devs, engine.default_batch_size(devs)),
+            }
+            log(f"{objective} on {rec[label]['devices']} device(s): {n_q / sec:.4g} poses/s")
+        rec["speedup"] = rec["one"]["call_s"] / rec["many"]["call_s"]
+        rec["bit_identical"] = bool(np.array_equal(answers["one"], answers["many"]))
+        rec["max_abs_diff_deg"] = float(np.degrees(np.abs(answers["one"] - answers["many"]).max()))
+        out[objective] = rec
+    substeps = round((1.0 / 15.0) / robot.load_model("fixed").opt.timestep)
+    ro: dict = {"batch": args.rollout_batch, "frames": 30, "substeps": substeps}
+    qpos = {}
+    for label, devs in (("one", None), ("many", many)):
+        r = bench_rollout.bench(args.rollout_batch, 30, 0, 3, substeps, devices=devs)
+        qpos[label] = r.pop("qpos0")
+        ro[label] = {"devices": len(devs or [0]), **r}
+        log(f"rollout on {ro[label]['devices']} device(s): {r['steps_per_s']:.4g} steps/s")
+    ro["speedup"] = ro["many"]["steps_per_s"] / ro["one"]["steps_per_s"]
+    ro["motion0_max_dq_rad"] = float(np.abs(qpos["one"] - qpos["many"]).max())
+    out["rollout"] = ro
+    text = json.dumps(out, indent=1, default=float)
+    if args.json:
+        Path(args.json).write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
