@@ -83,13 +83,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rollout-batch", type=int, default=32768)
     ap.add_argument("--landmarks", type=int, default=1644)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--skip", default="", help="comma-separated parts to skip: projection,rollout")
     args = ap.parse_args(argv)
+    skip = {x for x in args.skip.split(",") if x}
     many = engine.resolve_devices(args.devices)
     if not many:
         print("bench_multi_device: needs more than one JAX device", file=sys.stderr)
         return 2
     log = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     out: dict = {"header": header(jax.devices()[0]), "devices": [str(d) for d in many]}
+
+    def save() -> None:  # after every part: a crash later keeps what was measured
+        if args.json:
+            Path(args.json).write_text(json.dumps(out, indent=1, default=float))
+
+    if "projection" not in skip:
+        _projection(args, many, out, log, save)
+    if "rollout" not in skip:
+        _rollout(args, many, out, log)
+        save()
+    print(json.dumps(out, indent=1, default=float))
+    return 0
+
+
+def _projection(args, many, out, log, save) -> None:
     t0 = time.perf_counter()
     train = descriptors(TRAIN_SUBJECTS)
     model = engine.build(train, engine.BuildConfig(landmarks=args.landmarks))
@@ -123,6 +140,10 @@ def main(argv: list[str] | None = None) -> int:
         rec["bit_identical"] = bool(np.array_equal(answers["one"], answers["many"]))
         rec["max_abs_diff_deg"] = float(np.degrees(np.abs(answers["one"] - answers["many"]).max()))
         out[objective] = rec
+        save()
+
+
+def _rollout(args, many, out, log) -> None:
     substeps = round((1.0 / 15.0) / robot.load_model("fixed").opt.timestep)
     ro: dict = {"batch": args.rollout_batch, "frames": 30, "substeps": substeps}
     qpos = {}
@@ -134,11 +155,6 @@ def main(argv: list[str] | None = None) -> int:
     ro["speedup"] = ro["many"]["steps_per_s"] / ro["one"]["steps_per_s"]
     ro["motion0_max_dq_rad"] = float(np.abs(qpos["one"] - qpos["many"]).max())
     out["rollout"] = ro
-    text = json.dumps(out, indent=1, default=float)
-    if args.json:
-        Path(args.json).write_text(text)
-    print(text)
-    return 0
 
 
 if __name__ == "__main__":

@@ -53,7 +53,6 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from mujoco import mjx
 
 from jaxproj import robot
@@ -379,28 +378,6 @@ def _simulate_jit(
     return RolloutResult(*out)
 
 
-def _simulate_sharded(
-    s: _Setup, targets: jax.Array, lengths: jax.Array, substeps: int, mesh: Mesh
-) -> RolloutResult:
-    """``_simulate_jit``'s body with the motions split over ``mesh`` (``shard_map``): each device
-    rolls out its own motions, the model replicated; no collective."""
-    spec = PartitionSpec("batch")
-
-    def local(s_local: _Setup, q: jax.Array, n: jax.Array) -> RolloutResult:
-        out = jax.vmap(_rollout_one, in_axes=(None, 0, 0, None))(s_local, q, n, substeps)
-        return RolloutResult(*out)
-
-    # check_vma=False: MJX's solver mixes per-device and replicated values inside lax.cond
-    # (its line search), which the varying-axis check rejects; nothing here communicates
-    return jax.shard_map(
-        local, mesh=mesh, in_specs=(PartitionSpec(), spec, spec), out_specs=spec,
-        check_vma=False,
-    )(s, targets, lengths)  # fmt: skip
-
-
-_simulate_sharded = jit(_simulate_sharded, static_argnames=("substeps", "mesh"), precision=None)
-
-
 def _as_batch(targets: object, lengths: object | None) -> tuple[np.ndarray, np.ndarray]:
     q = np.asarray(targets, dtype=np.float32)
     if q.ndim != 3 or q.shape[-1] != robot.N_JOINTS or q.shape[0] < 1 or q.shape[1] < 1:
@@ -437,10 +414,13 @@ def simulate(
         motion's length may hold anything (even NaN): they are replaced by the last valid frame
         and excluded from every statistic.
       config: frame period, gain scale, gravity (static: one compile per config, B and T).
-      devices: ``None`` (default device) or several: the motions are split over a 1-D mesh of
-        them (``shard_map``; each device rolls out its share, the model replicated, no
-        collective); the batch is padded with copies of its last motion to a multiple of
-        their number and the padding cut off the result.
+      devices: ``None`` (default device) or several: the motions are split into one
+        contiguous share per device and each device runs the one-device program on its share
+        (dispatched back to back, so they run at the same time; the model copied to each; no
+        collective); the results are concatenated on the first device. Not ``shard_map``:
+        XLA's GPU compiler (jax 0.11.2) crashed with a segmentation fault compiling the
+        shard_mapped MJX step on two H200s, while the one-device program is the one every
+        single-GPU rollout already runs.
 
     Returns:
       ``RolloutResult`` of device arrays (see its docstring for shapes).
@@ -457,18 +437,22 @@ def simulate(
         if dev is not None:
             setup = jax.device_put(setup, dev)
         return _simulate_jit(setup, jax.device_put(q, dev), jax.device_put(n, dev), substeps)
-    b = len(q)
-    pad = (-b) % len(devices)
-    if pad:
-        q = np.concatenate([q, np.repeat(q[-1:], pad, axis=0)])
-        n = np.concatenate([n, np.repeat(n[-1:], pad)])
-    mesh = Mesh(np.array(devices), ("batch",))
-    shard = NamedSharding(mesh, PartitionSpec("batch"))
-    setup = jax.device_put(setup, NamedSharding(mesh, PartitionSpec()))  # replicated
-    out = _simulate_sharded(
-        setup, jax.device_put(q, shard), jax.device_put(n, shard), substeps, mesh
-    )
-    return RolloutResult(*(x[:b] for x in out)) if pad else out
+    if len(set(devices)) != len(devices):
+        raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
+    bounds = np.linspace(0, len(q), len(devices) + 1).round().astype(int)
+    parts = []
+    for dev, lo, hi in zip(devices, bounds[:-1], bounds[1:], strict=True):
+        if hi > lo:  # more devices than motions: the extra devices get none
+            s_d = jax.device_put(setup, dev)
+            parts.append(
+                _simulate_jit(s_d, jax.device_put(q[lo:hi], dev), jax.device_put(n[lo:hi], dev),
+                              substeps)  # fmt: skip
+            )
+    if len(parts) == 1:
+        return parts[0]
+    home = devices[0]
+    fields = zip(*parts, strict=True)
+    return RolloutResult(*(jnp.concatenate([jax.device_put(x, home) for x in f]) for f in fields))
 
 
 # --- kinematics -------------------------------------------------------------------------------
