@@ -43,6 +43,7 @@ used explicitly (``impl="jax"``, on CPU and GPU alike).
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import functools
 from collections.abc import Iterator, Sequence
@@ -416,8 +417,8 @@ def simulate(
       config: frame period, gain scale, gravity (static: one compile per config, B and T).
       devices: ``None`` (default device) or several: the motions are split into one
         contiguous share per device and each device runs the one-device program on its share
-        (dispatched back to back, so they run at the same time; the model copied to each; no
-        collective); the results are concatenated on the first device. Not ``shard_map``:
+        (one host thread per device, so they run at the same time; the model copied to each;
+        no collective); the results are concatenated on the first device. Not ``shard_map``:
         XLA's GPU compiler (jax 0.11.2) crashed with a segmentation fault compiling the
         shard_mapped MJX step on two H200s, while the one-device program is the one every
         single-GPU rollout already runs.
@@ -440,14 +441,20 @@ def simulate(
     if len(set(devices)) != len(devices):
         raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
     bounds = np.linspace(0, len(q), len(devices) + 1).round().astype(int)
-    parts = []
-    for dev, lo, hi in zip(devices, bounds[:-1], bounds[1:], strict=True):
-        if hi > lo:  # more devices than motions: the extra devices get none
-            s_d = jax.device_put(setup, dev)
-            parts.append(
-                _simulate_jit(s_d, jax.device_put(q[lo:hi], dev), jax.device_put(n[lo:hi], dev),
-                              substeps)  # fmt: skip
-            )
+    shares = [(d, lo, hi) for d, lo, hi in zip(devices, bounds[:-1], bounds[1:], strict=True)
+              if hi > lo]  # fmt: skip  (more devices than motions: the extra ones get none)
+
+    def run(share: tuple[jax.Device, int, int]) -> RolloutResult:
+        dev, lo, hi = share
+        s_d = jax.device_put(setup, dev)
+        out = _simulate_jit(s_d, jax.device_put(q[lo:hi], dev), jax.device_put(n[lo:hi], dev),
+                            substeps)  # fmt: skip
+        return jax.block_until_ready(out)
+
+    # one host thread per device: XLA:GPU runs the MJX solver's while loops with the host in
+    # the loop, so a call returns only when its device is done; threads let them overlap
+    with concurrent.futures.ThreadPoolExecutor(len(shares)) as pool:
+        parts = list(pool.map(run, shares))
     if len(parts) == 1:
         return parts[0]
     home = devices[0]
