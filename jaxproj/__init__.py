@@ -7,10 +7,10 @@ training descriptors + their IK) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -
 (relaxed / full objectives; one projector per kinematic chain, stacked) -> ``smoothing`` /
 ``streaming`` -> ``retarget`` (whole motions, one compiled call) -> ``feasible`` (joint, speed
 and acceleration limits) -> ``motion_io`` (NPZ / CSV / NAOqi JSON) and ``render`` (videos);
-``engine`` (several devices: ``shard_map``) and ``distributed`` (several hosts) hold the public
-build / project / save / load API; ``metrics`` / ``evaluate`` score against the IK. ``synthetic``
-(the paper's basic poses and motions) and ``experiments`` (the paper's studies on them) reproduce
-the paper's section IV.
+``engine`` holds the public build / project / save / load API (several devices: ``shard_map``)
+and ``distributed`` spreads projection over hosts; ``metrics`` / ``evaluate`` score against the
+IK. ``synthetic`` (the paper's basic poses and motions) and ``experiments`` (the paper's studies
+on them) reproduce the paper's section IV.
 
 Jit, precision, configs, errors and progress follow one policy each, stated in the README's
 Development section (jit: ``jaxproj._jit``).
