@@ -212,6 +212,7 @@ def _build(args: argparse.Namespace) -> int:
     seqs, contents = _load(args.data, args.subjects, "train", args.strict)
     d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
     n_frames = sum(len(s.valid) for s in seqs)
+    engine.check_training_data(d, cfg)  # a landmark count the data cannot reach: before the log
     _log(f"mean shift over {len(d)} descriptors, then the ELM kernel banks ...")
     model = engine.build(d, cfg)
     engine.save(model, args.out)

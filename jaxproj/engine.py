@@ -271,7 +271,7 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
         raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
     chains = ik.chain_set(config.chains)
     whole = len(chains) == 1
-    _check_training_data(d, config)
+    check_training_data(d, config)
     base_key = jax.random.PRNGKey(config.seed)
     projectors, bandwidths, counts = [], [], []
     for c, chain in enumerate(chains):
@@ -295,9 +295,10 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
     return Model(stacked, config, tuple(bandwidths), tuple(counts), int(len(d)))
 
 
-def _check_training_data(d: np.ndarray, config: BuildConfig) -> None:
-    """``ConfigError`` before any mean shift: descriptor width for the config's bones, and per
-    chain a landmark target the training data can reach (at most its distinct frames)."""
+def check_training_data(d: np.ndarray, config: BuildConfig) -> None:
+    """``ConfigError`` unless ``build`` can build ``config`` from descriptors ``d`` ``(N, m)``:
+    the descriptor width of the config's bones, and per chain a landmark target the training
+    data can reach (at most its distinct frames). ``build`` calls it before any mean shift."""
     m = 3 * len(resolve_bones(config.bones))
     if d.shape[1] != m:
         raise ConfigError(
