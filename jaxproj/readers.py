@@ -504,14 +504,13 @@ def _parse_npz(
         times = _check_times(path, times, shape[0])
         source = "file"
     elif rate is not None:
-        if rate.shape != () or rate.dtype.kind not in "iuf" or not (
-            np.isfinite(rate) and FPS_RANGE[0] <= rate <= FPS_RANGE[1]
+        lo, hi = FPS_RANGE
+        if (
+            rate.shape != ()
+            or rate.dtype.kind not in "iuf"
+            or not (np.isfinite(rate) and lo <= rate <= hi)
         ):
-            raise InputError(
-                path,
-                f"fps must be one frame rate in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], "
-                f"got {rate!r}",
-            )
+            raise InputError(path, f"fps must be one frame rate in [{lo:g}, {hi:g}], got {rate!r}")
         times = np.arange(shape[0], dtype=np.float64) / float(rate)
         source = f"file ({float(rate):g} fps)"
     return positions, valid, times, source

@@ -8,19 +8,29 @@ examples every run; the whole module runs in well under a minute on 2 cores.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import os
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 
-import jax
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from fuzzing import (
+    READER_BAD,
+    assert_one_line_error,
+    frame_kinds,
+    fuzz,
+    make_frames,
+    msr_file,
+    no_tracing,
+    npz_file,
+    run_cli,
+    utk_file,
+    write_recording,
+)
+from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -29,139 +39,9 @@ from jaxproj import datasets, engine, robot
 from jaxproj.cli import main
 from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.motion_io import load_motion
-from jaxproj.readers import MSR_TO_SDK, read_skeleton
+from jaxproj.readers import read_skeleton
 from jaxproj.retarget import retarget
 from jaxproj.smoothing import SmoothingParams
-
-FUZZ = settings(
-    deadline=None,
-    derandomize=True,
-    database=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-)
-"""Deterministic hypothesis settings of this module (each test sets its own ``max_examples``)."""
-
-
-def fuzz(max_examples: int) -> settings:
-    """``FUZZ`` with ``max_examples``."""
-    return settings(FUZZ, max_examples=max_examples)
-
-TRACE_EVENT = "/jax/core/compile/jaxpr_trace_duration"
-"""The ``jax.monitoring`` event JAX records each time it traces a function to a jaxpr."""
-
-
-@contextlib.contextmanager
-def no_tracing() -> Iterator[list[str]]:
-    """Collects the JAX tracing events of the block (the test asserts there are none)."""
-    events: list[str] = []
-
-    def listener(event: str, duration: float, **kwargs: object) -> None:
-        if event == TRACE_EVENT:
-            events.append(str(kwargs.get("fun_name", "?")))
-
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    try:
-        yield events
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listener)
-
-
-def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_one_line_error(code: int, err: str, *words: str) -> None:
-    """Exit status 2, exactly one stderr line ``jaxproj: error: ...`` holding ``words``."""
-    assert code == 2, err
-    assert "Traceback" not in err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("jaxproj: error: "), err
-    for w in words:
-        assert w in lines[0], (w, lines[0])
-
-
-# --- skeleton files with every kind of bad frame -------------------------------------------------
-
-_POOL = np.concatenate([s.positions[s.valid] for s in datasets.msr_action3d(subjects=[1])[:6]])
-"""Real frames (float32 metres, SDK order) the fuzzed recordings are made of."""
-
-READER_BAD = ("nan", "inf", "zero")
-"""Frame kinds a reader marks invalid (non-finite values, lost tracking)."""
-KINDS = ("ok", "ok", "nan", "inf", "zero", "huge", "tiny", "zero_bone", "far")
-"""Frame kinds of the fuzzed recordings: ``huge`` / ``tiny`` scale a real frame by 1e30 /
-1e-30, ``zero_bone`` puts the left elbow on the left shoulder, ``far`` moves it 1e30 away."""
-
-
-def make_frames(kinds: list[str], seed: int) -> np.ndarray:
-    """``(T, 20, 3)`` float32 positions, one frame of each kind."""
-    rng = np.random.default_rng(seed)
-    out = _POOL[rng.integers(len(_POOL), size=len(kinds))].copy()
-    for t, kind in enumerate(kinds):
-        if kind == "nan":
-            out[t, rng.integers(20), rng.integers(3)] = np.nan
-        elif kind == "inf":
-            out[t, rng.integers(20), rng.integers(3)] = rng.choice([np.inf, -np.inf])
-        elif kind == "zero":
-            out[t] = 0.0
-        elif kind == "huge":
-            out[t] *= np.float32(1e30)
-        elif kind == "tiny":
-            out[t] *= np.float32(1e-30)
-        elif kind == "zero_bone":
-            out[t, 5] = out[t, 4]  # ElbowLeft on ShoulderLeft: upper arm of length 0
-        elif kind == "far":
-            out[t] += np.float32(1e30)
-    return out
-
-
-def _fmt(values: np.ndarray) -> list[str]:
-    """``%.9g`` of float32 values: reads back to the same float32 (nan, inf included)."""
-    return [f"{v:.9g}" for v in np.asarray(values, np.float32).ravel()]
-
-
-def msr_file(pos: np.ndarray, nl: str = "\n", tail: str = "") -> str:
-    msr = np.empty_like(pos)
-    msr[:, list(MSR_TO_SDK)] = pos
-    rows = [" ".join(_fmt(r) + ["1"]) + tail for r in msr.reshape(-1, 3)]
-    return nl.join(rows) + nl
-
-
-def utk_file(pos: np.ndarray, frames: list[int], nl: str = "\n", tail: str = "") -> str:
-    rows = [f"{n} " + " ".join(_fmt(p)) + tail for n, p in zip(frames, pos, strict=True)]
-    return nl.join(rows) + nl
-
-
-def csv_file(pos: np.ndarray, nl: str = "\n", tail: str = "", header: bool = True) -> str:
-    head = [",".join(f"j{j}_{c}" for j in range(20) for c in "xyz")] if header else []
-    rows = [",".join(_fmt(p)) + tail for p in pos]
-    return nl.join(head + rows) + nl
-
-
-def npz_file(pos: np.ndarray, **extra: np.ndarray) -> bytes:
-    buf = io.BytesIO()
-    np.savez(buf, positions=pos, **extra)
-    return buf.getvalue()
-
-
-def write_recording(folder: Path, fmt: str, pos: np.ndarray, variant: int) -> Path:
-    """One recording in ``fmt``; ``variant`` picks Windows line endings / trailing whitespace."""
-    nl = "\r\n" if variant & 1 else "\n"
-    tail = " \t" if variant & 2 else ""
-    if fmt == "msr":
-        path, data = folder / "a01_s01_e01_skeleton3D.txt", msr_file(pos, nl, tail)
-    elif fmt == "utkinect":
-        path, data = folder / "joints_s01_e01.txt", utk_file(pos, list(range(len(pos))), nl, tail)
-    elif fmt == "csv":
-        path, data = folder / "motion.csv", csv_file(pos, nl, tail, header=not variant & 4)
-    else:
-        path, data = folder / "motion.npz", npz_file(pos)
-    path.write_bytes(data if isinstance(data, bytes) else data.encode())
-    return path
-
-
-frame_kinds = st.lists(st.sampled_from(KINDS), min_size=1, max_size=10)
 
 
 class TestReaderFuzz:
@@ -213,13 +93,17 @@ class TestReaderFuzz:
     @given(
         lines=st.lists(
             st.one_of(
-                st.sampled_from([3, 4, 5, 60, 61, 62]).flatmap(
-                    lambda n: st.lists(st.sampled_from(TestReaderFuzz._TOKENS), min_size=n,
-                                       max_size=n)  # fmt: skip
-                ).map(" ".join),
-                st.lists(st.sampled_from(["1", "0.5", "nan", "1e30"]), min_size=60, max_size=60)
-                .map(",".join),
-                st.integers(-5, 2**60).map(lambda n: f"{n} " + " ".join(["0.5"] * 60)),
+                st.sampled_from([3, 4, 5, 60, 61, 62])
+                .flatmap(
+                    lambda n: st.lists(
+                        st.sampled_from(TestReaderFuzz._TOKENS), min_size=n, max_size=n
+                    )  # fmt: skip
+                )
+                .map(" ".join),
+                st.lists(
+                    st.sampled_from(["1", "0.5", "nan", "1e30"]), min_size=60, max_size=60
+                ).map(",".join),
+                st.integers(-5, 10**20).map(lambda n: f"{n} " + " ".join(["0.5"] * 60)),
                 st.text("0123456789 .,e-+\r\t\nnaif\u00a0", max_size=30),
             ),
             max_size=45,
@@ -379,9 +263,7 @@ class TestCliBattery:
         out_ext=st.sampled_from(["npz", "csv", "json"]),
         smooth=st.booleans(),
     )
-    def test_nasty_recordings_retarget_to_finite_angles(
-        self, kinds, seed, fmt, out_ext, smooth
-    ):
+    def test_nasty_recordings_retarget_to_finite_angles(self, kinds, seed, fmt, out_ext, smooth):
         pos = make_frames(kinds, seed)
         with tempfile.TemporaryDirectory() as tmp:
             src = write_recording(Path(tmp), fmt, pos, seed % 8)
@@ -467,8 +349,11 @@ def _positions(t: int = 5) -> np.ndarray:
 CONFIG_CASES = [
     # (id, call, words of the ConfigError)
     ("landmarks-0", lambda d: engine.BuildConfig(landmarks=0), ["landmarks=0", ">= 2"]),
-    ("k-above-landmarks", lambda d: engine.BuildConfig(landmarks=20, k=32),
-     ["k=32", "landmark count 20", "lower k"]),  # fmt: skip
+    (
+        "k-above-landmarks",
+        lambda d: engine.BuildConfig(landmarks=20, k=32),
+        ["k=32", "landmark count 20", "lower k"],
+    ),  # fmt: skip
     ("bandwidth-0", lambda d: engine.BuildConfig(bandwidth=0.0), ["bandwidth=0.0", "> 0"]),
     ("bandwidth-neg", lambda d: engine.BuildConfig(bandwidth=(0.1, -1.0, 0.1)), ["bandwidth=-1"]),
     ("hidden-below-k", lambda d: engine.BuildConfig(k=16, hidden=8), ["hidden=8", "k=16"]),
@@ -476,20 +361,34 @@ CONFIG_CASES = [
     ("unknown-chains", lambda d: engine.BuildConfig(chains="legs"), ["unknown chain set 'legs'"]),
     ("unknown-bones", lambda d: engine.BuildConfig(bones=("neck", "tail")), ["'tail'"]),
     ("ik-bones", lambda d: engine.BuildConfig(bones=("neck",)), ["IK needs the bones"]),
-    ("too-few-frames", lambda d: engine.build(d, engine.BuildConfig(landmarks=50)),
-     ["left_arm", "landmarks=50", "only", "distinct", "lower the landmark count"]),  # fmt: skip
-    ("too-few-frames-whole",
-     lambda d: engine.build(d, engine.BuildConfig(chains="whole", landmarks=31, k=8, hidden=8)),
-     ["whole", "landmarks=31", "only 30 distinct"]),  # fmt: skip
-    ("descriptor-width", lambda d: engine.build(d[:, :12], engine.BuildConfig(landmarks=5)),
-     ["12 columns", "15"]),  # fmt: skip
+    (
+        "too-few-frames",
+        lambda d: engine.build(d, engine.BuildConfig(landmarks=50)),
+        ["left_arm", "landmarks=50", "only", "distinct", "lower the landmark count"],
+    ),  # fmt: skip
+    (
+        "too-few-frames-whole",
+        lambda d: engine.build(d, engine.BuildConfig(chains="whole", landmarks=31, k=8, hidden=8)),
+        ["whole", "landmarks=31", "only 30 distinct"],
+    ),  # fmt: skip
+    (
+        "descriptor-width",
+        lambda d: engine.build(d[:, :12], engine.BuildConfig(landmarks=5)),
+        ["12 columns", "15"],
+    ),  # fmt: skip
     ("retarget-no-model", lambda d: retarget(_positions(), method="full"), ["needs a projector"]),
     ("retarget-bones", lambda d: retarget(_positions(), bones=("neck", "tail")), ["'tail'"]),
     ("retarget-method", lambda d: retarget(_positions(), method="fast"), ["method must be"]),
-    ("retarget-times", lambda d: retarget(_positions(3), times=np.array([0.0, 0.2, 0.1])),
-     ["increase strictly"]),  # fmt: skip
-    ("retarget-times-span", lambda d: retarget(_positions(2), times=np.array([0.0, 1e300])),
-     ["span at most"]),  # fmt: skip
+    (
+        "retarget-times",
+        lambda d: retarget(_positions(3), times=np.array([0.0, 0.2, 0.1])),
+        ["increase strictly"],
+    ),  # fmt: skip
+    (
+        "retarget-times-span",
+        lambda d: retarget(_positions(2), times=np.array([0.0, 1e300])),
+        ["span at most"],
+    ),  # fmt: skip
     ("retarget-shape", lambda d: retarget(np.zeros((0, 20, 3))), ["T >= 1"]),
     ("smoothing", lambda d: SmoothingParams(alpha=2.0), ["alpha"]),
 ]
@@ -526,14 +425,26 @@ class TestConfigErrors:
             (["build", "--bandwidth", "0.1,0.2"], ["bandwidth has 2 values for 3 chains"]),
             (["build", "--landmarks", "100", "--k", "16", "--hidden", "8"], ["hidden=8"]),
             (["build", "--landmarks", "10", "--k", "16"], ["k=16 is larger", "landmark count 10"]),
-            (["build", "--subjects", "1", "--landmarks", "5000"],
-             ["landmarks=5000", "distinct valid frames", "--landmarks"]),  # fmt: skip
+            (
+                ["build", "--subjects", "1", "--landmarks", "5000"],
+                ["landmarks=5000", "distinct valid frames", "--landmarks"],
+            ),  # fmt: skip
             (["build", "--subjects", "11", "--landmarks", "50"], ["subjects", "[11]"]),
-            (["evaluate", "--model", "m.npz", "--devices", "0", "--json", "r.json"],
-             ["--devices 0"]),  # fmt: skip
+            (
+                ["evaluate", "--model", "m.npz", "--devices", "0", "--json", "r.json"],
+                ["--devices 0"],
+            ),  # fmt: skip
         ],
-        ids=["landmarks-0", "bandwidth-0", "bandwidth-count", "hidden", "k-above-landmarks",
-             "too-few-frames", "subject-range", "devices-0"],  # fmt: skip
+        ids=[
+            "landmarks-0",
+            "bandwidth-0",
+            "bandwidth-count",
+            "hidden",
+            "k-above-landmarks",
+            "too-few-frames",
+            "subject-range",
+            "devices-0",
+        ],  # fmt: skip
     )
     def test_cli_config_errors(self, tmp_path, capsys, argv, words):
         if argv[0] == "build":
