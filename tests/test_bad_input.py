@@ -30,7 +30,7 @@ from fuzzing import (
     utk_file,
     write_recording,
 )
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -42,6 +42,8 @@ from jaxproj.motion_io import load_motion
 from jaxproj.readers import read_skeleton
 from jaxproj.retarget import retarget
 from jaxproj.smoothing import SmoothingParams
+
+_ONES = np.ones((3, 20, 3))
 
 
 class TestReaderFuzz:
@@ -144,11 +146,17 @@ class TestReaderFuzz:
                     st.sampled_from([np.float64, np.int64, np.complex64]),
                     st.sampled_from([(3,), (2,)]),
                 ),
-                "fps": hnp.arrays(st.sampled_from([np.float64, np.int64]), st.sampled_from([()])),
+                "fps": st.one_of(
+                    hnp.arrays(st.sampled_from([np.float64, np.int64]), st.just(())),
+                    st.sampled_from([0.0, -1.0, 1e-310, 30.0, 1e300, np.nan]).map(np.float64),
+                ),
             },
         ),
         fps=st.sampled_from([None, 30.0, 1e-310, 1e300, float("nan")]),
     )
+    @example(positions=_ONES, extra={"fps": np.float64(1e-310)}, fps=None)
+    @example(positions=_ONES, extra={"times": np.array([0.0, 1e-300, 1e300])}, fps=None)
+    @example(positions=_ONES, extra={"valid": np.array([0.5, 1, 0], np.float32)}, fps=None)
     def test_any_npz_reads_or_is_one_line_error(self, positions, extra, fps):
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "fuzz.npz"
@@ -210,6 +218,9 @@ BAD_FILES: list[tuple[str, str, bytes | str | None, list[str]]] = [
     ("utk-frames-span", "joints_s01_e03.txt", utk_file(_GOOD, [0, 2**40]), ["time axis spans"]),
     ("npz-times", "times.npz", npz_file(_GOOD, times=np.array([1.0, 0.5])), ["increase"]),
     ("npz-fps", "fps.npz", npz_file(_GOOD, fps=np.float64(0.0)), ["fps"]),
+    ("npz-fps-tiny", "fps2.npz", npz_file(_GOOD, fps=np.float64(1e-310)), ["fps must be one"]),
+    ("npz-times-step", "t1.npz", npz_file(_GOOD, times=np.array([0.0, 1e-300])), ["1e-06 s"]),
+    ("npz-times-span", "t2.npz", npz_file(_GOOD, times=np.array([0.0, 1e300])), ["spans 1e+300"]),
     ("undetectable", "seven.txt", "1 2 3 4 5 6 7\n", ["cannot detect the format"]),
 ]
 
