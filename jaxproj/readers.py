@@ -30,10 +30,20 @@ first frame and ``time_source``, which says where they came from:
   Kinect v1 sensor's rate, ``"assumed 30 fps"``);
 - ``read_skeleton(..., fps=F)`` (the CLI's ``--fps``) overrides all of these with ``t / F``.
 
+Bounds on the time axis (beyond them a file is corrupt, and the float32 time steps of smoothing
+and of the feasibility filter would overflow): frame rates (``fps=``, an NPZ's ``fps``) within
+``FPS_RANGE`` (1e-3 to 1e6 frames/s), an NPZ's ``times`` steps of at least ``MIN_STEP_S``
+(1 us), a time axis of at most ``MAX_DURATION_S`` (1e9 s), UTKinect frame numbers integers of
+magnitude at most 2**53.
+
 Every problem with the file raises ``jaxproj.exceptions.InputError`` with a one-line message naming
 the file, the problem and, where local, the 1-based line (text) or 0-based frame (npz).
 Non-finite values and all-zero frames (skeleton lost) are *not* errors: the frame is kept, marked
-``False`` in ``Recording.valid`` and its positions are set to 0.
+``False`` in ``Recording.valid`` and its positions are set to 0. Windows line endings, a UTF-8
+byte-order mark, blank lines and trailing whitespace are accepted.
+
+``recording_format(path)`` says whether a file in a folder is a recording at all (used by
+``datasets.load_folder`` to skip documentation, label files and the like).
 
 Text is parsed in bulk (one ``str.split`` per line to count columns, one vectorised float
 conversion for the whole file); a 1000-frame MSR file reads in about 10-20 ms.
