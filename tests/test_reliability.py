@@ -379,7 +379,7 @@ class TestDeterminism:
         src = _msr(tmp_path, frames=40)
         script = (
             "import sys; from jaxproj.cli import main; d = sys.argv[1]; "
-            "sys.exit(main(['build', '--subjects', '1', '--chains', 'whole', '--landmarks', "
+            "sys.exit(main(['build', '--subjects', '1', '--chains', 'upper', '--landmarks', "
             "'60', '--k', '16', '--hidden', '16', '--out', d + '/p.npz']) or main(['retarget', "
             "sys.argv[2], '--method', 'relaxed', '--model', d + '/p.npz', '--L', '5', '--M', "
             "'5', '--out', d + '/m.npz']))"
