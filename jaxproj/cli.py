@@ -162,18 +162,34 @@ def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def _load(data: str, subjects: list[int] | None, split: str):
-    """Recordings of ``--data``; ``--subjects`` defaults to the MSR Action3D protocol's
-    ``split`` (train / test subjects) on the bundled MSR data, to every subject elsewhere."""
+def _load(data: str, subjects: list[int] | None, split: str, strict: bool = False):
+    """Recordings of ``--data`` and, for a folder, its ``datasets.FolderContents`` (else
+    ``None``). ``--subjects`` defaults to the MSR Action3D protocol's ``split`` (train / test
+    subjects) on the bundled MSR data, to every recording elsewhere. For a folder, what was
+    skipped (not a recording), left out (``--subjects``) or unreadable is noted on stderr;
+    an unreadable recording stops the command only with ``--strict``."""
     from jaxproj import datasets
     from jaxproj._progress import bar
 
     if subjects is None and data in ("bundled", "msr"):
         subjects = list(datasets.TRAIN_SUBJECTS if split == "train" else datasets.TEST_SUBJECTS)
-
-    return datasets.load_sequences(
-        data, subjects, progress=lambda files: bar(files, "reading recordings")
+    if data in ("bundled", "msr", "utkinect"):
+        return datasets.load_sequences(data, subjects), None
+    contents = datasets.load_folder(
+        data, subjects, strict=strict, progress=lambda files: bar(files, "reading recordings")
     )
+    for line in contents.notes():
+        _log(f"jaxproj: note: {line}")
+    return contents.sequences, contents
+
+
+def _unreadable_note(contents) -> str:
+    """`` (N unreadable recording(s) not used: ...)`` for a summary line, or ``""``."""
+    if contents is None or not contents.unreadable:
+        return ""
+    names = ", ".join(name for name, _ in contents.unreadable)
+    n = len(contents.unreadable)
+    return f" ({n} unreadable recording(s) not used: {names}; --strict stops at the first)"
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -193,9 +209,10 @@ def _build(args: argparse.Namespace) -> int:
         mirror=args.mirror,
     )
     t0 = time.perf_counter()
-    seqs = _load(args.data, args.subjects, "train")
+    seqs, contents = _load(args.data, args.subjects, "train", args.strict)
     d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
     n_frames = sum(len(s.valid) for s in seqs)
+    engine.check_training_data(d, cfg)  # a landmark count the data cannot reach: before the log
     _log(f"mean shift over {len(d)} descriptors, then the ELM kernel banks ...")
     model = engine.build(d, cfg)
     engine.save(model, args.out)
@@ -212,6 +229,7 @@ def _build(args: argparse.Namespace) -> int:
     print(
         f"built {cfg.chains} chains: {per_chain} from {model.n_train} valid frames "
         f"(of {n_frames}), hidden={cfg.hidden}, seed={cfg.seed} in {dt:.1f} s -> {args.out}"
+        + _unreadable_note(contents)
     )
     return 0
 
@@ -228,7 +246,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
-    seqs = _load(args.data, args.subjects, "test")
+    seqs, contents = _load(args.data, args.subjects, "test", args.strict)
     data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
     out = evaluate.evaluate(
         model,
@@ -244,9 +262,14 @@ def _evaluate(args: argparse.Namespace) -> int:
     out["subjects"] = sorted({int(s.subject) for s in seqs})
     out["data"] = args.data
     out["model"] = str(args.model)
+    if contents is not None:
+        out["data_files"] = contents.to_json()
     report.write_json(Path(args.json), out)
     print(report.summary_table(out["summary"], methods))
-    print(f"{out['valid_frames']} valid frames of {out['sequences']} sequences -> {args.json}")
+    print(
+        f"{out['valid_frames']} valid frames of {out['sequences']} sequences -> {args.json}"
+        + _unreadable_note(contents)
+    )
     return 0
 
 
@@ -376,8 +399,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--subjects",
         type=_parse_ints,
         default=None,
-        help="training subjects, comma-separated (None: 1,3,5,7,9 of the bundled MSR data; all "
-        "elsewhere)",
+        help="training subjects, comma-separated (None: 1,3,5,7,9 of the bundled MSR data; every "
+        "recording of 'utkinect' or a folder; a folder's left-out files are noted on stderr)",
     )
     pb.add_argument(
         "--chains",
@@ -406,6 +429,12 @@ def build_parser() -> argparse.ArgumentParser:
     pb.add_argument("--input-scale", type=float, default=None, help=f"hidden-weight std ({tuned})")
     pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
     pb.add_argument("--mirror", action="store_true", help="mirror imitation")
+    pb.add_argument(
+        "--strict",
+        action="store_true",
+        help="with a folder: stop at the first unreadable recording (default: report it on "
+        "stderr and use the others)",
+    )
     pb.add_argument("--out", required=True, help="output projector .npz")
     pb.set_defaults(func=_build)
 
@@ -418,7 +447,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--subjects",
         type=_parse_ints,
         default=None,
-        help="evaluated subjects (None: 2,4,6,8,10 of the bundled MSR data; all elsewhere)",
+        help="evaluated subjects (None: 2,4,6,8,10 of the bundled MSR data; every recording of "
+        "'utkinect' or a folder; a folder's left-out files are noted on stderr)",
     )
     pe.add_argument(
         "--objective",
@@ -439,6 +469,12 @@ def build_parser() -> argparse.ArgumentParser:
         default="1",
         help="JAX devices to shard the queries over: a count or 'all' (shard_map, one device "
         "program per shard)",
+    )
+    pe.add_argument(
+        "--strict",
+        action="store_true",
+        help="with a folder: stop at the first unreadable recording (default: report it on "
+        "stderr and in the JSON's data_files, and evaluate the others)",
     )
     pe.add_argument("--json", required=True, help="output report JSON")
     pe.set_defaults(func=_evaluate)

@@ -56,6 +56,7 @@ OUT.npz``). Archive layout (format 1; R recordings, N frames in total; no pickle
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import io
 import os
@@ -682,46 +683,151 @@ def load_sequences(
     subjects: Iterable[int] | None = None,
     *,
     progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
+    strict: bool = True,
 ) -> list[MotionSequence]:
     """The bundled MSR Action3D or UTKinect-Action3D sequences, or every recording in a folder.
 
     Args:
       data: ``"bundled"`` or ``"msr"`` (MSR Action3D, ``msr_action3d``), ``"utkinect"`` (every
         labelled UTKinect-Action3D action segment, ``utkinect_action3d``; callers filter by
-        ``action``), or a folder of recordings. Folder files are read with
-        ``readers.read_skeleton`` (format by extension / content); a file name with ``sNN``
-        gives the subject and ``aNN_`` the action (0 when absent).
+        ``action``), or a folder of recordings (``load_folder``: files that are not recordings
+        are skipped; what was skipped, left out or unreadable is in ``load_folder``'s result).
       subjects: keep only these subjects (``None``: all). Folder files with no subject in their
         name are kept.
       progress: optional wrapper of the file iterable (e.g. a progress bar).
+      strict: folders only: ``True`` raises at an unreadable recording, ``False`` leaves it out.
 
     Raises:
-      InputError: ``data`` is none of the names above nor a folder, or the folder holds no
-        recording.
+      InputError: ``data`` is none of the names above nor a folder, the folder holds no
+        recording, or (``strict``) a recording in it cannot be read.
       ConfigError: a subject number out of range (bundled data), or for ``"utkinect"`` none of
         ``subjects`` bundled (only 3, 4, 6, 7, 9 are).
     """
-    from jaxproj.readers import read_skeleton
-
     wanted = None if subjects is None else set(subjects)
     if str(data) in ("bundled", "msr"):
         return msr_action3d(subjects=wanted)
     if str(data) == "utkinect":
         return utkinect_action3d(subjects=wanted)
-    folder = Path(data)
-    if not folder.is_dir():
+    return load_folder(data, subjects, progress=progress, strict=strict).sequences
+
+
+@dataclass(frozen=True)
+class FolderContents:
+    """What ``load_folder`` found in a folder, file by file (names relative to the folder).
+
+    Attributes:
+      sequences: the recordings read, in file-name order.
+      skipped: ``(name, why)`` of files that are not recordings (``readers.recording_format``).
+      left_out: ``(name, subject)`` of recordings of subjects not asked for (not read).
+      unreadable: ``(name, error)`` of recordings that could not be read (``strict=False``).
+      subjects: the subjects asked for (``None``: all).
+      missing_subjects: subjects asked for that no file name holds.
+    """
+
+    sequences: list[MotionSequence]
+    skipped: list[tuple[str, str]]
+    left_out: list[tuple[str, int]]
+    unreadable: list[tuple[str, str]]
+    subjects: list[int] | None = None
+    missing_subjects: list[int] = dataclasses.field(default_factory=list)
+
+    def notes(self, limit: int = 10) -> list[str]:
+        """One line per thing a user should know (at most ``limit`` names per kind)."""
+
+        def some(items: list[str]) -> str:
+            more = len(items) - limit
+            return ", ".join(items[:limit]) + (f" and {more} more" if more > 0 else "")
+
+        lines = [f"skipped {name}: {why}" for name, why in self.skipped[:limit]]
+        if len(self.skipped) > limit:
+            lines.append(f"skipped {len(self.skipped) - limit} more files that are not recordings")
+        if self.left_out:
+            names = [f"{name} (subject {s})" for name, s in self.left_out]
+            lines.append(
+                f"left out {len(self.left_out)} recording(s) of subjects other than "
+                f"{self.subjects}: {some(names)}"
+            )
+        if self.missing_subjects:
+            lines.append(f"no recording of subject(s) {self.missing_subjects} in the folder")
+        lines += [f"unreadable recording, not used: {err}" for _, err in self.unreadable]
+        return lines
+
+    def to_json(self) -> dict:
+        """The same, JSON-ready (for reports)."""
+        return {
+            "recordings": len(self.sequences),
+            "skipped": [{"file": n, "reason": w} for n, w in self.skipped],
+            "left_out": [{"file": n, "subject": s} for n, s in self.left_out],
+            "unreadable": [{"file": n, "error": e} for n, e in self.unreadable],
+            "missing_subjects": list(self.missing_subjects),
+        }
+
+
+def load_folder(
+    folder: str | os.PathLike[str],
+    subjects: Iterable[int] | None = None,
+    *,
+    progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
+    strict: bool = True,
+) -> FolderContents:
+    """Every recording in a folder (not its subfolders), and an account of the rest.
+
+    Each file is first recognised (``readers.recording_format``): files that are not recordings
+    (documentation such as ``SOURCE.md``, UTKinect's ``actionLabel.txt``, hidden files, images,
+    an npz without ``positions``) are skipped and listed in ``skipped``. A file name with
+    ``sNN`` gives the subject (0 when absent) and ``aNN_`` the action (0 when absent). With
+    ``subjects``, recordings of other subjects are listed in ``left_out`` without being read;
+    files with no subject in their name are kept. The rest are read with
+    ``readers.read_skeleton``.
+
+    Args:
+      folder: the folder.
+      subjects: subjects to keep (``None``: every recording).
+      progress: optional wrapper of the file iterable (e.g. a progress bar).
+      strict: ``True``: an unreadable recording raises its ``InputError``; ``False``: it is
+        listed in ``unreadable`` and the others are read.
+
+    Returns:
+      ``FolderContents``.
+
+    Raises:
+      InputError: not a folder; no recording read (the message counts what was skipped, left
+        out and unreadable); with ``strict``, the first unreadable recording.
+    """
+    from jaxproj.readers import read_skeleton, recording_format
+
+    path = Path(folder)
+    if not path.is_dir():
         raise InputError(
-            folder, "--data must be 'bundled', 'msr', 'utkinect' or a folder of recordings"
+            path, "--data must be 'bundled', 'msr', 'utkinect' or a folder of recordings"
         )
-    files = sorted(p for p in folder.iterdir() if p.is_file())
-    seqs = []
+    wanted = None if subjects is None else sorted({int(s) for s in subjects})
+    files = sorted(path.iterdir(), key=lambda f: f.name)
+    seqs: list[MotionSequence] = []
+    skipped: list[tuple[str, str]] = []
+    left_out: list[tuple[str, int]] = []
+    unreadable: list[tuple[str, str]] = []
+    seen_subjects: set[int] = set()
     for f in files if progress is None else progress(files):
+        fmt, why = recording_format(f)
+        if fmt is None:
+            skipped.append((f.name, "a folder (not searched)" if f.is_dir() else why))
+            continue
         subj = _SUBJECT_RE.search(f.name)
         act = _ACTION_RE.search(f.name)
         subject = int(subj.group(1)) if subj else 0
+        if subj:
+            seen_subjects.add(subject)
         if wanted is not None and subj and subject not in wanted:
+            left_out.append((f.name, subject))
             continue
-        rec = read_skeleton(f)
+        try:
+            rec = read_skeleton(f, format=fmt)
+        except InputError as err:
+            if strict:
+                raise
+            unreadable.append((f.name, str(err)))
+            continue
         conf = np.ones(rec.valid.shape + (N_JOINTS,), np.float32)
         action = int(act.group(1)) if act else 0
         seqs.append(
@@ -729,9 +835,18 @@ def load_sequences(
                 f.stem, action, subject, 0, rec.positions, conf, rec.valid, times=rec.times
             )
         )
+    missing = [s for s in wanted if s not in seen_subjects] if wanted is not None else []
+    contents = FolderContents(seqs, skipped, left_out, unreadable, wanted, missing)
     if not seqs:
-        raise InputError(folder, f"no recordings found (for subjects {subjects})")
-    return seqs
+        counts = (
+            f"{len(skipped)} file(s) not recordings, {len(left_out)} recording(s) of other "
+            f"subjects than {wanted}, {len(unreadable)} unreadable"
+            if wanted is not None
+            else f"{len(skipped)} file(s) not recordings, {len(unreadable)} unreadable"
+        )
+        first = f"; first unreadable: {unreadable[0][1]}" if unreadable else ""
+        raise InputError(path, f"no recording to use ({counts}){first}")
+    return contents
 
 
 def valid_descriptors(

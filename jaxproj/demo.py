@@ -174,7 +174,7 @@ def run_demo(
     timings["total_s"] = time.perf_counter() - t_start
     result["timings"] = timings
     report.write_json(out_dir / "report.json", result)
-    (out_dir / "report.md").write_text(_markdown(result))
+    report.write_text(out_dir / "report.md", _markdown(result))
     _log(f"[5/5] report written to {out_dir} ({timings['total_s']:.0f} s in all)")
     return result
 

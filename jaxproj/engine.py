@@ -28,6 +28,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxproj import ik, landmarks, robot
+from jaxproj._atomic import atomic_write
 from jaxproj._jit import jit
 from jaxproj.exceptions import ConfigError, InputError
 from jaxproj.kernels import ELMBank, train_bank
@@ -140,6 +141,9 @@ class BuildConfig:
             if isinstance(getattr(self, name), list):  # from JSON
                 object.__setattr__(self, name, tuple(getattr(self, name)))
         chains = ik.chain_set(self.chains)
+        if not isinstance(self.bones, str):
+            object.__setattr__(self, "bones", tuple(self.bones))
+        ik.bone_index(self.bones)  # unknown bone names, or a subset the IK cannot use
         for c in range(len(chains)):
             self.chain_config(c)
 
@@ -176,6 +180,11 @@ class BuildConfig:
         )
         if cfg.k < 2:
             raise ConfigError(f"chain {name}: k={cfg.k} must be >= 2")
+        if self.k is not None and landmarks is not None and cfg.k > landmarks:
+            raise ConfigError(
+                f"chain {name}: k={cfg.k} is larger than its landmark count {landmarks} (a kernel "
+                f"trains on at most all landmarks): lower k to <= {landmarks} or raise landmarks"
+            )
         if cfg.hidden < cfg.k:
             raise ConfigError(f"chain {name}: hidden={cfg.hidden} must be >= k={cfg.k}")
         if not cfg.lam > 0:
@@ -262,6 +271,7 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
         raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
     chains = ik.chain_set(config.chains)
     whole = len(chains) == 1
+    check_training_data(d, config)
     base_key = jax.random.PRNGKey(config.seed)
     projectors, bandwidths, counts = [], [], []
     for c, chain in enumerate(chains):
@@ -283,6 +293,30 @@ def build(descriptors: np.ndarray, config: BuildConfig = BuildConfig(), **mean_s
         counts.append(np.asarray(lm.counts))
     stacked = stack_projectors(projectors, layout_of(config, projectors))
     return Model(stacked, config, tuple(bandwidths), tuple(counts), int(len(d)))
+
+
+def check_training_data(d: np.ndarray, config: BuildConfig) -> None:
+    """``ConfigError`` unless ``build`` can build ``config`` from descriptors ``d`` ``(N, m)``:
+    the descriptor width of the config's bones, and per chain a landmark target the training
+    data can reach (at most its distinct frames). ``build`` calls it before any mean shift."""
+    m = 3 * len(resolve_bones(config.bones))
+    if d.shape[1] != m:
+        raise ConfigError(
+            f"descriptors have {d.shape[1]} columns, but bones={config.bones!r} gives {m}"
+        )
+    chains = ik.chain_set(config.chains)
+    for c, chain in enumerate(chains):
+        target = config.chain_config(c).landmarks
+        if target is None:
+            continue
+        cols = slice(None) if len(chains) == 1 else list(ik.chain_columns(chain, config.bones))
+        distinct = len(np.unique(d[:, cols], axis=0))
+        if target > distinct:
+            raise ConfigError(
+                f"chain {chain.name}: landmarks={target} but the training data has only "
+                f"{distinct} distinct valid frames for it: lower the landmark count (--landmarks), "
+                "give a bandwidth instead, or train on more recordings / subjects"
+            )
 
 
 def from_landmarks(
@@ -602,12 +636,40 @@ def _padding_query(p: AnyProjector) -> np.ndarray:
 # ---------------------------------------------------------------------------- save / load
 
 _BANK_FIELDS = ("w", "inv_scale", "bias", "out", "offset", "neighbours")
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+# Array shapes of one chain in a model file: K landmarks, m descriptor columns and n joints of
+# the chain (known from the layout), Hf / Hb hidden units and kf / kb neighbours (read).
+_ARRAY_SHAPES: dict[str, tuple[str, ...]] = {
+    "human": ("K", "m"),
+    "robot": ("K", "n"),
+    "counts": ("K",),
+    "forward.w": ("Hf", "m"),
+    "forward.inv_scale": ("K",),
+    "forward.bias": ("K", "Hf"),
+    "forward.out": ("K", "n", "Hf"),
+    "forward.offset": ("K", "n"),
+    "forward.neighbours": ("K", "kf"),
+    "backward.w": ("Hb", "n"),
+    "backward.inv_scale": ("K",),
+    "backward.bias": ("K", "Hb"),
+    "backward.out": ("K", "m", "Hb"),
+    "backward.offset": ("K", "m"),
+    "backward.neighbours": ("K", "kb"),
+}
 
 
 def save(model: Model, path: str | Path) -> None:
     """Write a model to one ``.npz``: every chain's arrays (unpadded), the config, the chain
-    layout and a format version. The file is written under a temporary name and then renamed,
-    so an interrupted save never leaves a half-written model."""
+    layout and a format version.
+
+    The file is written under a temporary name beside ``path`` and then renamed
+    (``jaxproj._atomic``), so an interrupted or failed save never leaves a half-written model;
+    the zip members carry fixed timestamps, so the same model gives a byte-identical file.
+
+    Raises:
+      InputError: the file cannot be written.
+    """
     sp = model.projector
     lay = sp.layout
     arrays: dict[str, np.ndarray] = {}
@@ -632,73 +694,195 @@ def save(model: Model, path: str | Path) -> None:
             "elbow_yaw_neutral": ik.ELBOW_YAW_NEUTRAL,
         },
     }
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(tmp, "wb") as fh:
-            np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)
-        tmp.replace(path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise InputError(path, f"cannot write model: {e.strerror or e}") from None
+    arrays = {"meta": np.array(json.dumps(meta)), **arrays}
+    atomic_write(path, lambda tmp: _write_npz(tmp, arrays))
+
+
+def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """``np.savez`` (uncompressed, no pickles) with fixed zip timestamps: deterministic bytes."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for key, value in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
+            info.external_attr = 0o644 << 16
+            with zf.open(info, "w", force_zip64=True) as fh:
+                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
 
 
 def load(path: str | Path) -> Model:
-    """Read a model written by ``save``; ``InputError`` on a missing, corrupt or foreign file."""
+    """Read a model written by ``save``.
+
+    Raises:
+      InputError: naming the file: missing, a directory, not an npz archive, truncated or
+        corrupt, not a jaxproj model, another format version (a newer one: upgrade jaxproj), a
+        chain layout other than this jaxproj's for the model's configuration, a missing,
+        mis-shaped or non-finite array.
+    """
     path = Path(path)
+    if path.is_dir():
+        raise InputError(path, "is a directory, not a model file")
     if not path.is_file():
         raise InputError(path, "model file not found")
     try:
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
-        raise InputError(path, f"not a readable model file ({type(e).__name__}: {e})") from None
-    if "meta" not in data:
-        raise InputError(path, "not a jaxproj model (no 'meta' entry)")
-    try:
-        meta = json.loads(str(data["meta"]))
-    except json.JSONDecodeError:
-        raise InputError(path, "corrupt model metadata") from None
-    if meta.get("format") != FORMAT:
-        raise InputError(path, f"not a jaxproj model (format {meta.get('format')!r})")
-    if meta.get("format_version") != FORMAT_VERSION:
-        raise InputError(
-            path,
-            f"model format version {meta.get('format_version')} is not supported "
-            f"(this jaxproj reads version {FORMAT_VERSION}); rebuild it with `jaxproj build`",
-        )
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+            if head != b"PK\x03\x04":
+                what = "an empty file" if not head else "not an npz archive"
+                raise InputError(path, f"not a jaxproj model ({what}; see `jaxproj build`)")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+    except InputError:
+        raise
+    except Exception as e:  # zipfile / zlib / numpy errors of a truncated or corrupt archive
+        raise InputError(path, f"not a readable model file ({_one_line(e)})") from None
+    meta = _read_meta(path, data)
     try:
         config = BuildConfig(**meta["config"])
-        projectors = []
-        for c, ch in enumerate(ik.chain_set(config.chains)):
-            banks = {}
-            for name in ("forward", "backward"):
-                a = {f: data[f"chain{c}.{name}.{f}"] for f in _BANK_FIELDS}
-                banks[name] = ELMBank(
-                    **{f: jnp.asarray(v) for f, v in a.items()},
-                    n_kernels=int(a["out"].shape[0]),
-                    hidden=int(a["out"].shape[2]),
-                    d_in=int(a["w"].shape[1]),
-                    d_out=int(a["out"].shape[1]),
-                    k=int(a["neighbours"].shape[1]),
-                )
-            joints = list(ik.chain_joints(ch))
-            projectors.append(
-                make_projector(
-                    data[f"chain{c}.human"],
-                    data[f"chain{c}.robot"],
-                    banks["forward"],
-                    banks["backward"],
-                    robot.LOWER[robot.DRIVEN_INDEX][joints],
-                    robot.UPPER[robot.DRIVEN_INDEX][joints],
-                )
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(path, f"invalid model configuration ({_one_line(e)})") from None
+    chains = ik.chain_set(config.chains)
+    _check_layout(path, meta, config, data)
+    try:
+        bandwidth = tuple(float(b) for b in meta["bandwidth"])
+        n_train = int(meta["n_train"])
+        if len(bandwidth) != len(chains):
+            raise ValueError(f"{len(bandwidth)} bandwidths for {len(chains)} chains")
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(path, f"corrupt model metadata ({_one_line(e)})") from None
+    projectors, counts = [], []
+    for c, ch in enumerate(chains):
+        a = _chain_arrays(path, data, c, len(_chain_inputs(config, ch)), len(ik.chain_joints(ch)))
+        banks = {}
+        for name in ("forward", "backward"):
+            f = {f: a[f"{name}.{f}"] for f in _BANK_FIELDS}
+            banks[name] = ELMBank(
+                **{k: jnp.asarray(v) for k, v in f.items()},
+                n_kernels=int(f["out"].shape[0]),
+                hidden=int(f["out"].shape[2]),
+                d_in=int(f["w"].shape[1]),
+                d_out=int(f["out"].shape[1]),
+                k=int(f["neighbours"].shape[1]),
             )
-        layout = layout_of(config, projectors)
-        if [list(x) for x in layout.inputs] != [list(x) for x in meta["chains"]["inputs"]]:
-            raise InputError(path, "the file's chain layout differs from its configuration's")
-        stacked = stack_projectors(projectors, layout)
-        counts = tuple(data[f"chain{c}.counts"] for c in range(layout.n_chains))
-    except (KeyError, TypeError, IndexError, ValueError) as e:
-        raise InputError(path, f"incomplete or inconsistent model file ({e})") from None
-    return Model(stacked, config, tuple(meta["bandwidth"]), counts, int(meta["n_train"]))
+        joints = list(ik.chain_joints(ch))
+        projectors.append(
+            make_projector(
+                a["human"],
+                a["robot"],
+                banks["forward"],
+                banks["backward"],
+                robot.LOWER[robot.DRIVEN_INDEX][joints],
+                robot.UPPER[robot.DRIVEN_INDEX][joints],
+            )
+        )
+        counts.append(a["counts"])
+    try:
+        stacked = stack_projectors(projectors, layout_of(config, projectors))
+    except (TypeError, ValueError) as e:
+        raise InputError(path, f"inconsistent model file ({_one_line(e)})") from None
+    return Model(stacked, config, bandwidth, tuple(counts), n_train)
+
+
+def _read_meta(path: Path, data: dict[str, np.ndarray]) -> dict:
+    """The checked ``meta`` entry: a jaxproj model of this format version."""
+    if "meta" not in data:
+        found = ", ".join(sorted(data)[:5]) or "none"
+        raise InputError(path, f"not a jaxproj model (no 'meta' entry; arrays found: {found})")
+    try:
+        meta = json.loads(str(data["meta"]))
+    except (json.JSONDecodeError, TypeError, ValueError):
+        raise InputError(path, "corrupt model metadata (not JSON)") from None
+    if not isinstance(meta, dict):
+        raise InputError(path, "corrupt model metadata (not a JSON object)")
+    if meta.get("format") != FORMAT:
+        raise InputError(path, f"not a jaxproj model (format {meta.get('format')!r})")
+    version = meta.get("format_version")
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise InputError(path, f"corrupt model metadata (format_version {version!r})")
+    if version > FORMAT_VERSION:
+        raise InputError(
+            path,
+            f"model format version {version} was written by a newer jaxproj (this one reads "
+            f"version {FORMAT_VERSION}): upgrade jaxproj, or rebuild the model with "
+            "`jaxproj build`",
+        )
+    if version != FORMAT_VERSION:
+        raise InputError(
+            path,
+            f"model format version {version} is not supported (this jaxproj reads version "
+            f"{FORMAT_VERSION}); rebuild it with `jaxproj build`",
+        )
+    return meta
+
+
+def _chain_inputs(config: BuildConfig, chain: ik.Chain) -> tuple[int, ...]:
+    """Descriptor columns a chain of ``config`` reads (``layout_of``'s rule)."""
+    if len(ik.chain_set(config.chains)) == 1:
+        return tuple(range(3 * len(resolve_bones(config.bones))))
+    return tuple(ik.chain_columns(chain, config.bones))
+
+
+def _check_layout(path: Path, meta: dict, config: BuildConfig, data: dict) -> None:
+    """``InputError`` unless the file's chains are this jaxproj's chains for its config."""
+    chains = ik.chain_set(config.chains)
+    want = {
+        "names": [ch.name for ch in chains],
+        "inputs": [list(_chain_inputs(config, ch)) for ch in chains],
+        "outputs": [list(ik.chain_joints(ch)) for ch in chains],
+    }
+    got = meta.get("chains")
+    got = {k: got.get(k) for k in want} if isinstance(got, dict) else {}
+    rebuild = "written by another chain layout; rebuild it with `jaxproj build`"
+    for key, value in want.items():
+        if got.get(key) != value:
+            raise InputError(
+                path,
+                f"chain {key} {got.get(key)} differ from this jaxproj's {value} for "
+                f"chains={config.chains!r}: {rebuild}",
+            )
+    if meta.get("driven_joints") != list(robot.DRIVEN_JOINTS):
+        raise InputError(path, f"driven joints {meta.get('driven_joints')} differ from this "
+                               f"jaxproj's {list(robot.DRIVEN_JOINTS)}: {rebuild}")  # fmt: skip
+    held = {k.split(".", 1)[0] for k in data if k != "meta"}
+    extra = sorted(held - {f"chain{c}" for c in range(len(chains))})
+    if extra:
+        raise InputError(
+            path, f"arrays {', '.join(extra)} beyond its {len(chains)} chain(s): {rebuild}"
+        )
+
+
+def _chain_arrays(
+    path: Path, data: dict[str, np.ndarray], c: int, m: int, n: int
+) -> dict[str, np.ndarray]:
+    """Chain ``c``'s arrays, checked against ``_ARRAY_SHAPES`` (``InputError`` naming the array:
+    missing, mis-shaped, wrong kind, non-finite, neighbour index out of range)."""
+    dims: dict[str, int] = {"m": m, "n": n}
+    out = {}
+    for key, spec in _ARRAY_SHAPES.items():
+        name = f"chain{c}.{key}"
+        if name not in data:
+            raise InputError(path, f"missing array {name!r} (an incomplete or foreign model file)")
+        a = data[name]
+        integer = key == "counts" or key.endswith("neighbours")
+        ok = a.ndim == len(spec) and a.dtype.kind in ("iu" if integer else "f")
+        for sym, size in zip(spec, a.shape if ok else (), strict=False):
+            ok = ok and dims.setdefault(sym, size) == size and size >= 1
+        if not ok:
+            want = ", ".join(f"{s}={dims[s]}" if s in dims else s for s in spec)
+            kind = "integers" if integer else "floats"
+            raise InputError(
+                path, f"array {name!r} has shape {a.shape} ({a.dtype}), expected ({want}) {kind}"
+            )
+        if not integer and not np.isfinite(a).all():
+            raise InputError(path, f"array {name!r} has non-finite values")
+        out[key] = a
+    for bank in ("forward", "backward"):
+        nb = out[f"{bank}.neighbours"]
+        if nb.min() < 0 or nb.max() >= dims["K"] or nb.shape[1] > dims["K"]:
+            raise InputError(path, f"array 'chain{c}.{bank}.neighbours' indexes beyond the "
+                                   f"{dims['K']} landmarks")  # fmt: skip
+    return out

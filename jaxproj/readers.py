@@ -30,10 +30,20 @@ first frame and ``time_source``, which says where they came from:
   Kinect v1 sensor's rate, ``"assumed 30 fps"``);
 - ``read_skeleton(..., fps=F)`` (the CLI's ``--fps``) overrides all of these with ``t / F``.
 
+Bounds on the time axis (beyond them a file is corrupt, and the float32 time steps of smoothing
+and of the feasibility filter would overflow): frame rates (``fps=``, an NPZ's ``fps``) within
+``FPS_RANGE`` (1e-3 to 1e6 frames/s), an NPZ's ``times`` steps of at least ``MIN_STEP_S``
+(1 us), a time axis of at most ``MAX_DURATION_S`` (1e9 s), UTKinect frame numbers integers of
+magnitude at most 2**53.
+
 Every problem with the file raises ``jaxproj.exceptions.InputError`` with a one-line message naming
 the file, the problem and, where local, the 1-based line (text) or 0-based frame (npz).
 Non-finite values and all-zero frames (skeleton lost) are *not* errors: the frame is kept, marked
-``False`` in ``Recording.valid`` and its positions are set to 0.
+``False`` in ``Recording.valid`` and its positions are set to 0. Windows line endings, a UTF-8
+byte-order mark, blank lines and trailing whitespace are accepted.
+
+``recording_format(path)`` says whether a file in a folder is a recording at all (used by
+``datasets.load_folder`` to skip documentation, label files and the like).
 
 Text is parsed in bulk (one ``str.split`` per line to count columns, one vectorised float
 conversion for the whole file); a 1000-frame MSR file reads in about 10-20 ms.
@@ -44,6 +54,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import os
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -66,10 +77,19 @@ KINECT_FPS = 30.0
 """Frame rate assumed for CSV (and NPZ without timing): the Kinect v1 sensor's rate, frames/s."""
 UTK_FPS = 30.0
 """Nominal capture rate of UTKinect-Action3D (frames/s): ``times = frame_numbers / UTK_FPS``."""
+FPS_RANGE = (1e-3, 1e6)
+"""Frame rates (frames/s) accepted from ``fps=`` (``--fps``) and an NPZ's ``fps``."""
+MIN_STEP_S = 1e-6
+"""Smallest step (s) between the ``times`` of consecutive frames that an NPZ may give."""
+MAX_DURATION_S = 1e9
+"""Longest time axis (s, ~32 years) a recording may have: beyond it the frame numbers or times
+are corrupt (and would overflow the float32 time steps of smoothing and the feasibility
+filter)."""
 
 _MSR_COLUMNS = 4
 _UTK_COLUMNS = 1 + 3 * N_JOINTS
 _CSV_COLUMNS = 3 * N_JOINTS
+_MAX_FRAME_NUMBER = 2.0**53  # integers a float64 holds exactly (and int64 too)
 
 
 @dataclass(frozen=True)
@@ -129,8 +149,13 @@ def read_skeleton(
     """
     if format not in FORMATS:
         raise InputError(path, f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
-    if fps is not None and not (np.isfinite(fps) and fps > 0):
-        raise ConfigError(f"fps must be a positive number of frames per second, got {fps}")
+    if fps is not None and not (
+        np.isfinite(fps) and FPS_RANGE[0] <= fps <= FPS_RANGE[1]
+    ):  # fmt: skip
+        raise ConfigError(
+            f"fps must be a frame rate in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}] frames per "
+            f"second, got {fps}"
+        )
     data = _read_bytes(path)
     if format == "auto":
         format = _detect(path, data)
@@ -152,8 +177,72 @@ def read_skeleton(
     if times is None:
         rate = fps or (MSR_FPS if format == "msr" else KINECT_FPS)
         times = np.arange(len(positions), dtype=np.float64) / rate
+    times = np.asarray(times, np.float64)
+    if times[-1] - times[0] > MAX_DURATION_S:
+        raise InputError(
+            path,
+            f"the time axis spans {times[-1] - times[0]:g} s (more than {MAX_DURATION_S:g} s): "
+            "corrupt frame numbers or times",
+        )
     rec = _recording(positions, valid, str(path), format)
-    return dataclasses.replace(rec, times=np.asarray(times, np.float64), time_source=source)
+    return dataclasses.replace(rec, times=times, time_source=source)
+
+
+_SNIFF_BYTES = 1 << 16
+
+
+def recording_format(path: str | os.PathLike[str]) -> tuple[str | None, str]:
+    """Is this file (in a folder of recordings) a skeleton recording? ``(format, "")`` if it
+    looks like one, ``(None, why not)`` otherwise; never raises.
+
+    Only the start of the file is looked at: ``.npz``: a zip archive with a ``positions``
+    member (an npz without one, e.g. a model, is not a recording; one that is not a readable
+    zip is, and ``read_skeleton`` reports it); otherwise text whose first non-blank line is 60
+    comma-separated fields (CSV, header or numbers), or 4 (MSR Action3D) or 61 (UTKinect)
+    whitespace-separated numbers. Hidden files, empty files, binaries and documentation or
+    label files (``SOURCE.md``, UTKinect's ``actionLabel.txt``) are not recordings. A file that
+    passes may still be malformed further on: ``read_skeleton`` decides.
+    """
+    p = Path(path)
+    if p.name.startswith("."):
+        return None, "hidden file"
+    if not p.is_file():
+        return None, "not a regular file"
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(_SNIFF_BYTES)
+    except OSError as err:
+        return None, f"cannot be read ({_one_line(err)})"
+    if not head:
+        return None, "empty file"
+    if p.suffix.lower() == ".npz" or head[:4] == b"PK\x03\x04":
+        try:
+            with zipfile.ZipFile(p) as zf:
+                names = zf.namelist()
+        except (OSError, zipfile.BadZipFile, ValueError):
+            return "npz", ""  # looks like an npz: read_skeleton says what is wrong with it
+        if "positions.npy" not in names:
+            return None, "an npz archive without 'positions' (not a recording)"
+        return "npz", ""
+    lines = head.split(b"\n")
+    complete = lines if len(head) < _SNIFF_BYTES else lines[:-1]
+    first = next((line for line in complete if line.strip()), None)
+    if first is None:
+        return None, "no text line to recognise (blank or binary)"
+    try:
+        text = first.decode("utf-8-sig" if first is lines[0] else "utf-8").strip()
+    except UnicodeDecodeError:
+        return None, "not a text file"
+    fields = text.split(",") if "," in text else text.split()
+    if "," in text:
+        if len(fields) == _CSV_COLUMNS:
+            return "csv", ""
+        return None, f"first line has {len(fields)} comma-separated fields, not {_CSV_COLUMNS}"
+    if len(fields) in (_MSR_COLUMNS, _UTK_COLUMNS) and all(_is_number(f) for f in fields):
+        return ("msr" if len(fields) == _MSR_COLUMNS else "utkinect"), ""
+    return None, (
+        f"first line is not {_MSR_COLUMNS} (MSR Action3D) or {_UTK_COLUMNS} (UTKinect) numbers"
+    )
 
 
 # --- helpers ------------------------------------------------------------------------------------
@@ -331,6 +420,12 @@ def _read_utkinect_rows(
     if bad.size:
         i = int(bad[0])
         raise InputError(path, f"line {lines[i]}: frame number {frame[i]:g} is not an integer")
+    bad = np.flatnonzero(np.abs(frame) > _MAX_FRAME_NUMBER)
+    if bad.size:
+        i = int(bad[0])
+        raise InputError(
+            path, f"line {lines[i]}: frame number {frame[i]:g} is out of range (|n| <= 2**53)"
+        )
     _, keep = np.unique(frame, return_index=True)  # first line of each number, by frame number
     if not order:
         keep = np.sort(keep)
@@ -419,10 +514,13 @@ def _parse_npz(
         times = _check_times(path, times, shape[0])
         source = "file"
     elif rate is not None:
-        if rate.shape != () or not np.issubdtype(rate.dtype, np.number) or not (
-            np.isfinite(rate) and rate > 0
+        lo, hi = FPS_RANGE
+        if (
+            rate.shape != ()
+            or rate.dtype.kind not in "iuf"
+            or not (np.isfinite(rate) and lo <= rate <= hi)
         ):
-            raise InputError(path, f"fps must be one positive number, got {rate!r}")
+            raise InputError(path, f"fps must be one frame rate in [{lo:g}, {hi:g}], got {rate!r}")
         times = np.arange(shape[0], dtype=np.float64) / float(rate)
         source = f"file ({float(rate):g} fps)"
     return positions, valid, times, source
@@ -432,7 +530,7 @@ def _check_times(path: str | os.PathLike[str], times: np.ndarray, n: int) -> np.
     """Validate a file's ``times``: ``(n,)`` finite, strictly increasing; returned from 0."""
     if times.shape != (n,):
         raise InputError(path, f"times has shape {times.shape}, expected ({n},)")
-    if not np.issubdtype(times.dtype, np.number):
+    if times.dtype.kind not in "iuf":
         raise InputError(path, f"times has dtype {times.dtype}, expected numbers (seconds)")
     t = times.astype(np.float64)
     if not np.isfinite(t).all():
@@ -442,6 +540,10 @@ def _check_times(path: str | os.PathLike[str], times: np.ndarray, n: int) -> np.
         i = int(np.argmax(steps <= 0)) + 1
         raise InputError(path, f"times must increase strictly: times[{i}] = {t[i]:g} after "
                                f"{t[i - 1]:g}")  # fmt: skip
+    if (steps < MIN_STEP_S).any():
+        i = int(np.argmax(steps < MIN_STEP_S)) + 1
+        raise InputError(path, f"times must increase by at least {MIN_STEP_S:g} s per frame: "
+                               f"times[{i}] = {t[i]:g} after {t[i - 1]:g}")  # fmt: skip
     return t - t[0]
 
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from jaxproj import robot
+from jaxproj._atomic import atomic_write
 from jaxproj.skeleton import BONES, J, body_frame
 
 _NAO_SITES = (
@@ -331,6 +332,17 @@ def per_joint_table(summary: dict, methods: list[str] | None = None) -> str:
 
 
 def write_json(path: Path, report: dict) -> None:
-    """Write ``report`` (private keys dropped) as indented JSON."""
-    with open(path, "w") as fh:
-        json.dump(to_jsonable(report), fh, indent=2)
+    """Write ``report`` (private keys dropped) as indented JSON, atomically (``write_text``)."""
+    write_text(path, json.dumps(to_jsonable(report), indent=2) + "\n")
+
+
+def write_text(path: Path, text: str) -> None:
+    """Write a report file atomically: a temporary file beside ``path``, then renamed, so a
+    failed or interrupted write never leaves a half-written report (``InputError`` when the
+    file cannot be written)."""
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    atomic_write(path, write)

@@ -38,6 +38,7 @@ from jaxproj.engine import Model, check_neighbours, project_batch
 from jaxproj.exceptions import ConfigError
 from jaxproj.feasible import FeasibleConfig, make_feasible
 from jaxproj.projection import FullConfig, Projector
+from jaxproj.readers import MAX_DURATION_S, MIN_STEP_S
 from jaxproj.skeleton import descriptor
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_motion
 
@@ -161,7 +162,8 @@ def retarget(
 
     Raises:
       ConfigError: bad shapes, a learned method without a model, bad ``L`` / ``M``, times not
-        increasing.
+        increasing by at least ``readers.MIN_STEP_S`` per frame or spanning more than
+        ``readers.MAX_DURATION_S``.
     """
     positions = np.asarray(positions, dtype=np.float32)
     if positions.ndim != 3 or positions.shape[1:] != (20, 3) or positions.shape[0] < 1:
@@ -193,6 +195,12 @@ def retarget(
             i = int(np.argmax(np.diff(stamps) <= 0)) + 1
             raise ConfigError(f"times must increase strictly (frame {i}: {stamps[i]:g} s after "
                               f"{stamps[i - 1]:g} s)")  # fmt: skip
+        if (np.diff(stamps) < MIN_STEP_S).any() or stamps[-1] - stamps[0] > MAX_DURATION_S:
+            raise ConfigError(
+                f"times must step by at least {MIN_STEP_S:g} s and span at most "
+                f"{MAX_DURATION_S:g} s (got steps from {np.diff(stamps).min():g} s, span "
+                f"{stamps[-1] - stamps[0]:g} s)"
+            )
     size = _bucket(t)
     pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])

@@ -93,6 +93,9 @@ class SmoothingParams:
             ],
             axis=-1,
         )
+        # a step of ~1e37 s or more would overflow float32's dead band: cap it there (a dead
+        # band that large holds the frame either way)
+        per = np.minimum(per, np.finfo(np.float32).max)
         return jnp.asarray(per, jnp.float32)
 
 

@@ -1,0 +1,564 @@
+"""Reliability (issue 15): never NaN and always within the joint limits for every method; model
+files that fail with a clear error naming the file; model and report writes that never leave a
+half-written file; the same model bytes and outputs from two processes; folders of recordings
+as a new user meets them (documentation files, other subjects, one unreadable recording).
+
+Two tiny models (per-chain and whole-body, 40 landmarks, no mean shift) serve the module.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fuzzing import (
+    MORE_KINDS,
+    assert_one_line_error,
+    fuzz,
+    make_frames,
+    msr_file,
+    no_tracing,
+    run_cli,
+    utk_file,
+)
+from hypothesis import given
+from hypothesis import strategies as st
+
+import jaxproj
+from jaxproj import datasets, engine, ik, report, robot
+from jaxproj.exceptions import ConfigError, InputError
+from jaxproj.feasible import FeasibleConfig
+from jaxproj.motion_io import load_motion
+from jaxproj.retarget import retarget
+from jaxproj.smoothing import PAPER_SMOOTHING
+
+L = M = 3
+
+
+@pytest.fixture(scope="module")
+def models() -> dict[str, engine.Model]:
+    d = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1], actions=[1, 2, 5]))
+    uniq = np.unique(d, axis=0)
+    human = uniq[np.sort(np.random.default_rng(0).choice(len(uniq), 40, replace=False))]
+    poses = np.asarray(ik.solve_driven(human))
+    out = {}
+    for chains in ("upper", "whole"):
+        cfg = engine.BuildConfig(
+            chains=chains, landmarks=None, bandwidth=1.0, k=8, hidden=16, input_scale=1.0
+        )
+        out[chains] = engine.from_landmarks(human, poses, cfg)
+    return out
+
+
+@pytest.fixture(scope="module")
+def model_file(models, tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("model") / "p.npz"
+    engine.save(models["upper"], path)
+    return path
+
+
+def _in_limits(angles: np.ndarray) -> bool:
+    return bool((angles >= robot.LOWER).all() and (angles <= robot.UPPER).all())
+
+
+# --- never NaN, always within the joint limits ----------------------------------------------------
+
+
+class TestNeverNaN:
+    """``retarget`` for every method (IK, relaxed and full on the per-chain and the whole-body
+    model), smoothed or not, feasibility filter on or off, on fuzzed skeletons (NaN / inf,
+    lost-tracking all-zero frames, zero-length bones, 1e30 / 1e-30 coordinates, collapsed or
+    random skeletons, a single frame): finite angles within ``robot.LOWER / UPPER``, ``valid``
+    false exactly where the frame was unusable."""
+
+    @pytest.mark.parametrize(
+        ("method", "chains"),
+        [
+            ("ik", None),
+            ("relaxed", "upper"),
+            ("full", "upper"),
+            ("relaxed", "whole"),
+            ("full", "whole"),
+        ],  # fmt: skip
+    )
+    @fuzz(10)
+    @given(
+        kinds=st.lists(st.sampled_from(MORE_KINDS), min_size=1, max_size=10),
+        seed=st.integers(0, 2**16),
+        reader_valid=st.booleans(),
+    )
+    def test_finite_within_limits_valid_marks_bad_frames(
+        self, models, method, chains, kinds, seed, reader_valid
+    ):
+        pos = make_frames(kinds, seed)
+        # a reader's mask (non-finite / zero frames) when given, else retarget finds them itself
+        valid_in = np.array([k not in ("nan", "inf", "zero") for k in kinds])
+        if reader_valid:
+            valid_in[seed % len(kinds)] = False  # and one frame the file marked invalid
+        model = None if chains is None else models[chains]
+        for smoothing in (None, PAPER_SMOOTHING):
+            for feasible in (None, FeasibleConfig()):
+                res = retarget(
+                    pos,
+                    valid_in if reader_valid else None,
+                    model=model,
+                    method=method,
+                    n_l=L,
+                    n_m=M,
+                    smoothing=smoothing,
+                    feasible=feasible,
+                )
+                assert res.angles.shape == (len(kinds), 26) and res.angles.dtype == np.float32
+                assert np.isfinite(res.angles).all() and np.isfinite(res.times).all()
+                assert _in_limits(res.angles)
+                usable = np.array([k in ("ok", "random") for k in kinds])
+                if reader_valid:
+                    usable &= valid_in
+                assert not res.valid[~usable].any()
+                ok = np.array([k == "ok" for k in kinds]) & (valid_in if reader_valid else True)
+                assert res.valid[ok].all()
+                if not res.valid.any():  # nothing usable: the standing posture throughout
+                    np.testing.assert_allclose(
+                        res.angles, np.tile(robot.STANDING_POSTURE, (len(kinds), 1)), atol=1e-6
+                    )
+
+    def test_projection_configuration_errors_come_before_tracing(self, models):
+        model = models["upper"]
+        d = np.zeros((4, 15), np.float32)
+        k = model.n_landmarks
+        cases = [
+            (dict(n_l=0), "L=0"),
+            (dict(n_l=k + 1), f"L={k + 1}"),
+            (dict(n_m=k + 1), "chain has"),
+            (dict(batch_size=0), "batch_size=0"),
+            (dict(objective="fast"), "objective must be"),
+        ]
+        for kwargs, word in cases:
+            with no_tracing() as traced, pytest.raises(ConfigError, match=word):
+                engine.project(model, d, **kwargs)
+            assert traced == []
+        with no_tracing() as traced, pytest.raises(ConfigError, match="must lie in"):
+            retarget(make_frames(["ok"] * 3, 0), model=model, n_l=k + 1)
+        assert traced == []
+        with pytest.raises(ConfigError, match=r"descriptors must be \(B, 15\)"):
+            engine.project(model, np.zeros((4, 57), np.float32))
+
+
+# --- model files ----------------------------------------------------------------------------------
+
+
+def _arrays(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _meta(arrays: dict) -> dict:
+    return json.loads(str(arrays["meta"]))
+
+
+def _edit(src: Path, dst: Path, change) -> Path:
+    """A copy of model file ``src`` at ``dst`` with ``change(arrays, meta)`` applied."""
+    arrays = _arrays(src)
+    meta = _meta(arrays)
+    original = arrays["meta"]
+    change(arrays, meta)
+    if arrays.get("meta") is original:  # not replaced or dropped by the change
+        arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(dst, **arrays)
+    return dst
+
+
+def _set(key, value):
+    def change(a, m):
+        a[key] = value(a[key]) if callable(value) else value
+
+    return change
+
+
+def _drop(key):
+    return lambda a, m: a.pop(key)
+
+
+def _meta_set(*keys_and_value):
+    *keys, value = keys_and_value
+
+    def change(a, m):
+        d = m
+        for k in keys[:-1]:
+            d = d[k]
+        d[keys[-1]] = value(d[keys[-1]]) if callable(value) else value
+
+    return change
+
+
+BAD_MODELS = [
+    # (id, change to a good model file, words of the InputError)
+    ("future-version", _meta_set("format_version", engine.FORMAT_VERSION + 1),
+     [f"version {engine.FORMAT_VERSION + 1}", "newer jaxproj", "upgrade jaxproj"]),
+    ("old-version", _meta_set("format_version", 2), ["version 2", "rebuild"]),
+    ("missing-array", _drop("chain1.forward.out"), ["missing array 'chain1.forward.out'"]),
+    ("mis-shaped", _set("chain0.human", lambda x: x[:, :2]),
+     ["'chain0.human' has shape", "m=3"]),
+    ("mis-shaped-bank", _set("chain2.backward.out", lambda x: x[:, :, :4]),
+     ["'chain2.backward.out'", "Hb=16"]),
+    ("wrong-kind", _set("chain0.forward.neighbours", lambda x: x.astype(np.float32)),
+     ["neighbours", "integers"]),
+    ("non-finite", _set("chain1.robot", lambda x: np.where(x == x.max(), np.nan, x)),
+     ["'chain1.robot' has non-finite values"]),
+    ("bad-neighbours", _set("chain0.backward.neighbours", lambda x: x + 1000),
+     ["indexes beyond"]),
+    ("no-meta", _drop("meta"), ["not a jaxproj model", "no 'meta'"]),
+    ("meta-not-json", _set("meta", np.array("{not json")), ["corrupt model metadata"]),
+    ("other-format", _meta_set("format", "something-else"), ["not a jaxproj model"]),
+    ("bad-config", _meta_set("config", "chains", "legs"),
+     ["invalid model configuration", "legs"]),
+    ("other-layout-names", _meta_set("chains", "names", lambda n: n[::-1]),
+     ["chain names", "another chain layout"]),
+    ("other-layout-outputs", _meta_set("chains", "outputs", lambda o: [o[0], o[2], o[1]]),
+     ["chain outputs", "another chain layout"]),
+    ("other-layout-chains", _meta_set("config", "chains", "whole"),
+     ["another chain layout"]),
+    ("extra-chain", lambda a, m: a.update({"chain3.human": a["chain2.human"]}),
+     ["chain3", "beyond its 3 chain(s)", "another chain layout"]),
+    ("driven-joints", _meta_set("driven_joints", lambda j: j[::-1]),
+     ["driven joints", "another chain layout"]),
+]  # fmt: skip
+
+
+class TestModelFiles:
+    """``engine.load`` (and the CLI's ``--model``) on every kind of bad model file: an
+    ``InputError`` naming the file and the problem, one line; never a crash in JAX later."""
+
+    @pytest.mark.parametrize(
+        ("change", "words"), [c[1:] for c in BAD_MODELS], ids=[c[0] for c in BAD_MODELS]
+    )
+    def test_bad_model_file(self, model_file, tmp_path, change, words):
+        path = _edit(model_file, tmp_path / "bad.npz", change)
+        with pytest.raises(InputError) as info:
+            engine.load(path)
+        msg = str(info.value)
+        assert msg.startswith(f"{path}: ") and "\n" not in msg
+        for w in words:
+            assert w in msg, (w, msg)
+
+    def test_broken_files(self, model_file, tmp_path):
+        raw = model_file.read_bytes()
+        motion = tmp_path / "motion.npz"
+        assert run_cli_quiet("retarget", _msr(tmp_path), "--out", motion) == 0
+        cases = {
+            "truncated": (raw[: len(raw) // 2], "not a readable model file"),
+            "truncated-head": (raw[:10], "not a readable model file"),
+            "empty": (b"", "empty file"),
+            "text": (b"hello\n", "not an npz archive"),
+            "positions": (None, "not a jaxproj model"),
+            "motion": (motion.read_bytes(), "not a jaxproj model"),
+        }
+        for name, (data, word) in cases.items():
+            path = tmp_path / f"{name}.npz"
+            if data is None:
+                np.savez(path, positions=np.zeros((2, 20, 3)))
+            else:
+                path.write_bytes(data)
+            with pytest.raises(InputError, match=word) as info:
+                engine.load(path)
+            assert str(info.value).startswith(f"{path}: "), name
+        with pytest.raises(InputError, match="is a directory"):
+            engine.load(tmp_path)
+        with pytest.raises(InputError, match="not found"):
+            engine.load(tmp_path / "nope.npz")
+
+    def test_cli_refuses_bad_models_in_one_line(self, model_file, tmp_path, capsys):
+        src = _msr(tmp_path)
+        bad = {
+            "future": _edit(model_file, tmp_path / "future.npz",
+                            _meta_set("format_version", engine.FORMAT_VERSION + 1)),
+            "truncated": tmp_path / "trunc.npz",
+        }  # fmt: skip
+        bad["truncated"].write_bytes(model_file.read_bytes()[:1000])
+        for path in bad.values():
+            argv = ["retarget", src, "--out", tmp_path / "o.npz", "--method", "relaxed"]
+            code, _, err = run_cli(capsys, *argv, "--model", path)
+            assert_one_line_error(code, err, str(path))
+            argv = ["evaluate", "--model", path, "--json", tmp_path / "r.json"]
+            code, _, err = run_cli(capsys, *argv)
+            assert_one_line_error(code, err, str(path))
+        assert not (tmp_path / "o.npz").exists() and not (tmp_path / "r.json").exists()
+
+
+def run_cli_quiet(*argv) -> int:
+    from jaxproj.cli import main
+
+    return main([str(a) for a in argv])
+
+
+def _msr(folder: Path, name: str = "a01_s02_e01_skeleton3D.txt", frames: int = 12) -> Path:
+    seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
+    path = folder / name
+    path.write_text(msr_file(seq.positions[:frames]))
+    return path
+
+
+# --- atomic writes --------------------------------------------------------------------------------
+
+
+class TestAtomicWrites:
+    """A model or report write that fails half-way leaves the previous file as it was and no
+    temporary file behind."""
+
+    def test_model_save_failing_midway(self, models, tmp_path, monkeypatch):
+        path = tmp_path / "p.npz"
+        engine.save(models["upper"], path)
+        before = path.read_bytes()
+        real = np.lib.format.write_array
+        calls = []
+
+        def failing(fh, array, **kwargs):
+            calls.append(1)
+            if len(calls) == 5:  # a few members in: the zip is half-written
+                raise OSError(28, "No space left on device")
+            return real(fh, array, **kwargs)
+
+        monkeypatch.setattr(np.lib.format, "write_array", failing)
+        with pytest.raises(InputError, match="No space left on device") as info:
+            engine.save(models["whole"], path)
+        assert str(info.value).startswith(str(path))
+        calls.clear()
+
+        def interrupted(fh, array, **kwargs):
+            calls.append(1)
+            if len(calls) == 5:
+                raise KeyboardInterrupt
+            return real(fh, array, **kwargs)
+
+        monkeypatch.setattr(np.lib.format, "write_array", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            engine.save(models["whole"], path)
+        assert path.read_bytes() == before
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["p.npz"]
+        monkeypatch.undo()
+        engine.load(path)  # still the good model
+
+    def test_report_write_failing_midway(self, tmp_path):
+        path = tmp_path / "r.json"
+        report.write_json(path, {"a": 1.0, "_private": 2})
+        before = path.read_text()
+        assert json.loads(before) == {"a": 1.0}
+        with pytest.raises(UnicodeEncodeError):  # fails while the text is being written
+            report.write_text(path, '{"a": "' + "x" * 100_000 + '\ud800"}')
+        with pytest.raises(TypeError):  # not JSON: fails before anything is written
+            report.write_json(path, {"a": object()})
+        assert path.read_text() == before
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
+        with pytest.raises(InputError, match="cannot write"):
+            report.write_json(path / "below_a_file.json", {"a": 1})
+
+
+# --- determinism ----------------------------------------------------------------------------------
+
+
+def _child_env() -> dict[str, str]:
+    root = str(Path(jaxproj.__file__).resolve().parents[1])
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
+    env.setdefault("JAX_PLATFORMS", "cpu")
+    return env
+
+
+class TestDeterminism:
+    """Same data, config and seed: byte-identical model files and identical outputs from two
+    processes; save -> load -> project is project; the evaluate JSON is identical across runs
+    except timings (``TestFolders``)."""
+
+    def test_two_processes_build_the_same_bytes_and_retarget_the_same(self, tmp_path):
+        src = _msr(tmp_path, frames=40)
+        script = (
+            "import sys; from jaxproj.cli import main; d = sys.argv[1]; "
+            "sys.exit(main(['build', '--subjects', '1', '--chains', 'upper', '--landmarks', "
+            "'60', '--k', '16', '--hidden', '16', '--out', d + '/p.npz']) or main(['retarget', "
+            "sys.argv[2], '--method', 'relaxed', '--model', d + '/p.npz', '--L', '5', '--M', "
+            "'5', '--out', d + '/m.npz']))"
+        )
+        dirs = [tmp_path / "run1", tmp_path / "run2"]
+        procs = []
+        for d in dirs:
+            d.mkdir()
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-c", script, str(d), str(src)],
+                    env=_child_env(),
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE,
+                    text=True,
+                )
+            )
+        for p in procs:
+            out, err = p.communicate(timeout=500)
+            assert p.returncode == 0, err
+        a, b = (d / "p.npz" for d in dirs)
+        assert a.read_bytes() == b.read_bytes()
+        with zipfile.ZipFile(a) as zf:  # no wall-clock timestamps in the file
+            assert {i.date_time for i in zf.infolist()} == {(1980, 1, 1, 0, 0, 0)}
+        ma, mb = (load_motion(d / "m.npz") for d in dirs)
+        for field in ("angles", "times", "valid", "positions"):
+            np.testing.assert_array_equal(getattr(ma, field), getattr(mb, field))
+        assert ma.meta == mb.meta and np.isfinite(ma.angles).all()
+
+    @pytest.mark.parametrize("chains", ["upper", "whole"])
+    def test_save_load_project_equals_project(self, models, tmp_path, chains):
+        model = models[chains]
+        path = tmp_path / "p.npz"
+        engine.save(model, path)
+        back = engine.load(path)
+        assert back.config == model.config and back.landmarks == model.landmarks
+        seq = datasets.msr_action3d(subjects=[2], actions=[5])[0]
+        d = np.asarray(datasets.valid_descriptors(seq.positions))[:40]
+        for objective in ("relaxed", "full"):
+            a, va = engine.project(model, d, objective, n_l=L, n_m=M, batch_size=64)
+            b, vb = engine.project(back, d, objective, n_l=L, n_m=M, batch_size=64)
+            np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(va, vb)
+        engine.save(back, tmp_path / "again.npz")  # lossless: saving the loaded model again
+        assert (tmp_path / "again.npz").read_bytes() == path.read_bytes()
+
+
+# --- folders --------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory, model_file) -> Path:
+    """A user's folder: three recordings (MSR subjects 2 and 4, UTKinect subject 3), the
+    dataset's own SOURCE.md and actionLabel.txt, a model, a CSV of results, a hidden file, a
+    subfolder and one broken recording (subject 6: 25 rows, not a multiple of 20)."""
+    f = tmp_path_factory.mktemp("recordings")
+    _msr(f, "a01_s02_e01_skeleton3D.txt", 16)
+    seq = datasets.msr_action3d(subjects=[4], actions=[8])[0]
+    (f / "a08_s04_e01_skeleton3D.txt").write_text(msr_file(seq.positions[:16]))
+    utk = datasets.utkinect_action3d(subjects=[3], segments=False)[0]
+    (f / "joints_s03_e01.txt").write_text(
+        utk_file(utk.positions[:16], list(utk.frame_numbers[:16]), "\r\n", " ")
+    )
+    broken = msr_file(seq.positions[:2]).splitlines()[:25]
+    (f / "a02_s06_e01_skeleton3D.txt").write_text("\n".join(broken) + "\n")
+    (f / "SOURCE.md").write_text("# UTKinect Action3D subset\n\nWhere the files come from.\n")
+    (f / "actionLabel.txt").write_text("s03_e01\nwalk: 252 390\nsitDown: 572 686\n")
+    (f / "results.csv").write_text("method,error\nrelaxed,1.0\n")
+    (f / "projector.npz").write_bytes(model_file.read_bytes())
+    (f / ".DS_Store").write_bytes(b"\x00\x00\x00\x01Bud1\x00")
+    (f / "old").mkdir()
+    return f
+
+
+RECORDINGS = {"a01_s02_e01_skeleton3D", "a08_s04_e01_skeleton3D", "joints_s03_e01"}
+
+
+class TestFolders:
+    """``evaluate`` / ``build`` over a folder: files that are not recordings are skipped with a
+    note; every recording is used by default; ``--subjects`` says what it left out and why; an
+    unreadable recording is reported and the rest evaluated unless ``--strict``."""
+
+    def _evaluate(self, capsys, model_file, folder, out: Path, *extra: str):
+        return run_cli(
+            capsys,
+            "evaluate", "--model", model_file, "--data", folder, "--objective", "relaxed",
+            "--L", str(L), "--M", str(M), "--json", out, *extra,
+        )  # fmt: skip
+
+    def test_evaluate_skips_notes_and_reports_the_unreadable_recording(
+        self, capsys, model_file, folder, tmp_path
+    ):
+        runs = []
+        for i in range(2):
+            out = tmp_path / f"r{i}.json"
+            code, stdout, err = self._evaluate(capsys, model_file, folder, out)
+            assert code == 0, err
+            assert "Traceback" not in err
+            runs.append((json.loads(out.read_text()), stdout, err))
+        report_json, stdout, err = runs[0]
+        for name in ("SOURCE.md", "actionLabel.txt", "results.csv", "projector.npz", ".DS_Store",
+                     "old"):  # fmt: skip
+            assert f"jaxproj: note: skipped {name}: " in err, name
+        assert "jaxproj: note: unreadable recording, not used: " in err
+        assert "a02_s06_e01_skeleton3D.txt: found 25 rows" in err
+        assert "1 unreadable recording(s) not used: a02_s06_e01_skeleton3D.txt" in stdout
+        # every recording of the folder by default (no subject filter)
+        assert set(report_json["per_sequence"]) == RECORDINGS
+        assert report_json["subjects"] == [2, 3, 4]
+        files = report_json["data_files"]
+        assert files["recordings"] == 3 and files["left_out"] == []
+        assert [u["file"] for u in files["unreadable"]] == ["a02_s06_e01_skeleton3D.txt"]
+        assert {s["file"] for s in files["skipped"]} == {
+            ".DS_Store",
+            "SOURCE.md",
+            "actionLabel.txt",
+            "old",
+            "projector.npz",
+            "results.csv",
+        }
+        assert np.isfinite(report_json["summary"]["relaxed"]["M_avg"]["median"])
+        # the same data, model and settings: the same JSON, timings aside
+        a, b = (dict(r[0]) for r in runs)
+        assert a.pop("wall_s").keys() == b.pop("wall_s").keys()
+        assert a == b
+
+    def test_strict_stops_at_the_unreadable_recording(self, capsys, model_file, folder, tmp_path):
+        out = tmp_path / "r.json"
+        code, _, err = self._evaluate(capsys, model_file, folder, out, "--strict")
+        assert_one_line_error(code, err, "a02_s06_e01_skeleton3D.txt", "multiple of 20")
+        assert not out.exists()
+
+    def test_subjects_say_what_was_left_out(self, capsys, model_file, folder, tmp_path):
+        out = tmp_path / "r.json"
+        code, stdout, err = self._evaluate(capsys, model_file, folder, out, "--subjects", "2,3,7")
+        assert code == 0, err
+        r = json.loads(out.read_text())
+        assert set(r["per_sequence"]) == {"a01_s02_e01_skeleton3D", "joints_s03_e01"}
+        assert "left out 2 recording(s) of subjects other than [2, 3, 7]: " in err
+        assert "a02_s06_e01_skeleton3D.txt (subject 6)" in err
+        assert "a08_s04_e01_skeleton3D.txt (subject 4)" in err
+        assert "no recording of subject(s) [7]" in err
+        assert r["data_files"]["unreadable"] == []  # the broken file was left out, not read
+        assert "unreadable" not in stdout
+        code, _, err = self._evaluate(capsys, model_file, folder, out, "--subjects", "8")
+        assert_one_line_error(code, err, str(folder), "no recording to use", "other subjects")
+
+    def test_build_from_the_folder_notes_the_unreadable_recording(self, capsys, folder, tmp_path):
+        out = tmp_path / "m.npz"
+        code, stdout, err = run_cli(
+            capsys, "build", "--data", folder, "--chains", "whole", "--bandwidth", "0.3", "--k",
+            "4", "--hidden", "8", "--out", out,
+        )  # fmt: skip
+        assert code == 0, err
+        assert "skipped SOURCE.md" in err and "1 unreadable recording(s) not used" in stdout
+        assert engine.load(out).n_train > 0
+        code, _, err = run_cli(
+            capsys,
+            "build",
+            "--data",
+            folder,
+            "--bandwidth",
+            "0.3",
+            "--strict",
+            "--out",
+            tmp_path / "s.npz",
+        )
+        assert_one_line_error(code, err, "a02_s06_e01_skeleton3D.txt")
+
+    def test_library_folder_api(self, folder):
+        with pytest.raises(InputError, match="a02_s06_e01_skeleton3D.txt"):
+            datasets.load_sequences(folder)  # strict by default in Python
+        contents = datasets.load_folder(folder, strict=False)
+        assert {s.name for s in contents.sequences} == RECORDINGS
+        assert [n for n, _ in contents.unreadable] == ["a02_s06_e01_skeleton3D.txt"]
+        assert {s.subject for s in contents.sequences} == {2, 3, 4}
+        why = dict(contents.skipped)
+        assert "4 (MSR Action3D) or 61 (UTKinect) numbers" in why["SOURCE.md"]
+        assert "without 'positions'" in why["projector.npz"]
+        assert why["old"] == "a folder (not searched)"
+        recs = datasets.load_sequences(folder, [2, 4])
+        assert {s.name for s in recs} == {"a01_s02_e01_skeleton3D", "a08_s04_e01_skeleton3D"}
