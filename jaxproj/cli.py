@@ -234,13 +234,23 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
+def _devices(value: str) -> list | None:
+    """``--devices N|all`` -> ``engine.resolve_devices``, errors naming the flag."""
+    from jaxproj import engine
+
+    try:
+        return engine.resolve_devices(value)
+    except ConfigError as e:
+        raise ConfigError(f"--devices {value}: {e}") from None
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     import time
 
     from jaxproj import engine, evaluate, report
     from jaxproj.smoothing import PAPER_SMOOTHING
 
-    devices = engine.resolve_devices(args.devices)
+    devices = _devices(args.devices)
     model = engine.load(args.model)
     engine.check_neighbours(model, args.L, args.M)
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
@@ -274,10 +284,10 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from jaxproj import engine, report
+    from jaxproj import report
     from jaxproj.demo import run_demo
 
-    devices = engine.resolve_devices(args.devices)
+    devices = _devices(args.devices)
     out = run_demo(Path(args.out), quick=args.quick, progress=True, devices=devices)
     print(report.summary_table(out["summary"]))
     t = out["timings"]
