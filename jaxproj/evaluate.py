@@ -330,6 +330,9 @@ def feasibility_block(
     truth_v: np.ndarray,
     truth_points: np.ndarray,
     config: feasible.FeasibleConfig = feasible.DEFAULT_FEASIBLE,
+    *,
+    times: np.ndarray | None = None,
+    before_points: np.ndarray | None = None,
 ) -> dict:
     """What the feasibility filter buys and costs for one method's motions.
 
@@ -338,6 +341,8 @@ def feasibility_block(
       motions: ``(S, T_max, 10)`` driven-joint motions as scored (filled, maybe smoothed).
       truth_v, truth_points: IK truth of the valid frames and its ``metrics.arm_points``.
       config: the filter's settings.
+      times: ``(S, T_max)`` seconds of the motions' frames (``None``: computed from ``data``).
+      before_points: ``metrics.arm_points`` of the motions' valid frames when already computed.
 
     Returns:
       ``{"before": limits, "after": limits, "after_errors": {M_max, M_avg, task_space, ...}
@@ -349,18 +354,23 @@ def feasibility_block(
     """
     lengths = np.diff(data.offsets)
     t_max = motions.shape[1]
-    times = _motion_times(data, t_max)
+    times = _motion_times(data, t_max) if times is None else times
     full26 = np.tile(robot.STANDING_POSTURE, motions.shape[:2] + (1,)).astype(np.float32)
     full26[..., robot.DRIVEN_INDEX] = motions
     safe = feasible.make_feasible(full26, times, lengths, config)
     flat = lambda m: np.concatenate([m[s, :n] for s, n in enumerate(lengths)])[data.valid]  # noqa: E731
     before, after = flat(motions), flat(safe[..., robot.DRIVEN_INDEX])
-    hand = metrics.arm_errors(metrics.arm_points(after), metrics.arm_points(before)).hand
+    after_points = metrics.arm_points(after)
+    if before_points is None:
+        before_points = metrics.arm_points(before)
+    hand = metrics.arm_errors(after_points, before_points).hand
     return {
         "config": dataclasses.asdict(config),
         "before": _limits_summary(full26, times, lengths),
         "after": _limits_summary(safe, times, lengths),
-        "after_errors": summarize_errors(after, truth_v, truth_points=truth_points),
+        "after_errors": summarize_errors(
+            after, truth_v, truth_points=truth_points, pred_points=after_points
+        ),
         "vs_unfiltered": {
             "joint_deg": describe(np.degrees(np.abs(after - before)).mean(axis=1)),
             "hand_cm": describe(100.0 * hand.reshape(-1)),
@@ -413,7 +423,7 @@ def evaluate(
         "wall_s": {},
     }
     t_max = int(lengths.max())
-    motion_times = _motion_times(data, t_max) if data.timed else None
+    motion_times = _motion_times(data, t_max)  # the smoother uses them only for timed data
     predictions: dict[str, np.ndarray] = {}
     for method in bar(methods, "evaluating methods", enabled=progress):
         t0 = time.perf_counter()
@@ -422,16 +432,23 @@ def evaluate(
         out["wall_s"][method] = wall
         out["wall_s"][f"{method}_us_per_frame"] = 1e6 * wall / max(len(h), 1)
         m_max, m_avg = frame_errors(pred, truth_v)
-        out["unsmoothed"][method] = summarize_errors(pred, truth_v, truth_points=truth_points)
+        scored_points = metrics.arm_points(pred)  # the scored motion's FK, used twice below
+        out["unsmoothed"][method] = summarize_errors(
+            pred, truth_v, truth_points=truth_points, pred_points=scored_points
+        )
         motions, _ = _per_motion(data, pred)
         jerk_raw = mean_squared_jerk(motions, lengths)
         if smoothing is not None:
-            sm = np.asarray(smooth_batch(motions, lengths, smoothing, times=motion_times))
+            timed = motion_times if data.timed else None
+            sm = np.asarray(smooth_batch(motions, lengths, smoothing, times=timed))
             lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
             sm = np.clip(sm, lo, hi)
             flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
             m_max, m_avg = frame_errors(flat, truth_v)
-            out["summary"][method] = summarize_errors(flat, truth_v, truth_points=truth_points)
+            scored_points = metrics.arm_points(flat)
+            out["summary"][method] = summarize_errors(
+                flat, truth_v, truth_points=truth_points, pred_points=scored_points
+            )
             out["smoothness"][method] = {
                 "jerk_raw": jerk_raw,
                 "jerk_smoothed": mean_squared_jerk(sm, lengths),
@@ -443,8 +460,9 @@ def evaluate(
         predictions[method] = np.concatenate([motions[s, :n] for s, n in enumerate(lengths)])
         if feasibility is not None:
             out["feasibility"][method] = feasibility_block(
-                data, motions, truth_v, truth_points, feasibility
-            )
+                data, motions, truth_v, truth_points, feasibility,
+                times=motion_times, before_points=scored_points,
+            )  # fmt: skip
         for a in np.unique(data.actions):
             sel = data.actions[seq_of_frame] == a
             label = ACTION_NAMES[a - 1] if 1 <= a <= len(ACTION_NAMES) else "unknown action"
@@ -460,8 +478,9 @@ def evaluate(
             }
     if feasibility is not None:  # the IK truth itself, as a trajectory for the robot
         out["feasibility"]["ik"] = feasibility_block(
-            data, truth_motion, truth_v, truth_points, feasibility
-        )
+            data, truth_motion, truth_v, truth_points, feasibility,
+            times=motion_times, before_points=truth_points,
+        )  # fmt: skip
     out["_predictions"] = predictions  # (F, n) per method, dropped before writing JSON
     out["_truth"] = np.concatenate([truth_motion[s, :n] for s, n in enumerate(lengths)])
     return out

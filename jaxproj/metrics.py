@@ -425,12 +425,15 @@ def _summarize_arm(err: ArmErrors) -> dict[str, dict[str, dict[str, float]]]:
     return out
 
 
-def _points_for(truth26: np.ndarray, truth_points: np.ndarray | jax.Array | None) -> np.ndarray:
-    if truth_points is None:
-        return arm_points(truth26)
-    t = _check_points(truth_points, "truth_points")
-    if len(t) != len(truth26):
-        raise ConfigError(f"truth_points has {len(t)} frames, truth {len(truth26)}")
+def _points_for(
+    angles26: np.ndarray, points: np.ndarray | jax.Array | None, name: str = "truth"
+) -> np.ndarray:
+    """``arm_points(angles26)``, or the given ``points`` of them checked against their frames."""
+    if points is None:
+        return arm_points(angles26)
+    t = _check_points(points, f"{name}_points")
+    if len(t) != len(angles26):
+        raise ConfigError(f"{name}_points has {len(t)} frames, {name} {len(angles26)}")
     return t
 
 
@@ -465,6 +468,7 @@ def summarize_errors(
     truth: np.ndarray | jax.Array,
     *,
     truth_points: np.ndarray | jax.Array | None = None,
+    pred_points: np.ndarray | jax.Array | None = None,
 ) -> dict:
     """Every metric of one method, JSON-ready (plain floats and ints).
 
@@ -473,6 +477,7 @@ def summarize_errors(
         the other joints at the standing posture) or ``(F, 26)`` configurations, rad.
       truth_points: ``arm_points(truth)`` when already computed (pass it to score several
         methods against one truth with one FK of the truth).
+      pred_points: ``arm_points(pred)`` when already computed (the caller uses them too).
 
     Returns:
       ``{"M_max": describe, "M_avg": describe`` (the headline, ``frame_errors`` over the driven
@@ -493,5 +498,5 @@ def summarize_errors(
         "M_avg": describe(m_avg),
         "per_joint": _percentiles(err),
         "M_max_no_elbow_yaw": describe(err[:, keep].max(axis=1)),
-        "task_space": _summarize_arm(arm_errors(arm_points(p), t_pts)),
+        "task_space": _summarize_arm(arm_errors(_points_for(p, pred_points, "pred"), t_pts)),
     }
