@@ -1,7 +1,9 @@
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxproj import search
 from jaxproj.exceptions import ConfigError
 from jaxproj.kernels import knn_indices, predict, train_bank
 from jaxproj.search import nearest, sq_norms
@@ -207,3 +209,37 @@ def test_an_ill_conditioned_ridge_system_is_a_config_error_never_nan():
         train_bank(x, t, key, k=32, hidden=64, lam=1e-8, input_scale=1.0)
     bank = train_bank(x, t, key, k=32, hidden=64, lam=1e-3, input_scale=1.0)
     assert np.isfinite(np.asarray(bank.out)).all()
+
+
+@pytest.mark.parametrize("n", [1, 3, 10, 16])
+def test_repeated_minima_select_exactly_what_top_k_selects(n):
+    """The accelerator selection (``search._repeated_min``, the default off CPUs) against
+    ``lax.top_k``: the same values and positions, nearest first, with ties, infinities (padded
+    landmarks) and rows shorter than a block."""
+    rng = np.random.default_rng(n)
+    v = rng.integers(0, 40, size=(64, 37)).astype(np.float32)  # many exact ties
+    v[:, -5:] = np.inf
+    pos, val = search._repeated_min(n)(jnp.asarray(v))
+    neg, ref_pos = jax.lax.top_k(-jnp.asarray(v), n)
+    np.testing.assert_array_equal(np.asarray(val), -np.asarray(neg))
+    np.testing.assert_array_equal(np.take_along_axis(v, np.asarray(pos), 1), np.asarray(val))
+    assert all(len(set(row)) == n for row in np.asarray(pos).tolist())  # n distinct entries
+    # without ties the positions are top_k's too
+    u = rng.permutation(64 * 37).reshape(64, 37).astype(np.float32)
+    np.testing.assert_array_equal(
+        np.asarray(search._repeated_min(n)(jnp.asarray(u))[0]),
+        np.asarray(jax.lax.top_k(-jnp.asarray(u), n)[1]),
+    )
+
+
+@pytest.mark.parametrize(("k", "n"), [(2000, 10), (1656, 16)])
+def test_two_stage_nearest_with_the_accelerator_selection_is_exact(k, n, monkeypatch):
+    """``nearest`` as it runs on GPUs (both stages by repeated minima), forced on the CPU."""
+    monkeypatch.setattr(search, "smallest", lambda v, m: search._repeated_min(m)(v))
+    rng = np.random.default_rng(k)
+    pts = rng.normal(size=(k, 4)).astype(np.float32)
+    q = rng.normal(size=(40, 4)).astype(np.float32)
+    idx, d2 = nearest(pts, sq_norms(pts), q, n)
+    ref = ((q[:, None].astype(np.float64) - pts[None]) ** 2).sum(-1)
+    np.testing.assert_array_equal(np.asarray(idx), np.argsort(ref, axis=1)[:, :n])
+    np.testing.assert_allclose(np.asarray(d2), np.sort(ref, axis=1)[:, :n], rtol=1e-4, atol=1e-4)
