@@ -286,9 +286,7 @@ def _parse_hierarchy(path: str | os.PathLike[str], lines: list[str]) -> dict:
         try:
             value = float(tok)
         except ValueError:
-            raise InputError(
-                path, f"line {line}: non-numeric {after} value {tok!r}"
-            ) from None
+            raise InputError(path, f"line {line}: non-numeric {after} value {tok!r}") from None
         return value
 
     def open_joint(name: str, line: int, is_end: bool) -> None:
@@ -308,7 +306,9 @@ def _parse_hierarchy(path: str | os.PathLike[str], lines: list[str]) -> dict:
 
     tok, line = take()
     if tok != "ROOT":
-        raise InputError(path, f"line {line}: expected 'ROOT <name>' after HIERARCHY, found {tok!r}")
+        raise InputError(
+            path, f"line {line}: expected 'ROOT <name>' after HIERARCHY, found {tok!r}"
+        )
     open_joint(take()[0], line, False)
     expect("{", f"ROOT {names[0]}")
     root_line = line
@@ -433,8 +433,8 @@ def _parse_motion(
         raise InputError(
             path,
             f"line {last}: the file {what} {len(rows)} frame rows, 'Frames: {n_frames}' "
-            f"(line {frames_line}) says {n_frames}" + (" (truncated?)" if what == "ends after"
-                                                       else ""),
+            f"(line {frames_line}) says {n_frames}"
+            + (" (truncated?)" if what == "ends after" else ""),
         )
     table = readers._to_table(path, [t for f in split for t in f], line_numbers, n_channels)
     return BvhClip(
@@ -737,8 +737,11 @@ def read_bvh(
     positions = kinect_positions(clip, table, metres)
     times = np.arange(clip.n_frames, dtype=np.float64) * clip.frame_time
     if times[-1] > readers.MAX_DURATION_S:
-        raise InputError(path, f"the clip spans {times[-1]:g} s (more than "
-                               f"{readers.MAX_DURATION_S:g} s): corrupt Frame Time or Frames")  # fmt: skip
+        raise InputError(
+            path,
+            f"the clip spans {times[-1]:g} s (more than {readers.MAX_DURATION_S:g} s): corrupt "
+            "Frame Time or Frames",
+        )
     rec = readers._recording(positions, None, str(path), "bvh")
     note = (f"BVH Frame Time {clip.frame_time:g} s ({clip.fps:.6g} fps); map {map_name}; "
             f"scale {scale_note}")  # fmt: skip

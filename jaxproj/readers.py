@@ -251,7 +251,7 @@ def resample(rec: Recording, fps: float) -> Recording:
     grid = np.arange(n, dtype=np.float64) / fps
     hi = np.clip(np.searchsorted(t - t[0], grid, side="left"), 0, len(t) - 1)
     lo = np.maximum(hi - 1, 0)
-    step = (t[hi] - t[lo])
+    step = t[hi] - t[lo]
     w = np.where(step > 0, (grid - (t[lo] - t[0])) / np.where(step > 0, step, 1.0), 1.0)
     w = np.clip(w, 0.0, 1.0)
     pos = rec.positions.astype(np.float64)
@@ -277,9 +277,10 @@ def recording_format(path: str | os.PathLike[str]) -> tuple[str | None, str]:
     member (an npz without one, e.g. a model, is not a recording; one that is not a readable
     zip is, and ``read_skeleton`` reports it); otherwise text named ``.bvh`` or whose first
     non-blank line is ``HIERARCHY`` (BVH), is 60 comma-separated fields (CSV, header or
-    numbers), or 4 (MSR Action3D) or 61 (UTKinect) whitespace-separated numbers. Hidden files, empty files, binaries and documentation or
-    label files (``SOURCE.md``, UTKinect's ``actionLabel.txt``) are not recordings. A file that
-    passes may still be malformed further on: ``read_skeleton`` decides.
+    numbers), or 4 (MSR Action3D) or 61 (UTKinect) whitespace-separated numbers. Hidden files,
+    empty files, binaries and documentation or label files (``SOURCE.md``, UTKinect's
+    ``actionLabel.txt``) are not recordings. A file that passes may still be malformed further
+    on: ``read_skeleton`` decides.
     """
     p = Path(path)
     if p.name.startswith("."):
