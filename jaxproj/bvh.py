@@ -178,6 +178,7 @@ with ``LeftHand``)."""
 _PRESET_SCALE = {"cmu": CMU_SCALE, "cmu-mb": CMU_SCALE}
 _ROTATION_AXES = {"Xrotation": 0, "Yrotation": 1, "Zrotation": 2}
 _POSITION_AXES = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
+_KEYWORDS = frozenset({"JOINT", "End", "OFFSET", "CHANNELS", "ROOT", "{", "}"})
 _TOKEN_RE = re.compile(r"[{}]|[^\s{}]+")
 _FRAMES_RE = re.compile(r"^frames\s*:\s*(\S+)\s*$", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"^frame\s+time\s*:\s*(\S+)\s*$", re.IGNORECASE)
@@ -287,6 +288,8 @@ def _parse_hierarchy(path: str | os.PathLike[str], lines: list[str]) -> dict:
             value = float(tok)
         except ValueError:
             raise InputError(path, f"line {line}: non-numeric {after} value {tok!r}") from None
+        if not math.isfinite(value):
+            raise InputError(path, f"line {line}: {after} value {tok!r} is not finite")
         return value
 
     def open_joint(name: str, line: int, is_end: bool) -> None:
@@ -328,6 +331,12 @@ def _parse_hierarchy(path: str | os.PathLike[str], lines: list[str]) -> dict:
             found = []
             for _ in range(int(count)):
                 name, at = take()
+                if name in _KEYWORDS:
+                    raise InputError(
+                        path,
+                        f"line {line}: CHANNELS {count} of joint {names[j]} lists "
+                        f"{len(found)} channel(s)",
+                    )
                 if name not in _ROTATION_AXES and name not in _POSITION_AXES:
                     raise InputError(
                         path,

@@ -322,7 +322,8 @@ def recording_format(path: str | os.PathLike[str]) -> tuple[str | None, str]:
     if len(fields) in (_MSR_COLUMNS, _UTK_COLUMNS) and all(_is_number(f) for f in fields):
         return ("msr" if len(fields) == _MSR_COLUMNS else "utkinect"), ""
     return None, (
-        f"first line is not {_MSR_COLUMNS} (MSR Action3D) or {_UTK_COLUMNS} (UTKinect) numbers"
+        f"first line is not {_MSR_COLUMNS} (MSR Action3D) or {_UTK_COLUMNS} (UTKinect) numbers "
+        "nor HIERARCHY (BVH)"
     )
 
 

@@ -404,6 +404,8 @@ BAD_BVH = [
      ["unknown channel 'Wrotation'"]),
     ("offset", _GOOD.replace("OFFSET 0.000000 20.000000", "OFFSET 0.000000 x", 1),
      [f"line {_SPINE_OFFSET}: non-numeric OFFSET value 'x'"]),
+    ("channels-short", _GOOD.replace("Yrotation Xrotation Zrotation", "Yrotation Xrotation", 1),
+     ["line 5: CHANNELS 6 of joint Hips lists 5 channel(s)"]),
     ("unclosed", _GOOD.split("MOTION")[0].rsplit("}", 1)[0] + "MOTION\n",
      ["the HIERARCHY ends early"]),
     ("no-hierarchy", "ROOT Hips\n{\n}\n", ["not a BVH file: line 1: found 'ROOT'"]),
@@ -421,6 +423,26 @@ def test_bad_bvh_is_a_one_line_error_naming_file_and_line(tmp_path, text, words)
     assert "\n" not in msg and msg.startswith(f"{path}: ")
     for w in words:
         assert w in msg, (w, msg)
+
+
+def test_every_damaged_variant_reads_or_is_a_one_line_error(tmp_path):
+    """Each line of a good file deleted, and the file cut every 37 bytes: it reads (a finite
+    recording) or raises a one-line ``InputError`` naming the file, nothing else."""
+    lines = _GOOD.splitlines(keepends=True)
+    variants = ["".join(lines[:i] + lines[i + 1 :]) for i in range(len(lines))]
+    variants += [_GOOD[:cut] for cut in range(1, len(_GOOD), 37)]
+    path = tmp_path / "damaged.bvh"
+    errors = 0
+    for text in variants:
+        path.write_text(text)
+        try:
+            rec = read_skeleton(path, bvh_map=SYNTH_MAP)
+        except InputError as e:
+            errors += 1
+            assert "\n" not in str(e) and str(e).startswith(f"{path}: "), str(e)
+        else:
+            assert np.isfinite(rec.positions).all()
+    assert errors >= len(variants) - 5
 
 
 def test_the_good_file_of_the_bad_cases_reads(tmp_path):
