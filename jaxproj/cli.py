@@ -1,10 +1,10 @@
 """The ``jaxproj`` command line.
 
 Subcommands: ``info`` (versions, devices, robot, bundled data), ``retarget`` (a skeleton
-recording -> a robot-feasible NAO joint trajectory as NPZ, CSV or NAOqi JSON), ``render`` (a
-motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch evaluation against the
-IK) and ``demo`` (the main job). Every user error prints one line naming the file and the
-problem on stderr and exits with status 2; no traceback.
+recording or BVH clip -> a robot-feasible NAO joint trajectory as NPZ, CSV or NAOqi JSON),
+``render`` (a motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch
+evaluation against the IK) and ``demo`` (the main job). Every user error prints one line naming
+the file and the problem on stderr and exits with status 2; no traceback.
 """
 
 from __future__ import annotations
@@ -90,7 +90,12 @@ def _retarget(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".npz", ".csv", ".json"):
         raise ConfigError(f"--out {out}: use a .npz, .csv or .json file name")
-    rec = read_skeleton(args.input, format=args.format, fps=args.fps)
+    plot = None if args.plot is None else Path(args.plot)
+    if plot is not None and plot.suffix.lower() != ".png":
+        raise ConfigError(f"--plot {plot}: use a .png file name")
+    rec = read_skeleton(
+        args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale
+    )
     result = retarget(
         rec.positions,
         rec.valid,
@@ -115,6 +120,7 @@ def _retarget(args: argparse.Namespace) -> int:
         "source": str(args.input),
         "time_source": rec.time_source,
         "fps": round(rec.fps, 6),
+        "format": rec.format,
     }
     motion = Motion(angles, result.times, result.valid, rec.positions, meta)
     save_motion(out, motion, joints=args.joints)
@@ -130,7 +136,31 @@ def _retarget(args: argparse.Namespace) -> int:
         f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
         f"{after['max_accel']:.0f} rad/s^2 [{label}]"
     )
+    if plot is not None:
+        _plot_retarget(plot, args, rec, angles, result, bones, mirror)
     return 0
+
+
+def _plot_retarget(plot: Path, args: argparse.Namespace, rec, angles, result, bones, mirror):
+    """``retarget --plot``: the demo's motion figure for this recording (``report.plot_retarget``):
+    human and NAO at key frames, the driven joints over time against the per-frame IK."""
+    import numpy as np
+
+    from jaxproj import report, robot
+    from jaxproj.retarget import retarget
+
+    truth = retarget(
+        rec.positions, rec.valid, method="ik", bones=bones, mirror=mirror, smoothing=None,
+        times=rec.times,
+    )  # fmt: skip
+    out = angles[:, robot.DRIVEN_INDEX]
+    ik_q = truth.angles[:, robot.DRIVEN_INDEX]
+    ranges = np.degrees(out.max(axis=0) - out.min(axis=0))
+    widest = ", ".join(f"{robot.DRIVEN_JOINTS[i]} {ranges[i]:.0f}" for i in np.argsort(-ranges)[:4])
+    title = f"{Path(args.input).name}: {args.method}, {len(out)} frames at {rec.fps:.3g} fps"
+    report.plot_retarget(plot, title, rec.positions, result.valid, result.times, out, ik_q,
+                         label=args.method)  # fmt: skip
+    print(f"  plot -> {plot} (widest joint ranges, deg: {widest})")
 
 
 def _parse_ints(text: str) -> list[int]:
@@ -162,7 +192,13 @@ def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def _load(data: str, subjects: list[int] | None, split: str, strict: bool = False):
+def _load(
+    data: str,
+    subjects: list[int] | None,
+    split: str,
+    strict: bool = False,
+    bvh_map: str = "auto",
+):
     """Recordings of ``--data`` and, for a folder, its ``datasets.FolderContents`` (else
     ``None``). ``--subjects`` defaults to the MSR Action3D protocol's ``split`` (train / test
     subjects) on the bundled MSR data, to every recording elsewhere. For a folder, what was
@@ -176,7 +212,11 @@ def _load(data: str, subjects: list[int] | None, split: str, strict: bool = Fals
     if data in ("bundled", "msr", "utkinect"):
         return datasets.load_sequences(data, subjects), None
     contents = datasets.load_folder(
-        data, subjects, strict=strict, progress=lambda files: bar(files, "reading recordings")
+        data,
+        subjects,
+        strict=strict,
+        progress=lambda files: bar(files, "reading recordings"),
+        bvh_map=bvh_map,
     )
     for line in contents.notes():
         _log(f"jaxproj: note: {line}")
@@ -209,7 +249,7 @@ def _build(args: argparse.Namespace) -> int:
         mirror=args.mirror,
     )
     t0 = time.perf_counter()
-    seqs, contents = _load(args.data, args.subjects, "train", args.strict)
+    seqs, contents = _load(args.data, args.subjects, "train", args.strict, args.bvh_map)
     d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
     n_frames = sum(len(s.valid) for s in seqs)
     engine.check_training_data(d, cfg)  # a landmark count the data cannot reach: before the log
@@ -256,7 +296,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
-    seqs, contents = _load(args.data, args.subjects, "test", args.strict)
+    seqs, contents = _load(args.data, args.subjects, "test", args.strict, args.bvh_map)
     data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
     out = evaluate.evaluate(
         model,
@@ -319,6 +359,24 @@ def _render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> None:
+    parser.add_argument(
+        "--bvh-map",
+        default="auto",
+        help="BVH input: joint map, Kinect joint -> BVH joint: auto (the built-in map that fits "
+        "the hierarchy), cmu (CMU 3dsMax-friendly release), cmu-mb (CMU MotionBuilder-friendly) "
+        "or a JSON / TOML file of {Kinect joint: BVH joint} (jaxproj.bvh)",
+    )
+    if scale:
+        parser.add_argument(
+            "--bvh-scale",
+            default="auto",
+            help="BVH input: metres per file unit: auto (CMU units for the CMU maps, else the "
+            "unit of m, cm, mm, in that gives a human-sized skeleton), a unit name (cmu, m, "
+            "cm, mm, in) or a number",
+        )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
     fmt = argparse.ArgumentDefaultsHelpFormatter
@@ -337,7 +395,7 @@ def build_parser() -> argparse.ArgumentParser:
     pr = sub.add_parser(
         "retarget", formatter_class=fmt, help="retarget a skeleton recording to NAO joint angles"
     )
-    pr.add_argument("input", help="recording: MSR Action3D / UTKinect text, NPZ or CSV")
+    pr.add_argument("input", help="recording: MSR Action3D / UTKinect text, NPZ, CSV or BVH")
     pr.add_argument(
         "--out",
         required=True,
@@ -347,9 +405,10 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument(
         "--format",
         default="auto",
-        choices=("auto", "msr", "utkinect", "npz", "csv"),
+        choices=("auto", "msr", "utkinect", "npz", "csv", "bvh"),
         help="input format (auto: by extension and content)",
     )
+    _bvh_options(pr, scale=True)
     pr.add_argument(
         "--method",
         default="ik",
@@ -383,7 +442,9 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         help="frame rate of the input (None: the file's own timing: UTKinect frame numbers at "
-        "30 fps, MSR Action3D 15 fps, CSV / NPZ 30 fps unless the NPZ has times or fps)",
+        "30 fps, MSR Action3D 15 fps, CSV / NPZ 30 fps unless the NPZ has times or fps). A BVH "
+        "states its own rate (Frame Time): there --fps F resamples the clip to F frames/s "
+        "(linear interpolation of joint positions), e.g. 30; None keeps the clip's rate",
     )
     pr.add_argument(
         "--feasible",
@@ -398,6 +459,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("upper", "body"),
         help="joints in a .json output: upper = NAOqi's Head, LArm, RArm chains (the legs stay "
         "with the robot's own balance); body = all 26",
+    )
+    pr.add_argument(
+        "--plot",
+        default=None,
+        help="also write a PNG: human and NAO at key frames, the 10 driven joints over time "
+        "against the per-frame IK (the demo report's motion figure)",
     )
     pr.set_defaults(func=_retarget)
 
@@ -445,6 +512,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with a folder: stop at the first unreadable recording (default: report it on "
         "stderr and use the others)",
     )
+    _bvh_options(pb)
     pb.add_argument("--out", required=True, help="output projector .npz")
     pb.set_defaults(func=_build)
 
@@ -486,6 +554,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with a folder: stop at the first unreadable recording (default: report it on "
         "stderr and in the JSON's data_files, and evaluate the others)",
     )
+    _bvh_options(pe)
     pe.add_argument("--json", required=True, help="output report JSON")
     pe.set_defaults(func=_evaluate)
 

@@ -63,7 +63,7 @@ import os
 import re
 import sys
 import zipfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -675,6 +675,7 @@ TEST_SUBJECTS: tuple[int, ...] = (2, 4, 6, 8, 10)
 """... and every accuracy figure is measured on these, which the landmarks never saw."""
 
 _SUBJECT_RE = re.compile(r"s(\d{2})")
+_CMU_RE = re.compile(r"^(\d+)_(\d+)(?:_[^.]*)?\.bvh$", re.IGNORECASE)
 _ACTION_RE = re.compile(r"a(\d{2})_")
 
 
@@ -684,6 +685,7 @@ def load_sequences(
     *,
     progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
     strict: bool = True,
+    bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
 ) -> list[MotionSequence]:
     """The bundled MSR Action3D or UTKinect-Action3D sequences, or every recording in a folder.
 
@@ -696,6 +698,8 @@ def load_sequences(
         name are kept.
       progress: optional wrapper of the file iterable (e.g. a progress bar).
       strict: folders only: ``True`` raises at an unreadable recording, ``False`` leaves it out.
+      bvh_map: folders only: the joint map of the BVH files in it (``jaxproj.bvh``; default
+        ``"auto"``: a built-in map detected per file).
 
     Raises:
       InputError: ``data`` is none of the names above nor a folder, the folder holds no
@@ -708,7 +712,7 @@ def load_sequences(
         return msr_action3d(subjects=wanted)
     if str(data) == "utkinect":
         return utkinect_action3d(subjects=wanted)
-    return load_folder(data, subjects, progress=progress, strict=strict).sequences
+    return load_folder(data, subjects, progress=progress, strict=strict, bvh_map=bvh_map).sequences
 
 
 @dataclass(frozen=True)
@@ -769,13 +773,16 @@ def load_folder(
     *,
     progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
     strict: bool = True,
+    bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
 ) -> FolderContents:
     """Every recording in a folder (not its subfolders), and an account of the rest.
 
     Each file is first recognised (``readers.recording_format``): files that are not recordings
     (documentation such as ``SOURCE.md``, UTKinect's ``actionLabel.txt``, hidden files, images,
     an npz without ``positions``) are skipped and listed in ``skipped``. A file name with
-    ``sNN`` gives the subject (0 when absent) and ``aNN_`` the action (0 when absent). With
+    ``sNN`` gives the subject (0 when absent) and ``aNN_`` the action (0 when absent); a BVH file
+    named the CMU way, ``SUBJECT_TRIAL.bvh`` (``131_03.bvh``, ``131_03_every6.bvh``), gives
+    its subject and take from those numbers. With
     ``subjects``, recordings of other subjects are listed in ``left_out`` without being read;
     files with no subject in their name are kept. The rest are read with
     ``readers.read_skeleton``.
@@ -786,6 +793,7 @@ def load_folder(
       progress: optional wrapper of the file iterable (e.g. a progress bar).
       strict: ``True``: an unreadable recording raises its ``InputError``; ``False``: it is
         listed in ``unreadable`` and the others are read.
+      bvh_map: the joint map of BVH files (``readers.read_skeleton``'s ``bvh_map``).
 
     Returns:
       ``FolderContents``.
@@ -815,14 +823,17 @@ def load_folder(
             continue
         subj = _SUBJECT_RE.search(f.name)
         act = _ACTION_RE.search(f.name)
+        cmu = _CMU_RE.match(f.name) if fmt == "bvh" and not subj else None
+        subj = subj or cmu
         subject = int(subj.group(1)) if subj else 0
+        take = int(cmu.group(2)) if cmu else 0
         if subj:
             seen_subjects.add(subject)
         if wanted is not None and subj and subject not in wanted:
             left_out.append((f.name, subject))
             continue
         try:
-            rec = read_skeleton(f, format=fmt)
+            rec = read_skeleton(f, format=fmt, bvh_map=bvh_map)
         except InputError as err:
             if strict:
                 raise
@@ -832,7 +843,7 @@ def load_folder(
         action = int(act.group(1)) if act else 0
         seqs.append(
             MotionSequence(
-                f.stem, action, subject, 0, rec.positions, conf, rec.valid, times=rec.times
+                f.stem, action, subject, take, rec.positions, conf, rec.valid, times=rec.times
             )
         )
     missing = [s for s in wanted if s not in seen_subjects] if wanted is not None else []

@@ -182,6 +182,76 @@ def plot_motion(
     _save(plt, fig, path)
 
 
+def plot_retarget(
+    path: Path,
+    title: str,
+    positions: np.ndarray,
+    valid: np.ndarray,
+    times: np.ndarray,
+    angles: np.ndarray,
+    ik_angles: np.ndarray,
+    label: str = "output",
+    key_frames: int = 4,
+) -> None:
+    """One retargeted recording (``jaxproj retarget --plot``): the figure of ``plot_motion`` with
+    the joint angles over time instead of the errors.
+
+    Top rows: the human (body frame, front and side view; left limbs red) and the NAO playing
+    ``angles`` (blue) and the per-frame IK (green) at ``key_frames`` frames spread over the
+    valid ones. Bottom: the driven joints over time, head / left arm / right arm, ``angles``
+    solid and the IK dashed.
+
+    Args:
+      positions: ``(T, 20, 3)`` human joints, Kinect order; ``valid`` ``(T,)``; ``times``
+        ``(T,)`` seconds.
+      angles, ik_angles: ``(T, 10)`` radians, ``robot.DRIVEN_JOINTS`` order.
+    """
+    plt = _plt()
+    from jaxproj.ik import driven_to_full
+
+    model = robot.load_model("fixed")
+    frames = np.flatnonzero(valid)
+    if frames.size == 0:
+        frames = np.arange(len(valid))
+    picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
+    fig = plt.figure(figsize=(3.6 * key_frames, 14.0))
+    grid = fig.add_gridspec(5, key_frames, height_ratios=[1.0, 1.0, 0.7, 0.7, 0.7])
+    for col, t in enumerate(picks):
+        hp = human_points(positions[t])
+        out = nao_points(model, np.asarray(driven_to_full(angles[t])))
+        ik_p = nao_points(model, np.asarray(driven_to_full(ik_angles[t])))
+        for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
+            sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
+            ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
+            _draw_human(ax_h, hp, axes)
+            _draw_nao(ax_r, ik_p, axes, "tab:green")
+            _draw_nao(ax_r, out, axes, "tab:blue")
+            for ax in (ax_h, ax_r):
+                ax.set_aspect("equal")
+                ax.set_xticks([])
+                ax.set_yticks([])
+            ax_h.set_title(f"human, {times[t]:.2f} s ({view})", fontsize=8)
+            ax_r.set_title(f"NAO: {label} (blue) / IK (green)", fontsize=8)
+    groups = (("head", ("Head",)), ("left arm", ("LShoulder", "LElbow")),
+              ("right arm", ("RShoulder", "RElbow")))  # fmt: skip
+    for row, (name, prefixes) in enumerate(groups, start=2):
+        ax = fig.add_subplot(grid[row, :])
+        joints = [i for i, n in enumerate(robot.DRIVEN_JOINTS) if n.startswith(prefixes)]
+        for k, i in enumerate(joints):
+            c = f"C{k}"
+            ax.plot(times, np.degrees(angles[:, i]), "-", color=c, lw=1.5,
+                    label=robot.DRIVEN_JOINTS[i])  # fmt: skip
+            ax.plot(times, np.degrees(ik_angles[:, i]), "--", color=c, lw=0.8, alpha=0.7)
+        for t in picks:
+            ax.axvline(times[t], color="k", lw=0.5, alpha=0.4)
+        ax.set_ylabel(f"{name} (deg)")
+        ax.legend(fontsize=7, ncol=4, loc="upper right")
+        ax.grid(alpha=0.3)
+    ax.set_xlabel(f"time (s); solid: {label}, dashed: per-frame IK")
+    fig.suptitle(title)
+    _save(plt, fig, path)
+
+
 def plot_distributions(path: Path, predictions: dict[str, np.ndarray], truth: np.ndarray) -> None:
     """CDFs of M_avg and M_max per method; ``predictions[m]`` and ``truth``: ``(F, 10)``."""
     plt = _plt()

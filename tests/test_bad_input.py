@@ -188,6 +188,12 @@ _LINES = msr_file(_GOOD).splitlines()
 _TRUNCATED_ROW = "\n".join(_LINES[:6] + [" ".join(_LINES[6].split()[:3])] + _LINES[7:])
 
 
+_BVH_HIERARCHY = (
+    "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+    "  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\n"
+)  # 10 lines: a one-joint BVH skeleton (BVH: tests/test_bvh.py)
+
+
 def _truncated_npz() -> bytes:
     data = npz_file(make_frames(["ok"] * 30, 1))
     return data[: len(data) // 2]
@@ -222,7 +228,12 @@ BAD_FILES: list[tuple[str, str, bytes | str | None, list[str]]] = [
     ("npz-times-step", "t1.npz", npz_file(_GOOD, times=np.array([0.0, 1e-300])), ["1e-06 s"]),
     ("npz-times-span", "t2.npz", npz_file(_GOOD, times=np.array([0.0, 1e300])), ["spans 1e+300"]),
     ("undetectable", "seven.txt", "1 2 3 4 5 6 7\n", ["cannot detect the format"]),
-]
+    ("bvh-no-motion", "clip.bvh", _BVH_HIERARCHY, ["no MOTION section"]),
+    ("bvh-row", "row.bvh", _BVH_HIERARCHY + "MOTION\nFrames: 2\nFrame Time: 0.1\n1 2 3\n4 5\n",
+     ["line 15: found 2 values, expected 3"]),
+    ("bvh-token", "tok.txt", _BVH_HIERARCHY + "MOTION\nFrames: 1\nFrame Time: 0.1\n1 x 3\n",
+     ["line 14, column 2: non-numeric token 'x'"]),
+]  # fmt: skip
 
 
 def _make(tmp_path: Path, name: str, content: bytes | str | None) -> Path:

@@ -284,7 +284,7 @@ BAD_INPUTS = [
     ("npz-not-zip", "n.npz", b"this is not a zip archive", "auto", ["not an npz", "zip"]),
     ("npz-truncated", "t.npz", _truncated_npz(), "npz", ["corrupt"]),
     ("npz-corrupted", "c.npz", _corrupted_npz(), "npz", ["corrupt"]),
-    ("unknown-format", "u.txt", _MSR, "bvh", ["unknown format", "'bvh'"]),
+    ("unknown-format", "u.txt", _MSR, "c3d", ["unknown format", "'c3d'"]),
     ("undetectable", "seven.txt", "1 2 3 4 5 6 7\n", "auto", ["cannot detect", "7 columns"]),
 ]
 
