@@ -380,7 +380,7 @@ def bench_public(
     if devices is None and device != jax.devices()[0]:
         devices = [device]
     rec["devices"] = [str(d) for d in (devices or [device])]
-    rec["batch_size"] = engine.default_batch_size(devices)
+    rec["batch_size"] = engine.default_batch_size(devices, n_queries)
 
     def call() -> tuple[np.ndarray, np.ndarray]:
         return engine.project(
@@ -457,6 +457,33 @@ def bench_rollout(
     return out
 
 
+LONG_SOLVE_ITERATIONS = 1000
+"""Steps of the long reference solve that defines an *exact* full-objective answer."""
+
+CONVERGED_TOL_DEG = 0.1
+"""How close to the long solve an exact full answer must be (the speed issue's definition)."""
+
+
+def bench_full_convergence(
+    model: engine.Model, h: np.ndarray, n_l: int, n_m: int, full: FullConfig
+) -> dict:
+    """A ``full_convergence`` record: the full objective's answers with the benchmarked solver
+    ``full`` against the same solver run for ``LONG_SOLVE_ITERATIONS`` steps, on the queries
+    ``h`` (held-out people): the fraction within ``CONVERGED_TOL_DEG`` on every joint."""
+    long = dataclasses.replace(full, iterations=LONG_SOLVE_ITERATIONS)
+    r, f = engine.project(model, h, "full", n_l=n_l, n_m=n_m, full=full)
+    r_long, f_long = engine.project(model, h, "full", n_l=n_l, n_m=n_m, full=long)
+    diff = np.degrees(np.abs(r - r_long)).max(axis=1)
+    return record(
+        "full_convergence", objective="full", L=n_l, M=n_m, queries=len(h),
+        full_config=dataclasses.asdict(full), reference_iterations=LONG_SOLVE_ITERATIONS,
+        tolerance_deg=CONVERGED_TOL_DEG,
+        fraction_within=float(np.mean(diff <= CONVERGED_TOL_DEG)),
+        p99_abs_diff_deg=float(np.quantile(diff, 0.99)), max_abs_diff_deg=float(diff.max()),
+        objective_ratio_median=float(np.median(f / np.maximum(f_long, 1e-12))),
+    )  # fmt: skip
+
+
 # ----------------------------------------------------------------------------------- run
 
 
@@ -516,6 +543,15 @@ def run(
                     rec.setdefault("max_abs_diff_deg", None)
                 records.append(rec)
                 log(table_row(rec))
+            if objective == "full":
+                rec = bench_full_convergence(models[n], test[:nq], n_l, n_m, full)
+                rec.update(N=n, chains=chains)
+                records.append(rec)
+                log(
+                    f"full L={n_l} M={n_m} N={n}: {rec['fraction_within']:.4f} of {nq} answers "
+                    f"within {rec['tolerance_deg']} deg of a {rec['reference_iterations']}-step "
+                    f"solve (max {rec['max_abs_diff_deg']:.2f} deg)"
+                )
             n_pub = plan.public_queries.get(objective, 0)
             if n_pub:
                 rec = bench_public(

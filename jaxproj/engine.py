@@ -539,10 +539,31 @@ DEFAULT_BATCH = {"cpu": 4096, "accelerator": 65536}
 anyway), GPU / TPU 65536 (enough queries per call to fill the device)."""
 
 
-def default_batch_size(devices: Sequence[jax.Device] | None = None) -> int:
-    """``DEFAULT_BATCH`` for the platform of ``devices`` (``None``: the default backend)."""
+def default_batch_size(
+    devices: Sequence[jax.Device] | None = None, n_queries: int | None = None
+) -> int:
+    """``project``'s batch when it is not given: ``DEFAULT_BATCH`` for the platform of
+    ``devices`` (``None``: the default backend); for ``n_queries`` fewer than that, the next
+    power of two ``>= n_queries`` (at least ``MIN_BATCH``, a multiple of the device count), so
+    that a short call is not padded to a whole default batch (64 queries on a CPU: 64x less
+    work than 4096)."""
     platform = jax.default_backend() if not devices else list(devices)[0].platform
-    return DEFAULT_BATCH["cpu" if platform == "cpu" else "accelerator"]
+    default = DEFAULT_BATCH["cpu" if platform == "cpu" else "accelerator"]
+    return default if n_queries is None else _fitted_batch(default, n_queries, devices)
+
+
+MIN_BATCH = 64
+"""The smallest batch ``project`` compiles for by default (fewer queries are padded to it)."""
+
+
+def _fitted_batch(default: int, n: int, devices: Sequence[jax.Device] | None) -> int:
+    """``default``, or for fewer queries ``n`` the next power of two ``>= n`` (at least
+    ``MIN_BATCH``, a multiple of the device count)."""
+    if n >= default:
+        return default
+    bucket = max(MIN_BATCH, 1 << max(n - 1, 0).bit_length())
+    k = len(list(devices)) if devices else 1
+    return min(default, -(-bucket // k) * k)
 
 
 def project(
@@ -570,7 +591,8 @@ def project(
       n_l, n_m: ``L`` human and ``M`` robot neighbours.
       full: settings of the full objective (default ``FullConfig()``).
       batch_size: queries per jitted call (``>= 1``); ``None``: ``default_batch_size`` (4096 on
-        CPU, 65536 on accelerators).
+        CPU, 65536 on accelerators), or for fewer queries than that the next power of two
+        (at least ``MIN_BATCH``): one compilation per such size.
       devices: where to run: ``None`` (default) the default device; one device; or several
         (``resolve_devices`` turns ``"all"`` or a count into a list): each batch is split
         along the query axis over a 1-D mesh of them with ``shard_map``, the projector
@@ -592,7 +614,7 @@ def project(
     if h.ndim != 2 or h.shape[1] != m:
         raise ConfigError(f"descriptors must be (B, {m}), got {h.shape}")
     if batch_size is None:
-        batch_size = default_batch_size(devices)
+        batch_size = default_batch_size(devices, len(h))
     if batch_size < 1:
         raise ConfigError(f"batch_size={batch_size} must be >= 1")
     place = _placement(devices, batch_size)

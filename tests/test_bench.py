@@ -91,7 +91,8 @@ def test_public_api_records(records):
     }
     for r in pub:
         assert r["agrees"] and r["n_checked"] == 64, r
-        assert r["batch_size"] == 4096  # the CPU default
+        # the CPU default (4096) fitted to the call: the next power of two of its queries
+        assert r["batch_size"] == r["batch"], r
         assert math.isfinite(r["us_per_projection"]) and r["first_call_s"] > 0
 
 
@@ -111,10 +112,22 @@ def test_build_streaming_targets_and_table(records):
     assert stream["frames"] == 40 and stream["compile_s"] >= 0
     assert (stream["L"], stream["M"], stream["N"], stream["n_landmarks"]) == (10, 10, 86, 86)
     targets = [r for r in records if r["kind"] == "target"]
-    assert len(targets) == 6
+    assert len(targets) == 7
     assert all(t["met"] is None for t in targets if "N~1644" in t["target"])  # N=1644 not run
     table = harness.format_table(records)
     assert "relaxed" in table and "targets" in table
+
+
+def test_full_convergence_record(records):
+    """The full objective's answers against a long (1,000-step) solve of the same solver."""
+    (conv,) = [r for r in records if r["kind"] == "full_convergence"]
+    assert (conv["L"], conv["M"], conv["N"], conv["queries"]) == (4, 4, 86, 64)
+    assert conv["reference_iterations"] == bench.LONG_SOLVE_ITERATIONS == 1000
+    assert 0.0 <= conv["fraction_within"] <= 1.0
+    assert 0.0 <= conv["p99_abs_diff_deg"] <= conv["max_abs_diff_deg"]
+    # the long solve keeps its best iterate, which includes the short solve's path
+    assert conv["objective_ratio_median"] >= 1.0 - 1e-6
+    assert "1,000-step solve" in harness.format_table(records).replace("1000-step", "1,000-step")
 
 
 def test_cli_arguments_parse():

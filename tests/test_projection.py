@@ -104,6 +104,28 @@ def test_no_recompilation_on_the_second_call(model, count_compiles):
     assert compiles[name] == 1, compiles
 
 
+def test_default_batch_fits_short_calls(model, count_compiles):
+    """Without ``batch_size`` a short call is padded to the next power of two (at least
+    ``MIN_BATCH``), not to a whole default batch; the answers are the same, and sizes in one
+    bucket share one compilation."""
+    import jax
+
+    assert engine.default_batch_size(None) == 4096  # the CPU default
+    fitted = {n: engine.default_batch_size(None, n) for n in (1, 5, 64, 65, 300, 4096, 10**6)}
+    assert fitted == {1: 64, 5: 64, 64: 64, 65: 128, 300: 512, 4096: 4096, 10**6: 4096}
+    three = jax.devices("cpu")[:1] * 3  # only the count matters here
+    assert engine.default_batch_size(three, 100) == 129  # a multiple of the device count
+    d = _descriptors([2], actions=[2])
+    want, want_v = engine.project(model, d[:300], "relaxed", batch_size=4096)
+    got, got_v = engine.project(model, d[:300], "relaxed")
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(got_v, want_v)
+    name = engine.project_chunk.__name__
+    with count_compiles() as compiles:
+        engine.project(model, d[:260], "relaxed")  # 260 and 300 share the 512 bucket
+    assert compiles[name] == 0, compiles
+
+
 def test_save_load_is_bit_identical(model, tmp_path):
     path = tmp_path / "p.npz"
     engine.save(model, path)
