@@ -1,0 +1,78 @@
+"""A/B of the exact k-nearest selection on an accelerator: XLA ``TopK`` (the old selection)
+against repeated minima (``search.smallest``'s accelerator path), in one run, on the same model
+and queries; then the public ``jaxproj.project`` on 1 M host poses.
+
+    python3 benchmarks/experiments/selection_ab.py MODEL.npz
+
+Prints ns per pose of one jitted ``engine.project_batch`` (relaxed, L = M = 10, batch 65,536)
+for both selections and whether their answers are bit-identical. Needs a GPU (on a CPU both
+paths are ``TopK``).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj import datasets, engine, projection, search
+
+BATCH = 65536
+
+
+def _per_pose_ns(f, *args, repeats: int = 5) -> float:
+    jax.block_until_ready(f(*args))  # compile + warm up
+    ts = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(f(*args))
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts)) / BATCH * 1e9
+
+
+def _top_k(v: jax.Array, n: int) -> tuple[jax.Array, jax.Array]:
+    neg, pos = jax.lax.top_k(-v, n)
+    return pos.astype(jnp.int32), -neg
+
+
+def main(path: str) -> None:
+    model = engine.load(path)
+    sp = model.projector
+    test = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS))
+    test = test[np.random.default_rng(0).permutation(len(test))].astype(np.float32)
+    q = jax.device_put(np.tile(test, (BATCH // len(test) + 1, 1))[:BATCH])
+
+    def compiled():
+        cfg = projection.FullConfig()
+        return jax.jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, cfg))
+
+    new = compiled()
+    r_new, t_new = np.asarray(new(sp, q)[0]), _per_pose_ns(new, sp, q)
+    default = search.smallest
+    search.smallest = _top_k  # the selection before this change, traced anew
+    try:
+        old = compiled()
+        r_old, t_old = np.asarray(old(sp, q)[0]), _per_pose_ns(old, sp, q)
+    finally:
+        search.smallest = default
+    diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
+    print(
+        f"{jax.devices()[0].device_kind}: relaxed L=M=10, batch {BATCH}: TopK {t_old:.1f} ns/pose, "
+        f"repeated minima {t_new:.1f} ns/pose; identical answers {np.mean(diff == 0):.5f}, "
+        f"max diff {diff.max():.2e} deg"
+    )
+    hosts = np.tile(test, (2**20 // len(test) + 1, 1))[: 2**20]
+    engine.project(model, hosts)  # compile
+    ts = []
+    for _ in range(3):
+        t = time.perf_counter()
+        engine.project(model, hosts)
+        ts.append(time.perf_counter() - t)
+    print(f"public jaxproj.project relaxed, 1 M host poses: {2**20 / np.median(ts) / 1e6:.3f} M/s")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
