@@ -288,7 +288,10 @@ def test_render_motion_plays_in_real_time(tmp_path, no_sigint_fork):
 
 def test_show_without_and_with_ipython(monkeypatch):
     m = _motion([robot.STANDING_POSTURE, _arm_up()], positions=False)
+    # IPython absent: both names unimportable (an earlier test may have imported the real
+    # IPython.display, which a bare sys.modules["IPython"] = None would not hide)
     monkeypatch.setitem(sys.modules, "IPython", None)
+    monkeypatch.setitem(sys.modules, "IPython.display", None)
     frames = show(m, backend="matplotlib", size=SIZE)
     assert isinstance(frames, np.ndarray) and frames.shape == (2, SIZE[1], SIZE[0], 3)
 
