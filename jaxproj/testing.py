@@ -106,7 +106,14 @@ class Reference:
         simplex weights of each candidate's cluster, ``cfg.iterations`` steps, best iterate
         kept; gradients written out by hand. With ``cfg.clusters`` only the clusters with the
         smallest warm-start values are optimised. Returns (pose ``(n,)``, objective value).
+        Only ``solver="adam"`` is re-implemented (``ConfigError`` otherwise): the Newton solver
+        is checked against its own long solves and against Adam's objective values
+        (``tests/test_projection.py``, ``benchmarks/experiments/full_newton.py``).
         """
+        if cfg.solver != "adam":
+            raise ConfigError(
+                f"the float64 reference re-implements solver='adam' only, not {cfg.solver!r}"
+            )
         h = np.asarray(h, np.float64)
         cand = self.candidates(h, n_l)  # (L, n)
         ridx = self._knn(self.tree_r, cand, n_m)  # (L, M)

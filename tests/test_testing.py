@@ -107,6 +107,8 @@ def test_project_dispatches_and_rejects_unknown_objectives(model):
     np.testing.assert_array_equal(ref.project(h[0], "full", 3, 3)[0], ref.full(h[0], 3, 3)[0])
     with pytest.raises(ConfigError, match="objective"):
         ref.project(h[0], "fast", L, M)
+    with pytest.raises(ConfigError, match="solver='adam' only"):
+        ref.project(h[0], "full", L, M, FullConfig(solver="newton"))
 
 
 def test_simplex_projection_matches_optax():
