@@ -94,10 +94,9 @@ def test_newton_solver_converges_where_adam_stops_short(model):
     # and its 30-step answers agree with its own 200-step ones (it has converged)
     d = _descriptors([2], actions=[1, 5])[:64]
     newton = FullConfig(solver="newton")
-    _, f_n, f0 = _full_values(model, d, newton)
+    r_n, f_n, f0 = _full_values(model, d, newton)
     _, f_a, _ = _full_values(model, d, FullConfig())
     _, f_a300, _ = _full_values(model, d, FullConfig(iterations=300))
-    r_n, _, _ = _full_values(model, d, newton)
     r_long, f_long, _ = _full_values(model, d, dataclasses.replace(newton, iterations=200))
     assert (f_n <= f0 + 1e-7).all()  # monotone, like Adam's best iterate
     assert (f_n <= f_a * (1 + 1e-4) + 1e-7).all()
