@@ -55,6 +55,17 @@ def _args() -> argparse.Namespace:
         help="RolloutConfig(contact_friction=False): frictionless self-contacts",
     )
     ap.add_argument(
+        "--no-split",
+        action="store_true",
+        help="RolloutConfig(split_legs=False): the whole model, not head-and-arms + legs",
+    )
+    ap.add_argument(
+        "--whole-baseline",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="with the split (default), also time the whole model at each batch size",
+    )
+    ap.add_argument(
         "--check-solver",
         type=int,
         default=64,
@@ -143,6 +154,7 @@ def config(args: argparse.Namespace) -> rollout.RolloutConfig:
         solver_iterations=args.solver_iterations or base.solver_iterations,
         ls_iterations=args.ls_iterations or base.ls_iterations,
         contact_friction=not args.frictionless,
+        split_legs=not args.no_split,
     )
 
 
@@ -158,6 +170,16 @@ def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int)
         "motions": batch,
         "max_dq_rad": float(np.abs(qa - rollout.simulate(q, config=ref).qpos).max()),
     }
+    if cfg.split_legs:
+        w = rollout.simulate(q, config=dataclasses.replace(cfg, split_legs=False))
+        out["vs_whole"] = {
+            "max_dq_rad": float(np.abs(qa - np.asarray(w.qpos)).max()),
+            "max_dqvel_rad_s": float(np.abs(np.asarray(a.qvel) - np.asarray(w.qvel)).max()),
+            "contact_frames_equal": bool(
+                np.array_equal(np.asarray(a.contact_frames), np.asarray(w.contact_frames))
+            ),
+            "motions_with_contact": int((np.asarray(w.contact_frames).sum(axis=1) > 0).sum()),
+        }
     if not cfg.contact_friction:
         f = rollout.simulate(q, config=dataclasses.replace(cfg, contact_friction=True))
         dq = np.abs(qa - np.asarray(f.qpos)).max(axis=(1, 2))
@@ -216,7 +238,7 @@ def main(args: argparse.Namespace) -> int:
     cfg = config(args)
     print(f"motions: {args.frames} frames at 15 frames/s, {substeps} steps/frame | solver caps "
           f"{cfg.solver_iterations} iterations / {cfg.ls_iterations} line-search | contact "
-          f"friction {cfg.contact_friction}")  # fmt: skip
+          f"friction {cfg.contact_friction} | split_legs {cfg.split_legs}")  # fmt: skip
     check = None
     if args.check_solver:
         check = solver_check(cfg, args.check_solver, args.frames, args.seed)
@@ -227,6 +249,12 @@ def main(args: argparse.Namespace) -> int:
             print(f"frictionless vs friction contacts: max |dq| {v['max_dq_rad']:.3g} rad over the "
                   f"{v['motions_with_contact']} motions with contact, "
                   f"{v['contact_free_max_dq_rad']} on the contact-free ones")  # fmt: skip
+        if "vs_whole" in check:
+            v = check["vs_whole"]
+            print(f"split (head-and-arms + legs) vs whole model: max |dq| {v['max_dq_rad']:.2e} "
+                  f"rad, max |dqvel| {v['max_dqvel_rad_s']:.2e} rad/s, contact frames equal "
+                  f"{v['contact_frames_equal']} ({v['motions_with_contact']} motions with "
+                  "contact)")  # fmt: skip
 
     # CPU MuJoCo baseline: motion 0, same protocol (warm-up run first, then timed)
     ref = motions(1, args.frames, args.seed)[0]
@@ -247,6 +275,15 @@ def main(args: argparse.Namespace) -> int:
               f"{r['steps_per_s']:12,.0f} steps/s | x{r['speedup_vs_cpu_mj_step']:.2f} vs CPU "
               f"mj_step | finite {r['finite']} | motion 0 vs CPU max |dq| {dq:.2e} rad"
               + ("" if good else "  <-- CHECK FAILED"))  # fmt: skip
+        if cfg.split_legs and args.whole_baseline:
+            whole = dataclasses.replace(cfg, split_legs=False)
+            w = bench(b, args.frames, args.seed, args.repeat, substeps, whole)
+            w.pop("qpos0")
+            r["whole_model"] = w
+            r["speedup_vs_whole"] = r["steps_per_s"] / w["steps_per_s"]
+            print(f"              whole model (split_legs=False): compile {w['compile_s']:6.1f} s "
+                  f"| run {w['run_s']:8.3f} s | {w['steps_per_s']:12,.0f} steps/s | split "
+                  f"x{r['speedup_vs_whole']:.2f}")  # fmt: skip
         rows.append(r)
     if cpu_ncon > 0:
         print("note: motion 0 touched itself on CPU MuJoCo; the MJX/CPU comparison is not exact")
@@ -261,6 +298,7 @@ def main(args: argparse.Namespace) -> int:
         "solver_iterations": cfg.solver_iterations,
         "ls_iterations": cfg.ls_iterations,
         "contact_friction": cfg.contact_friction,
+        "split_legs": cfg.split_legs,
         "solver_check": check,
         "cpu_mj_step": {"steps": cpu_steps, "run_s": cpu_s, "steps_per_s": cpu_steps / cpu_s},
         "mjx": rows,

@@ -146,24 +146,35 @@ def mjcf_path() -> Path:
     return (Path(__file__).parent / "assets" / "nao_h25.xml").resolve()
 
 
-def load_model(mount: Literal["free", "fixed"] = "free") -> mujoco.MjModel:
+def load_model(
+    mount: Literal["free", "fixed"] = "free", without: Sequence[str] = ()
+) -> mujoco.MjModel:
     """Compile the bundled NAO H25 MJCF.
 
     Args:
       mount: ``"free"``: the torso is a floating base (free joint ``root``; nq = 33, nv = 32).
         ``"fixed"``: the free joint is removed, so the torso is welded to the world at the origin
         with identity orientation (nq = nv = 26; for upper-body rollouts).
+      without: names of bodies removed with their whole subtrees (fixed mount only), e.g.
+        ``LEG_ROOTS`` for the head and arms alone, ``UPPER_ROOTS`` for the legs alone; the
+        actuators, joint equalities and contact excludes that refer to a removed joint or body go
+        with them. With the torso welded the subtrees share no degree of freedom, so each part
+        keeps exactly the dynamics it has in the whole model, less the contacts across parts.
 
     Returns:
-      The compiled ``mujoco.MjModel`` (26 hinge joints named as ``JOINT_NAMES``, 25 position
-      actuators, the HipYawPitch joint equality).
+      The compiled ``mujoco.MjModel`` (all of it: 26 hinge joints named as ``JOINT_NAMES``, 25
+      position actuators, the HipYawPitch joint equality).
 
     Raises:
-      ConfigError: ``mount`` is not ``"free"`` or ``"fixed"``.
+      ConfigError: ``mount`` is not ``"free"`` or ``"fixed"``; ``without`` with the free mount,
+        or naming a body the model does not have (or the torso).
       InputError: the MJCF is missing or MuJoCo cannot compile it.
     """
     if mount not in _MOUNTS:
         raise ConfigError(f"mount must be one of {_MOUNTS}, got {mount!r}")
+    without = tuple(without)
+    if without and mount != "fixed":
+        raise ConfigError(f"without= needs the fixed mount, got {mount!r}")
     path = mjcf_path()
     if not path.is_file():
         raise InputError(path, "bundled MJCF model is missing")
@@ -175,11 +186,47 @@ def load_model(mount: Literal["free", "fixed"] = "free") -> mujoco.MjModel:
         if root is None:
             raise InputError(path, f"no free joint named {_FREE_JOINT!r} to remove")
         spec.delete(root)
+        _remove_subtrees(spec, without)
         return spec.compile()
     except ValueError as err:  # mujoco reports XML / compile errors as ValueError
-        if isinstance(err, InputError):
+        if isinstance(err, (InputError, ConfigError)):
             raise
         raise InputError(path, f"MuJoCo cannot compile the model ({mount} mount): {err}") from err
+
+
+LEG_ROOTS: tuple[str, str] = ("LPelvis", "RPelvis")
+"""Bodies at the root of the two legs (``load_model("fixed", without=LEG_ROOTS)``: head, arms)."""
+
+UPPER_ROOTS: tuple[str, str, str] = ("Neck", "LShoulder", "RShoulder")
+"""Bodies at the root of the head and the two arms (``without=UPPER_ROOTS``: the legs)."""
+
+
+def _remove_subtrees(spec: mujoco.MjSpec, roots: Sequence[str]) -> None:
+    """Delete the bodies ``roots`` with their subtrees and whatever refers to them, in place."""
+    bodies: set[str] = set()
+    joints: set[str] = set()
+    for name in roots:
+        body = spec.body(name)
+        if body is None or name == _TORSO_BODY:
+            raise ConfigError(f"without= names {name!r}, which is not a removable body of the "
+                              "model")  # fmt: skip
+        stack = [body]
+        while stack:
+            b = stack.pop()
+            bodies.add(b.name)
+            joints.update(j.name for j in b.joints)
+            stack.extend(b.bodies)
+    for act in list(spec.actuators):
+        if act.target in joints:
+            spec.delete(act)
+    for eq in list(spec.equalities):
+        if eq.name1 in joints or eq.name2 in joints or eq.name1 in bodies or eq.name2 in bodies:
+            spec.delete(eq)
+    for ex in list(spec.excludes):
+        if ex.bodyname1 in bodies or ex.bodyname2 in bodies:
+            spec.delete(ex)
+    for name in roots:
+        spec.delete(spec.body(name))
 
 
 def _joint_ids(model: mujoco.MjModel) -> np.ndarray:

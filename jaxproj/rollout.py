@@ -89,6 +89,19 @@ class RolloutConfig:
         (``condim=1``, one row per slot: 80 constraint rows instead of 239), a speed option that
         changes the physics only while parts touch; contact detection, penetration depth and
         every contact-free frame are unaffected. Measured effect in ``benchmarks/RESULTS.md``.
+      split_legs: simulate the head and arms (14 joints) and the legs (12) as two separate
+        models (``robot.load_model("fixed", without=...)``), the legs once per distinct leg
+        motion of the batch (retargeted motions hold the legs still: once per batch). With the
+        torso welded the two parts share no degree of freedom and only the head can touch a leg;
+        each batch is certified (below) to keep every leg geom out of the head's reach, and
+        otherwise runs the whole model. The answers equal the whole model's to the constraint
+        solver's tolerance (the solver's stopping test and line search act on each part alone);
+        measured in ``benchmarks/RESULTS.md``; ``False`` runs the whole model.
+
+    The split's certificate: the head turns about the neck, so its geoms stay inside a ball
+    about the neck (radius: the farthest head-geom point, computed from the MJCF); the legs'
+    rollout checks at every physics step that each leg geom's bounding sphere (plus the contact
+    margins) lies outside that ball, so no head-leg contact can arise in the whole model either.
 
     Why the caps: under ``vmap`` MJX's line search (a ``lax.cond`` per iteration inside a scan)
     evaluates every one of its ``ls_iterations`` and the solver loop runs until the slowest motion
@@ -106,14 +119,16 @@ class RolloutConfig:
     solver_iterations: int = 8
     ls_iterations: int = 4
     contact_friction: bool = True
+    split_legs: bool = True
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.frame_dt) and self.frame_dt > 0):
             raise ConfigError(f"frame_dt must be a positive number of seconds, got {self.frame_dt}")
         if not (np.isfinite(self.kp_scale) and self.kp_scale > 0):
             raise ConfigError(f"kp_scale must be positive, got {self.kp_scale}")
-        if not isinstance(self.contact_friction, bool):
-            raise ConfigError(f"contact_friction must be a bool, got {self.contact_friction!r}")
+        for flag in ("contact_friction", "split_legs"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ConfigError(f"{flag} must be a bool, got {getattr(self, flag)!r}")
         for name in ("solver_iterations", "ls_iterations"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
@@ -146,19 +161,39 @@ class RolloutResult(NamedTuple):
 
 
 class _Setup(NamedTuple):
-    """Device-side model and index tables for one config (all pytrees of arrays)."""
+    """Device-side model and index tables of one part for one config (all pytrees of arrays).
+
+    A part is the whole robot or one of the two halves of ``RolloutConfig.split_legs``; its ``n``
+    joints are listed in ``JOINT_NAMES`` order (``joints``), so the whole robot's rows come out
+    in ``JOINT_NAMES`` order as they are.
+    """
 
     mx: mjx.Model
     d0: mjx.Data
-    qidx: jax.Array  # (26,) qpos address of each joint
-    didx: jax.Array  # (26,) dof address of each joint
+    joints: jax.Array  # (n,) index into JOINT_NAMES of each joint of the part, ascending
+    qidx: jax.Array  # (n,) qpos address of each joint
+    didx: jax.Array  # (n,) dof address of each joint
+    q0_src: jax.Array  # (n,) index into JOINT_NAMES of the target each joint starts at
     act_src: jax.Array  # (nu,) index into JOINT_NAMES of the joint each actuator drives
     ctrl_lo: jax.Array  # (nu,)
     ctrl_hi: jax.Array  # (nu,)
-    q_lo: jax.Array  # (26,) joint range, for the initial pose
-    q_hi: jax.Array  # (26,)
+    q_lo: jax.Array  # (n,) joint range, for the initial pose
+    q_hi: jax.Array  # (n,)
     pair_group: jax.Array  # (ngeom, ngeom) int32: index into CONTACT_GROUPS, -1 not reported
     force_limited: jax.Array  # (nu,) bool actuator_forcelimited
+    guard_geom: jax.Array  # (k,) int32 geoms that could touch the head (legs part; else k = 0)
+    guard_radius: jax.Array  # (k,) float32 their clearance radius about guard_center, m
+    guard_center: jax.Array  # (3,) float32 the neck: the point the head turns about, m
+
+
+_PARTS: dict[str, tuple[str, ...]] = {
+    "whole": (),
+    "upper": robot.LEG_ROOTS,
+    "legs": robot.UPPER_ROOTS,
+}
+"""Part name -> bodies removed from the fixed-torso model (``robot.load_model(without=...)``)."""
+
+_HEAD_ROOT = "Neck"
 
 
 def _geom_class(name: str) -> str:
@@ -191,20 +226,102 @@ def _pair_group(model: mujoco.MjModel) -> np.ndarray:
 
 
 def _actuated_joint(model: mujoco.MjModel) -> np.ndarray:
-    """(nu,) index into JOINT_NAMES of the joint each actuator drives (RHipYawPitch: none)."""
-    act = robot.actuator_index(model)
+    """(nu,) index into JOINT_NAMES of the joint each actuator drives."""
     src = np.full(model.nu, -1, dtype=np.int64)
-    for i, a in enumerate(act):
-        if robot.JOINT_NAMES[i] != robot.COUPLED_JOINTS[1]:
-            src[a] = i
+    for a in range(model.nu):
+        if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, model.actuator_trnid[a, 0])
+            src[a] = robot.IDX.get(name or "", -1)
     if np.any(src < 0):
         raise ConfigError("some actuator of the model drives none of JOINT_NAMES")
     return src
 
 
-def _fixed_model(config: RolloutConfig) -> mujoco.MjModel:
-    """The fixed-torso MjModel with the config's gains and gravity applied."""
-    model = robot.load_model("fixed")
+def _part_joints(model: mujoco.MjModel) -> np.ndarray:
+    """(n,) MuJoCo joint ids of the model's joints, ordered as ``JOINT_NAMES``."""
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in
+             range(model.njnt)]  # fmt: skip
+    unknown = [n for n in names if n not in robot.IDX]
+    if unknown:
+        raise ConfigError(f"the rollout model has joints outside JOINT_NAMES: {unknown}")
+    return np.array(sorted(range(model.njnt), key=lambda j: robot.IDX[names[j]]), dtype=np.int64)
+
+
+def _subtree(model: mujoco.MjModel, root: int) -> np.ndarray:
+    """(nbody,) bool: the bodies of ``root``'s subtree (``root`` included)."""
+    inside = np.zeros(model.nbody, dtype=bool)
+    inside[root] = True
+    for b in range(root + 1, model.nbody):  # MuJoCo lists a parent before its children
+        inside[b] = inside[model.body_parentid[b]]
+    return inside
+
+
+def _can_collide(model: mujoco.MjModel, g1: int, g2: int) -> bool:
+    """MuJoCo's contype / conaffinity filter (a superset of the pairs it actually tests)."""
+    ct, ca = model.geom_contype, model.geom_conaffinity
+    return bool((ct[g1] & ca[g2]) or (ct[g2] & ca[g1]))
+
+
+@functools.lru_cache(maxsize=1)
+def _head_ball() -> tuple[np.ndarray, float, float, frozenset[str]]:
+    """The ball about the neck that holds the head's geoms at every head angle.
+
+    Returns ``(center (3,), reach, head_margin, head_geom_names)``: every point of every head
+    geom lies within ``reach`` of ``center`` whatever the head joints' angles. Checks that the
+    head's joints all turn about the neck's origin (so a geom's distance from it is fixed) and
+    that no arm geom can collide with a leg geom (so the head is the parts' only meeting point).
+    """
+    whole = robot.load_model("fixed")
+    data = mujoco.MjData(whole)
+    mujoco.mj_kinematics(whole, data)
+    neck = mujoco.mj_name2id(whole, mujoco.mjtObj.mjOBJ_BODY, _HEAD_ROOT)
+    head = _subtree(whole, neck)
+    center = data.xpos[neck].copy()
+    for j in range(whole.njnt):
+        if head[whole.jnt_bodyid[j]] and np.linalg.norm(data.xanchor[j] - center) > 1e-9:
+            raise ConfigError("split_legs: a head joint does not turn about the neck")
+    geoms = [g for g in range(whole.ngeom) if head[whole.geom_bodyid[g]]]
+    reach = max(float(np.linalg.norm(data.geom_xpos[g] - center) + whole.geom_rbound[g])
+                for g in geoms)  # fmt: skip
+    margin = max(float(whole.geom_margin[g]) for g in geoms)
+    legs = np.zeros(whole.nbody, dtype=bool)
+    for root in robot.LEG_ROOTS:
+        legs |= _subtree(whole, mujoco.mj_name2id(whole, mujoco.mjtObj.mjOBJ_BODY, root))
+    upper = np.zeros(whole.nbody, dtype=bool)
+    for root in robot.UPPER_ROOTS:
+        upper |= _subtree(whole, mujoco.mj_name2id(whole, mujoco.mjtObj.mjOBJ_BODY, root))
+    for g1 in range(whole.ngeom):
+        for g2 in range(whole.ngeom):
+            b1, b2 = whole.geom_bodyid[g1], whole.geom_bodyid[g2]
+            if upper[b1] and not head[b1] and legs[b2] and _can_collide(whole, g1, g2):
+                raise ConfigError("split_legs: an arm geom can collide with a leg geom")
+    names = frozenset(mujoco.mj_id2name(whole, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in geoms)
+    return center, reach, margin, names
+
+
+def _guard(model: mujoco.MjModel, part: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Guard geoms, radii and centre of a part (see ``_Setup``): the legs' geoms that pass the
+    collision filter with some head geom; none for the other parts."""
+    none = (np.zeros(0, np.int32), np.zeros(0, np.float32), np.zeros(3, np.float32))
+    if part != "legs":
+        return none
+    center, reach, head_margin, head_names = _head_ball()
+    whole = robot.load_model("fixed")
+    heads = [mujoco.mj_name2id(whole, mujoco.mjtObj.mjOBJ_GEOM, n) for n in head_names]
+    geom, radius = [], []
+    for g in range(model.ngeom):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+        gw = mujoco.mj_name2id(whole, mujoco.mjtObj.mjOBJ_GEOM, name)
+        if gw >= 0 and any(_can_collide(whole, gw, h) for h in heads):
+            geom.append(g)
+            radius.append(reach + head_margin + model.geom_margin[g] + model.geom_rbound[g])
+    return (np.asarray(geom, np.int32), np.asarray(radius, np.float32),
+            np.asarray(center, np.float32))  # fmt: skip
+
+
+def _fixed_model(config: RolloutConfig, part: str = "whole") -> mujoco.MjModel:
+    """The fixed-torso MjModel of ``part`` (``_PARTS``) with the config's gains and gravity."""
+    model = robot.load_model("fixed", without=_PARTS[part])
     if config.kp_scale != 1.0:
         # position actuator: force = kp * ctrl - kp * qpos - kv * qvel
         model.actuator_gainprm[:, 0] *= config.kp_scale
@@ -232,9 +349,9 @@ def _check_config(config: RolloutConfig) -> None:
 
 
 @functools.lru_cache(maxsize=8)
-def _setup(config: RolloutConfig) -> tuple[_Setup, int]:
-    """Model on device + index tables for ``config``, and the physics steps per frame."""
-    model = _fixed_model(config)
+def _setup(config: RolloutConfig, part: str = "whole") -> tuple[_Setup, int]:
+    """Model of ``part`` on device, its index tables for ``config``, and steps per frame."""
+    model = _fixed_model(config, part)
     substeps = _substeps(config, float(model.opt.timestep))
     if model.opt.integrator != mujoco.mjtIntegrator.mjINT_IMPLICITFAST:
         raise ConfigError("the rollout step assumes the implicitfast integrator of the MJCF")
@@ -244,20 +361,32 @@ def _setup(config: RolloutConfig) -> tuple[_Setup, int]:
         raise ConfigError("the rollout step assumes position actuators (fixed gain, affine bias)")
     mx = mjx.put_model(model, impl="jax")
     d0 = mjx.make_data(mx, impl="jax")
-    jids = [model.joint(n).id for n in robot.JOINT_NAMES]
-    src = _actuated_joint(model)
+    jids = _part_joints(model)
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in jids]
+    joints = np.array([robot.IDX[n] for n in names], dtype=np.int32)
+    lhyp, rhyp = robot.COUPLED_JOINTS
+    q0_src = np.array([robot.IDX[lhyp] if n == rhyp else robot.IDX[n] for n in names], np.int32)
+    pair_group = _pair_group(model)
+    if part == "legs" and np.any(pair_group >= 0):
+        raise ConfigError("split_legs: a reported contact group involves the legs")
+    guard_geom, guard_radius, guard_center = _guard(model, part)
     setup = _Setup(
         mx=mx,
         d0=d0,
-        qidx=jnp.asarray(robot.joint_qpos_index(model), dtype=jnp.int32),
-        didx=jnp.asarray(robot.joint_dof_index(model), dtype=jnp.int32),
-        act_src=jnp.asarray(src, dtype=jnp.int32),
+        joints=jnp.asarray(joints),
+        qidx=jnp.asarray(model.jnt_qposadr[jids], dtype=jnp.int32),
+        didx=jnp.asarray(model.jnt_dofadr[jids], dtype=jnp.int32),
+        q0_src=jnp.asarray(q0_src),
+        act_src=jnp.asarray(_actuated_joint(model), dtype=jnp.int32),
         ctrl_lo=jnp.asarray(model.actuator_ctrlrange[:, 0], dtype=jnp.float32),
         ctrl_hi=jnp.asarray(model.actuator_ctrlrange[:, 1], dtype=jnp.float32),
         q_lo=jnp.asarray(model.jnt_range[jids, 0], dtype=jnp.float32),
         q_hi=jnp.asarray(model.jnt_range[jids, 1], dtype=jnp.float32),
-        pair_group=jnp.asarray(_pair_group(model)),
+        pair_group=jnp.asarray(pair_group),
         force_limited=jnp.asarray(model.actuator_forcelimited, dtype=bool),
+        guard_geom=jnp.asarray(guard_geom),
+        guard_radius=jnp.asarray(guard_radius),
+        guard_center=jnp.asarray(guard_center),
     )
     return setup, substeps
 
@@ -319,18 +448,33 @@ def _self_contact(s: _Setup, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
     return hit, jnp.maximum(depth, jnp.float32(0.0))
 
 
-def _rollout_one(
-    s: _Setup, targets: jax.Array, length: jax.Array, substeps: int
-) -> tuple[jax.Array, ...]:
-    """One motion: targets (T, 26), length () int -> per-frame records and statistics."""
+def _held(targets: jax.Array, length: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """targets (T, 26), length () -> (T, 26) with the frames past ``length`` holding the last
+    valid one, and (T,) bool valid."""
     n_frames = targets.shape[0]
     valid = jnp.arange(n_frames, dtype=jnp.int32) < length  # (T,)
     last = jnp.clip(length - 1, 0, n_frames - 1)
-    held = jnp.where(valid[:, None], targets, targets[last][None, :])
+    return jnp.where(valid[:, None], targets, targets[last][None, :]), valid
 
-    lhyp = robot.IDX[robot.COUPLED_JOINTS[0]]
-    rhyp = robot.IDX[robot.COUPLED_JOINTS[1]]
-    q0 = held[0].at[rhyp].set(held[0, lhyp])
+
+def _guard_clearance(s: _Setup, d: mjx.Data) -> jax.Array:
+    """() smallest clearance of the guard geoms outside the head's ball, m (inf: none)."""
+    if s.guard_geom.shape[0] == 0:
+        return jnp.full((), jnp.inf, jnp.float32)
+    gap = jnp.linalg.norm(d.geom_xpos[s.guard_geom] - s.guard_center[None, :], axis=-1)
+    return jnp.min(gap - s.guard_radius)
+
+
+def _rollout_one(
+    s: _Setup, held: jax.Array, valid: jax.Array, substeps: int
+) -> tuple[jax.Array, ...]:
+    """One motion of one part: held targets (T, 26), valid (T,) -> per-frame records.
+
+    Returns qpos (T, n), qvel (T, n), contact (T, 3) and depth (T,) (both False / 0 on invalid
+    frames), peak |qvel| (T, n) over each frame's physics steps, and the guard clearance (T,)
+    (smallest over each frame's physics steps; inf for parts without guard geoms).
+    """
+    q0 = held[0][s.q0_src]  # RHipYawPitch starts at LHipYawPitch
     q0 = jnp.clip(q0, s.q_lo, s.q_hi)
     d = s.d0.replace(
         qpos=s.d0.qpos.at[s.qidx].set(q0.astype(s.d0.qpos.dtype)),
@@ -338,45 +482,125 @@ def _rollout_one(
         ctrl=jnp.clip(held[0][s.act_src], s.ctrl_lo, s.ctrl_hi).astype(s.d0.ctrl.dtype),
     )
     n_groups = len(CONTACT_GROUPS)
+    n_joints = s.joints.shape[0]
 
     def substep(carry, _):
-        d, vpeak, hit, depth = carry
+        d, vpeak, hit, depth, clear = carry
         d = _mjx_step(s, d)
         h, p = _self_contact(s, d)
         vpeak = jnp.maximum(vpeak, jnp.abs(d.qvel[s.didx]))
-        return (d, vpeak, hit | h, jnp.maximum(depth, p)), None
+        clear = jnp.minimum(clear, _guard_clearance(s, d))
+        return (d, vpeak, hit | h, jnp.maximum(depth, p), clear), None
 
-    def frame(carry, xs):
-        d, vmax = carry
+    def frame(d, xs):
         target, ok = xs
         ctrl = jnp.clip(target[s.act_src], s.ctrl_lo, s.ctrl_hi).astype(d.ctrl.dtype)
         init = (
             d.replace(ctrl=ctrl),
-            jnp.zeros(robot.N_JOINTS, jnp.float32),
+            jnp.zeros(n_joints, jnp.float32),
             jnp.zeros(n_groups, dtype=bool),
             jnp.zeros((), jnp.float32),
+            jnp.full((), jnp.inf, jnp.float32),
         )
-        (d, vpeak, hit, depth), _ = jax.lax.scan(substep, init, None, length=substeps)
-        vmax = jnp.where(ok, jnp.maximum(vmax, vpeak), vmax)
-        rec = (d.qpos[s.qidx], d.qvel[s.didx], hit & ok, jnp.where(ok, depth, jnp.float32(0.0)))
-        return (d, vmax), rec
+        (d, vpeak, hit, depth, clear), _ = jax.lax.scan(substep, init, None, length=substeps)
+        rec = (
+            d.qpos[s.qidx],
+            d.qvel[s.didx],
+            hit & ok,
+            jnp.where(ok, depth, jnp.float32(0.0)),
+            vpeak,
+            clear,
+        )
+        return d, rec
 
-    init = (d, jnp.zeros(robot.N_JOINTS, jnp.float32))
-    (_, vmax), (qpos, qvel, contact, depth) = jax.lax.scan(frame, init, (held, valid))
+    _, records = jax.lax.scan(frame, d, (held, valid))
+    return records
 
+
+def _motion_stats(
+    qpos: jax.Array, vpeak: jax.Array, contact: jax.Array, held: jax.Array, valid: jax.Array
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Per-motion statistics over its valid frames: qpos / vpeak / held (T, n), contact (T, 3),
+    valid (T,) -> peak speed (n,), contact frames (3,) int32, tracking RMS (n,)."""
+    vmax = jnp.max(jnp.where(valid[:, None], vpeak, jnp.float32(0.0)), axis=0)
     n_valid = jnp.maximum(jnp.sum(valid.astype(jnp.float32)), jnp.float32(1.0))
     err = jnp.where(valid[:, None], qpos - held, jnp.float32(0.0))
     rms = jnp.sqrt(jnp.sum(err * err, axis=0) / n_valid)
     frames = jnp.sum(contact.astype(jnp.int32), axis=0)
-    return qpos, qvel, contact, depth, vmax, frames, rms
+    return vmax, frames, rms
 
 
 @jit(static_argnames=("substeps",), precision=None)  # MJX keeps its own defaults
 def _simulate_jit(
     s: _Setup, targets: jax.Array, lengths: jax.Array, substeps: int
 ) -> RolloutResult:
-    out = jax.vmap(_rollout_one, in_axes=(None, 0, 0, None))(s, targets, lengths, substeps)
-    return RolloutResult(*out)
+    """A batch on one part: targets (B, T, 26), lengths (B,) -> ``RolloutResult`` whose joint
+    axes are the part's ``n`` joints (``s.joints``; all 26 in order for the whole robot)."""
+
+    def one(targets: jax.Array, length: jax.Array) -> tuple[jax.Array, ...]:
+        held, valid = _held(targets, length)
+        qpos, qvel, contact, depth, vpeak, _ = _rollout_one(s, held, valid, substeps)
+        vmax, frames, rms = _motion_stats(qpos, vpeak, contact, held[:, s.joints], valid)
+        return qpos, qvel, contact, depth, vmax, frames, rms
+
+    return RolloutResult(*jax.vmap(one)(targets, lengths))
+
+
+class _LegRollout(NamedTuple):
+    """The legs' rollout of each distinct leg motion (U of them; all frames valid)."""
+
+    qpos: jax.Array  # (U, T, 12)
+    qvel: jax.Array  # (U, T, 12)
+    vpeak: jax.Array  # (U, T, 12) peak |qvel| per frame
+    clearance: jax.Array  # (U,) smallest guard clearance over every physics step, m
+
+
+@jit(static_argnames=("substeps",), precision=None)  # MJX keeps its own defaults
+def _legs_jit(s: _Setup, targets: jax.Array, substeps: int) -> _LegRollout:
+    valid = jnp.ones(targets.shape[1], dtype=bool)
+
+    def one(held: jax.Array) -> tuple[jax.Array, ...]:
+        qpos, qvel, _, _, vpeak, clear = _rollout_one(s, held, valid, substeps)
+        return qpos, qvel, vpeak, jnp.min(clear)
+
+    return _LegRollout(*jax.vmap(one)(targets))
+
+
+@jit(precision=None)
+def _merge_jit(
+    upper: RolloutResult,
+    legs: _LegRollout,
+    inverse: jax.Array,
+    upper_joints: jax.Array,
+    leg_joints: jax.Array,
+    targets: jax.Array,
+    lengths: jax.Array,
+) -> RolloutResult:
+    """The whole robot's ``RolloutResult`` from the head-and-arms part of each motion and its
+    leg motion ``legs[inverse[b]]``."""
+
+    def leg_stats(u: jax.Array, targets: jax.Array, length: jax.Array) -> tuple[jax.Array, ...]:
+        held, valid = _held(targets, length)
+        none = jnp.zeros((targets.shape[0], len(CONTACT_GROUPS)), dtype=bool)
+        vmax, _, rms = _motion_stats(legs.qpos[u], legs.vpeak[u], none, held[:, leg_joints],
+                                     valid)  # fmt: skip
+        return vmax, rms
+
+    leg_vmax, leg_rms = jax.vmap(leg_stats)(inverse, targets, lengths)
+
+    def put(up: jax.Array, lg: jax.Array) -> jax.Array:
+        out = jnp.zeros((*up.shape[:-1], robot.N_JOINTS), up.dtype)
+        return out.at[..., upper_joints].set(up).at[..., leg_joints].set(lg)
+
+    return RolloutResult(
+        qpos=put(upper.qpos, legs.qpos[inverse]),
+        qvel=put(upper.qvel, legs.qvel[inverse]),
+        contact=upper.contact,
+        penetration=upper.penetration,
+        max_speed=put(upper.max_speed, leg_vmax),
+        contact_frames=upper.contact_frames,
+        tracking_rms=put(upper.tracking_rms, leg_rms),
+    )
 
 
 def _as_batch(targets: object, lengths: object | None) -> tuple[np.ndarray, np.ndarray]:
@@ -431,15 +655,26 @@ def simulate(
     """
     _check_config(config)
     q, n = _as_batch(targets, lengths)
-    setup, substeps = _setup(config)
     devices = None if devices is None else list(devices)
+    if devices and len(set(devices)) != len(devices):
+        raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
+    if config.split_legs:
+        result = _simulate_split(q, n, config, devices)
+        if result is not None:
+            return result
+    setup, substeps = _setup(config, "whole")
+    return _run_shares(setup, q, n, substeps, devices)
+
+
+def _run_shares(
+    setup: _Setup, q: np.ndarray, n: np.ndarray, substeps: int, devices: list | None
+) -> RolloutResult:
+    """``_simulate_jit`` on one device, or on one contiguous share of the motions per device."""
     if not devices or len(devices) == 1:
         dev = devices[0] if devices else None
         if dev is not None:
             setup = jax.device_put(setup, dev)
         return _simulate_jit(setup, jax.device_put(q, dev), jax.device_put(n, dev), substeps)
-    if len(set(devices)) != len(devices):
-        raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
     bounds = np.linspace(0, len(q), len(devices) + 1).round().astype(int)
     shares = [(d, lo, hi) for d, lo, hi in zip(devices, bounds[:-1], bounds[1:], strict=True)
               if hi > lo]  # fmt: skip  (more devices than motions: the extra ones get none)
@@ -460,6 +695,55 @@ def simulate(
     home = devices[0]
     fields = zip(*parts, strict=True)
     return RolloutResult(*(jnp.concatenate([jax.device_put(x, home) for x in f]) for f in fields))
+
+
+def _leg_motions(
+    targets: np.ndarray, lengths: np.ndarray, leg_joints: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct leg motions of a batch, as ``RolloutConfig(split_legs=True)`` runs them.
+
+    Args:
+      targets: (B, T, 26) targets, rad; lengths: (B,) valid frames (frames past a motion's
+        length count as its last valid frame, as in the rollout).
+      leg_joints: (12,) indices into ``JOINT_NAMES`` of the legs' joints.
+
+    Returns:
+      ``(rows, inverse)``: rows (U, T, 12) float32, the distinct leg target sequences, padded to
+      a power of two ``U`` with copies of the first (one compile per size class), and inverse
+      (B,) int32, the row of each motion. Retargeted motions hold the legs still: ``U = 1``.
+    """
+    n_b, n_t = targets.shape[:2]
+    frame = np.minimum(np.arange(n_t)[None, :], lengths[:, None] - 1)  # (B, T)
+    legs = targets[np.arange(n_b)[:, None], frame][..., leg_joints].reshape(n_b, -1)
+    if np.all(legs == legs[:1]):
+        rows, inverse = legs[:1], np.zeros(n_b, dtype=np.int64)
+    else:
+        rows, inverse = np.unique(legs, axis=0, return_inverse=True)
+    size = 1 << (len(rows) - 1).bit_length()
+    rows = np.concatenate([rows, np.repeat(rows[:1], size - len(rows), axis=0)])
+    return rows.reshape(size, n_t, len(leg_joints)).astype(np.float32), inverse.astype(np.int32)
+
+
+def _simulate_split(
+    q: np.ndarray, n: np.ndarray, config: RolloutConfig, devices: list | None
+) -> RolloutResult | None:
+    """``simulate`` as two parts (``RolloutConfig.split_legs``); None when a leg motion comes
+    within the head's reach (the caller then runs the whole model)."""
+    legs, substeps = _setup(config, "legs")
+    upper, _ = _setup(config, "upper")
+    home = devices[0] if devices else None
+    leg_joints = np.asarray(legs.joints)
+    rows, inverse = _leg_motions(q, n, leg_joints)
+    leg_targets = np.tile(robot.STANDING_POSTURE, (*rows.shape[:2], 1))
+    leg_targets[..., leg_joints] = rows
+    if home is not None:
+        legs, upper = jax.device_put(legs, home), jax.device_put(upper, home)
+    leg_run = _legs_jit(legs, jax.device_put(leg_targets, home), substeps)
+    if not bool(np.all(np.asarray(leg_run.clearance) > 0.0)):
+        return None
+    up = _run_shares(upper, q, n, substeps, devices)
+    return _merge_jit(up, leg_run, jax.device_put(inverse, home), upper.joints, legs.joints,
+                      jax.device_put(q, home), jax.device_put(n, home))  # fmt: skip
 
 
 # --- kinematics -------------------------------------------------------------------------------

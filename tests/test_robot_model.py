@@ -101,6 +101,65 @@ def test_loads_with_both_mounts(fixed: mujoco.MjModel, free: mujoco.MjModel) -> 
         robot.load_model("floating")  # type: ignore[arg-type]
 
 
+def _names(model: mujoco.MjModel, obj: mujoco.mjtObj, n: int) -> set[str]:
+    return {mujoco.mj_id2name(model, obj, i) for i in range(n)}
+
+
+def test_parts_without_subtrees(fixed: mujoco.MjModel) -> None:
+    # the head and arms, and the legs: every joint, actuator and geom lands in exactly one part
+    upper = robot.load_model("fixed", without=robot.LEG_ROOTS)
+    legs = robot.load_model("fixed", without=robot.UPPER_ROOTS)
+    assert (upper.nv, upper.nu, upper.neq, upper.nexclude) == (14, 14, 0, 0)
+    assert (legs.nv, legs.nu, legs.neq, legs.nexclude) == (12, 11, 1, 3)  # one hip motor
+    j = mujoco.mjtObj.mjOBJ_JOINT
+    uj, lj = _names(upper, j, upper.njnt), _names(legs, j, legs.njnt)
+    assert uj | lj == set(robot.JOINT_NAMES) and not uj & lj
+    assert {"HeadYaw", "LHand", "RWristYaw"} <= uj and {"LHipYawPitch", "RAnkleRoll"} <= lj
+    g = mujoco.mjtObj.mjOBJ_GEOM
+    ug, lg = _names(upper, g, upper.ngeom), _names(legs, g, legs.ngeom)
+    assert ug & lg == {"torso_geom"} and ug | lg == _names(fixed, g, fixed.ngeom)
+    a = mujoco.mjtObj.mjOBJ_ACTUATOR
+    assert _names(upper, a, upper.nu) | _names(legs, a, legs.nu) == _names(fixed, a, fixed.nu)
+    # a part keeps the whole model's inertia for its joints (the torso is welded: no coupling)
+    for part in (upper, legs):
+        for name in _names(part, j, part.njnt):
+            jp, jf = part.joint(name), fixed.joint(name)
+            assert part.body_mass[jp.bodyid[0]] == fixed.body_mass[jf.bodyid[0]]
+            assert part.dof_armature[jp.dofadr[0]] == fixed.dof_armature[jf.dofadr[0]]
+    # ... and the same mass matrix block and bias forces at a random configuration
+    rng = np.random.default_rng(0)
+    q = rng.uniform(robot.LOWER, robot.UPPER)
+    q[robot.IDX["RHipYawPitch"]] = q[robot.IDX["LHipYawPitch"]]
+    whole = mujoco.MjData(fixed)
+    whole.qpos[robot.joint_qpos_index(fixed)] = q
+    whole.qvel[:] = rng.normal(size=fixed.nv)
+    mujoco.mj_forward(fixed, whole)
+    m_whole = np.zeros((fixed.nv, fixed.nv))
+    mujoco.mj_fullM(fixed, whole, m_whole)
+    for part in (upper, legs):
+        names = [mujoco.mj_id2name(part, j, i) for i in range(part.njnt)]
+        dof_w = np.array([fixed.joint(n).dofadr[0] for n in names])
+        d = mujoco.MjData(part)
+        for n in names:
+            d.qpos[part.joint(n).qposadr[0]] = whole.qpos[fixed.joint(n).qposadr[0]]
+            d.qvel[part.joint(n).dofadr[0]] = whole.qvel[fixed.joint(n).dofadr[0]]
+        mujoco.mj_forward(part, d)
+        m_part = np.zeros((part.nv, part.nv))
+        mujoco.mj_fullM(part, d, m_part)
+        dof_p = np.array([part.joint(n).dofadr[0] for n in names])
+        np.testing.assert_allclose(m_part[np.ix_(dof_p, dof_p)], m_whole[np.ix_(dof_w, dof_w)],
+                                   atol=1e-12)  # fmt: skip
+        np.testing.assert_allclose(d.qfrc_bias[dof_p], whole.qfrc_bias[dof_w], atol=1e-12)
+        others = np.setdiff1d(np.arange(fixed.nv), dof_w)
+        assert np.all(m_whole[np.ix_(dof_w, others)] == 0.0)  # no inertial coupling
+    with pytest.raises(ConfigError, match="fixed mount"):
+        robot.load_model("free", without=robot.LEG_ROOTS)
+    with pytest.raises(ConfigError, match="Knee"):
+        robot.load_model("fixed", without=("Knee",))
+    with pytest.raises(ConfigError, match="torso"):
+        robot.load_model("fixed", without=("torso",))
+
+
 @pytest.mark.parametrize("mount", ["free", "fixed"])
 def test_joint_ranges_match_reference(mount: str) -> None:
     model = robot.load_model(mount)  # type: ignore[arg-type]

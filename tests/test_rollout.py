@@ -204,6 +204,105 @@ def test_padding_is_ignored(batch, fixed: mujoco.MjModel) -> None:
     assert s_pad["frames"] == 2 * PAD_LEN and s_pad["joint_limit_violations"]["target_frames"] == 0
 
 
+# --- split_legs: head-and-arms and legs as two models --------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def whole(batch) -> rollout.RolloutResult:
+    targets, lengths, _ = batch
+    result = rollout.simulate(targets, lengths, rollout.RolloutConfig(split_legs=False))
+    return rollout.RolloutResult(*(np.asarray(x) for x in result))
+
+
+def test_split_matches_whole_model(batch, whole: rollout.RolloutResult) -> None:
+    # the default (split_legs=True) against the whole 26-joint model: the parts share no degree
+    # of freedom, so only the constraint solver's stopping test and line search (per part
+    # instead of joint) and float32 rounding differ (measured 1.3e-6 rad on CPU)
+    targets, lengths, r = batch
+    assert rollout.RolloutConfig().split_legs
+    np.testing.assert_allclose(r.qpos, whole.qpos, atol=1e-4)
+    np.testing.assert_allclose(r.qvel, whole.qvel, atol=1e-2)
+    np.testing.assert_array_equal(r.contact, whole.contact)
+    np.testing.assert_array_equal(r.contact_frames, whole.contact_frames)
+    np.testing.assert_allclose(r.penetration, whole.penetration, atol=1e-4)
+    np.testing.assert_allclose(r.max_speed, whole.max_speed, atol=1e-2)
+    np.testing.assert_allclose(r.tracking_rms, whole.tracking_rms, atol=1e-4)
+    assert r.contact_frames[COLLIDE, ARM_TORSO] > 0  # the comparison covers a contact
+
+
+def test_split_with_moving_legs(batch, whole: rollout.RolloutResult) -> None:
+    # motions whose legs move get their own leg rollout: bend the left knee in STEP from frame 4
+    targets, lengths, _ = batch
+    moved = targets.copy()
+    knee = IDX["LKneePitch"]
+    moved[STEP, 4:, knee] = 1.0
+    legs = np.asarray(rollout._setup(rollout.RolloutConfig(), "legs")[0].joints)
+    rows, inverse = rollout._leg_motions(moved, lengths, legs)
+    assert rows.shape == (2, T, 12) and len(set(inverse.tolist())) == 2
+    assert inverse[STEP] != inverse[STANDING] and len(set(inverse[[0, 2, 3, 4, 5]].tolist())) == 1
+    r = rollout.simulate(moved, lengths)
+    q = np.asarray(r.qpos)
+    assert abs(q[STEP, -1, knee] - 1.0) < 0.05 and abs(q[STANDING, -1, knee] - STAND[knee]) < 0.05
+    # the motions whose legs stand still are unchanged: their arms and head to the last bit,
+    # their legs to float32 rounding (a leg batch of 2 compiles to another program than 1)
+    keep = [STANDING, COLLIDE, JUMP, PAD_NAN, PAD_WILD]
+    split = np.asarray(rollout.simulate(targets, lengths).qpos)
+    legs_mask = np.isin(np.arange(26), legs)
+    np.testing.assert_array_equal(q[keep][..., ~legs_mask], split[keep][..., ~legs_mask])
+    np.testing.assert_allclose(q[keep][..., legs_mask], split[keep][..., legs_mask], atol=1e-6)
+    # and the moving-leg motion against the whole model
+    w = rollout.simulate(moved, lengths, rollout.RolloutConfig(split_legs=False))
+    np.testing.assert_allclose(q, np.asarray(w.qpos), atol=1e-4)
+    np.testing.assert_allclose(np.asarray(r.tracking_rms), np.asarray(w.tracking_rms), atol=1e-4)
+
+
+def test_leg_motions_dedup() -> None:
+    # padded frames count as the last valid one; sizes pad to a power of two
+    legs = np.arange(8, 20)
+    q = np.tile(STAND, (5, 4, 1)).astype(np.float32)
+    n = np.array([4, 2, 2, 4, 3], dtype=np.int32)
+    q[1, 2:, legs] = 7.0  # padding of a 2-frame motion: same leg motion as motion 0
+    q[3, 1:, legs[0]] = 0.5  # a different leg motion
+    q[4, 3, legs[1]] = 0.3  # differs only in padding: same as motion 0
+    rows, inverse = rollout._leg_motions(q, n, legs)
+    assert rows.shape == (2, 4, 12) and rows.dtype == np.float32
+    assert inverse.tolist() == [inverse[0]] * 3 + [1 - inverse[0], inverse[0]]
+    np.testing.assert_array_equal(rows[inverse[3]], q[3][:, legs])
+    q[2, :, legs[2]] = 0.1  # a third distinct motion: padded to 4 rows
+    rows, inverse = rollout._leg_motions(q, n, legs)
+    assert rows.shape == (4, 4, 12) and len(set(inverse.tolist())) == 3
+    for b in range(5):
+        frames = np.minimum(np.arange(4), n[b] - 1)
+        np.testing.assert_array_equal(rows[inverse[b]], q[b, frames][:, legs])
+
+
+def test_head_ball_known_answer() -> None:
+    # MJCF: the head sphere (r = 0.065) sits 0.055 above the neck joint (0, 0, 0.1265), about
+    # which both head joints turn; the arm geoms cannot collide with a leg geom
+    center, reach, margin, names = rollout._head_ball()
+    np.testing.assert_allclose(center, [0.0, 0.0, robot.NECK_OFFSET_Z], atol=1e-12)
+    assert reach == pytest.approx(0.055 + 0.065) and margin == 0.0 and names == {"head_geom"}
+    legs, _ = rollout._setup(rollout.RolloutConfig(), "legs")
+    assert legs.guard_geom.shape == (6,)  # thighs, tibias, feet: their filter bits meet the head's
+    upper, _ = rollout._setup(rollout.RolloutConfig(), "upper")
+    assert upper.guard_geom.shape == (0,)
+
+
+def test_split_guard_falls_back(batch, whole: rollout.RolloutResult, monkeypatch) -> None:
+    # a head ball reaching the legs fails the certificate: the whole model runs instead
+    targets, lengths, _ = batch
+    center, _, margin, names = rollout._head_ball()
+    rollout._setup.cache_clear()
+    monkeypatch.setattr(rollout, "_head_ball", lambda: (center, 0.3, margin, names))
+    try:
+        r = rollout.simulate(targets, lengths)
+    finally:
+        monkeypatch.undo()
+        rollout._setup.cache_clear()
+    for field in ("qpos", "qvel", "contact_frames", "max_speed"):
+        np.testing.assert_array_equal(np.asarray(getattr(r, field)), getattr(whole, field))
+
+
 # --- summary ------------------------------------------------------------------------------------
 
 
@@ -320,5 +419,7 @@ def test_bad_inputs() -> None:
         rollout.simulate(q, config=rollout.RolloutConfig(frame_dt=0.0))
     with pytest.raises(ConfigError, match="contact_friction"):
         rollout.simulate(q, config=rollout.RolloutConfig(contact_friction=1))  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="split_legs"):
+        rollout.RolloutConfig(split_legs="yes")  # type: ignore[arg-type]
     with pytest.raises(ConfigError):
         rollout.hand_error_cm(np.zeros((2, 26)), np.zeros((3, 26)))
