@@ -24,6 +24,13 @@ Protocol, for one motion (``lax.scan`` over frames, an inner ``lax.scan`` over p
   margins are 0) of that group: arm-torso, arm-head, arm-arm (leg contacts are not reported);
 * peak joint speed: max |qvel| over every physics step of the valid frames.
 
+Two models (``RolloutConfig.split_legs``, the default): with the torso welded, the head and
+arms and the legs share no degree of freedom, so they run as two MJX models — the legs once per
+distinct leg motion of the batch — after a per-batch certificate that no leg geom reaches the
+head (the only contact pair across the parts); otherwise, or with ``split_legs=False``, the
+whole 26-joint model runs. The answers equal the whole model's to the constraint solver's
+tolerance (``benchmarks/RESULTS.md``); a step costs about a third.
+
 Padding: a batch is ``(B, T, 26)`` with ``lengths (B,)``. Frames ``t >= lengths[b]`` hold the
 motion's last valid frame (whatever the padding contains, even NaN, never reaches the physics)
 and are left out of every statistic of ``RolloutResult`` and ``summarize``; their ``qpos`` /
