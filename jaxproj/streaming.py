@@ -141,7 +141,9 @@ def _update(
     return jnp.clip(level, lo, hi), new
 
 
-_update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))
+_update_jit = jit(
+    _update, static_argnames=("n_l", "n_m", "bones", "mirror"), deterministic=False
+)  # hot path: GPU autotuning kept (jaxproj._jit)
 
 
 def update(
