@@ -435,9 +435,7 @@ def project_batch(
     return jax.lax.map(one, h, batch_size=sub)
 
 
-project_chunk = jit(
-    project_batch, static_argnames=("objective", "n_l", "n_m", "full"), deterministic=False
-)  # hot path: GPU autotuning kept (jaxproj._jit)
+project_chunk = jit(project_batch, static_argnames=("objective", "n_l", "n_m", "full"))
 """Jitted ``project_batch``: ``(projector, (B, m), objective, L, M, full) -> ((B, n), (B,))``."""
 
 
@@ -501,9 +499,7 @@ def _sharded_batch(
 
 
 project_sharded = jit(
-    _sharded_batch,
-    static_argnames=("mesh", "objective", "n_l", "n_m", "full"),
-    deterministic=False,  # hot path: GPU autotuning kept (jaxproj._jit)
+    _sharded_batch, static_argnames=("mesh", "objective", "n_l", "n_m", "full")
 )
 """Jitted ``_sharded_batch``: ``(projector, (B, m) queries sharded over mesh) -> ((B, n), (B,))``
 with ``mesh``, ``objective``, ``n_l``, ``n_m``, ``full`` static."""

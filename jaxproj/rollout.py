@@ -537,7 +537,7 @@ def _motion_stats(
     return vmax, frames, rms
 
 
-@jit(static_argnames=("substeps",), precision=None, deterministic=False)  # MJX defaults
+@jit(static_argnames=("substeps",), precision=None)  # MJX keeps its own defaults
 def _simulate_jit(
     s: _Setup, targets: jax.Array, lengths: jax.Array, substeps: int
 ) -> RolloutResult:
@@ -562,7 +562,7 @@ class _LegRollout(NamedTuple):
     clearance: jax.Array  # (U,) smallest guard clearance over every physics step, m
 
 
-@jit(static_argnames=("substeps",), precision=None, deterministic=False)  # MJX defaults
+@jit(static_argnames=("substeps",), precision=None)  # MJX keeps its own defaults
 def _legs_jit(s: _Setup, targets: jax.Array, substeps: int) -> _LegRollout:
     valid = jnp.ones(targets.shape[1], dtype=bool)
 
@@ -573,7 +573,7 @@ def _legs_jit(s: _Setup, targets: jax.Array, substeps: int) -> _LegRollout:
     return _LegRollout(*jax.vmap(one)(targets))
 
 
-@jit(precision=None, deterministic=False)
+@jit(precision=None)
 def _merge_jit(
     upper: RolloutResult,
     legs: _LegRollout,

@@ -141,9 +141,7 @@ def _update(
     return jnp.clip(level, lo, hi), new
 
 
-_update_jit = jit(
-    _update, static_argnames=("n_l", "n_m", "bones", "mirror"), deterministic=False
-)  # hot path: GPU autotuning kept (jaxproj._jit)
+_update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))
 
 
 def update(

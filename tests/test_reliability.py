@@ -562,27 +562,3 @@ class TestFolders:
         assert why["old"] == "a folder (not searched)"
         recs = datasets.load_sequences(folder, [2, 4])
         assert {s.name for s in recs} == {"a01_s02_e01_skeleton3D", "a08_s04_e01_skeleton3D"}
-
-
-def test_jit_policy_deterministic_gpu_ops(monkeypatch) -> None:
-    # the model build compiles with XLA's deterministic GPU ops (two processes on an H200 built
-    # different landmarks without them); the hot paths opt out for speed (jaxproj._jit)
-    import jax
-
-    from jaxproj import _jit, engine, ik, kernels, meanshift, rollout, streaming
-
-    seen = []
-    real = jax.jit
-    monkeypatch.setattr(jax, "jit", lambda f, **kw: seen.append(kw) or real(f, **kw))
-    a = _jit.jit(lambda x: x + 1)
-    b = _jit.jit(lambda x: x + 1, deterministic=False)
-    c = _jit.jit(precision=None)(lambda x: x + 1)
-    assert [kw["compiler_options"] for kw in seen] == [{"xla_gpu_deterministic_ops": True}, None,
-                                                       {"xla_gpu_deterministic_ops": True}]
-    assert int(a(1)) == int(b(1)) == int(c(1)) == 2  # the option is accepted on CPU
-    for built in (meanshift._iterate, meanshift._merge, meanshift._step, kernels._train_bank_jit,
-                  ik._solve_driven_jit):
-        assert built.deterministic is True
-    for hot in (engine.project_chunk, engine.project_sharded, streaming._update_jit,
-                rollout._simulate_jit, rollout._legs_jit, rollout._merge_jit):
-        assert hot.deterministic is False
