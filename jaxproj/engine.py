@@ -39,7 +39,7 @@ from jaxproj.projection import (
     StackedProjector,
     make_projector,
     project_full_one,
-    project_relaxed_one,
+    project_relaxed_rows,
     project_stacked_one,
     stack_projectors,
 )
@@ -416,17 +416,25 @@ def project_batch(
 ) -> tuple[jax.Array, jax.Array]:
     """The traceable core of ``project`` for one batch (call it inside a jitted function).
 
-    ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``: the one-query projection (of every
-    chain, for a ``StackedProjector``; see ``projection.project_stacked_one``) vmapped over
-    sub-batches of ``sub_batch(...)`` queries, the sub-batches looped with ``lax.map``.
+    ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``, in sub-batches of ``sub_batch(...)``
+    queries looped with ``lax.map``. Relaxed: ``projection.project_relaxed_rows`` per sub-batch
+    (one robot-landmark search for all its candidates); full: the one-query projection (of every
+    chain, for a ``StackedProjector``; ``projection.project_stacked_one``) vmapped.
     """
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
+    if objective == "relaxed":  # batched form: one robot-landmark search per sub-batch
+
+        def rows(x: jax.Array) -> tuple[jax.Array, jax.Array]:
+            return project_relaxed_rows(p, x, n_l, n_m)
+
+        if sub >= h.shape[0]:
+            return rows(h)
+        r, v = jax.lax.map(rows, h.reshape(-1, sub, h.shape[1]))
+        return r.reshape(h.shape[0], -1), v.reshape(-1)
 
     def one(x: jax.Array) -> tuple[jax.Array, jax.Array]:
         if isinstance(p, StackedProjector):
             return project_stacked_one(p, x, objective, n_l, n_m, full)
-        if objective == "relaxed":
-            return project_relaxed_one(p, x, n_l, n_m)
         r, f, _ = project_full_one(p, x, n_l, n_m, full)
         return r, f
 

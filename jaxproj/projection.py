@@ -31,7 +31,7 @@ from optax.projections import projection_simplex
 from jaxproj import robot
 from jaxproj.exceptions import ConfigError
 from jaxproj.kernels import ELMBank, KernelSlice, predict, predict_slice, project_inputs, take
-from jaxproj.search import nearest, sq_norms
+from jaxproj.search import nearest, nearest_rows, sq_norms
 
 
 @jax.tree_util.register_dataclass
@@ -119,10 +119,61 @@ def project_relaxed_one(
     """
     cand = candidates(p, h, n_l)  # (L, n)
     ridx, _ = nearest(p.robot, p.robot_sq, cand, n_m)  # (L, M)
+    return _relaxed_pick(p, h, cand, ridx)
+
+
+def _relaxed_pick(
+    p: Projector, h: jax.Array, cand: jax.Array, ridx: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Steps 2-3 of the relaxed projection of one query, given its candidates ``(L, n)`` and
+    their robot landmarks ``ridx (L, M)``: the candidate with the least back-projected deviation
+    and that deviation (``project_relaxed_one``'s result)."""
     dev = jax.vmap(back_deviation, in_axes=(None, 0, None, 0))(p, cand, h, ridx)  # (L, M)
     best_per_j = jnp.min(dev, axis=1)
     j = jnp.argmin(best_per_j)
     return jnp.clip(cand[j], p.lower, p.upper), jnp.sqrt(best_per_j[j])
+
+
+def project_relaxed_rows(
+    p: Projector | StackedProjector, h: jax.Array, n_l: int, n_m: int
+) -> tuple[jax.Array, jax.Array]:
+    """Relaxed projection of a batch of queries, every chain at once.
+
+    The same answers as ``project_relaxed_one`` (``project_stacked_one`` for a stacked
+    projector) vmapped over the batch, but the robot-landmark searches of all the batch's
+    candidates run as one ``search.nearest_rows`` call per batch (the fused Pallas kernel on
+    CUDA GPUs, ``jaxproj._knn_pallas``), not one small search per query.
+
+    Args:
+      p: a projector, or one projector per chain.
+      h: ``(S, m)`` human descriptors.
+      n_l, n_m: ``L`` and ``M`` (static).
+
+    Returns:
+      ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the
+      whole descriptor: ``sqrt(sum_c dev_c^2)`` for chains).
+    """
+    if isinstance(p, StackedProjector):
+        stack, lay = p.stack, p.layout
+        identity = lay.identity
+    else:
+        stack, lay, identity = jax.tree.map(lambda a: a[None], p), None, True
+    s = h.shape[0]
+    if identity:
+        x = h[:, None, :]  # (S, 1, m)
+    else:
+        x = jnp.concatenate([h, jnp.zeros((s, 1), h.dtype)], axis=1)[:, lay.input_index()]
+    per_chain = jax.vmap(candidates, in_axes=(0, 0, None))
+    cand = jax.vmap(per_chain, in_axes=(None, 0, None))(stack, x, n_l)  # (S, C, L, n)
+    c, n = cand.shape[1], cand.shape[3]
+    rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
+    ridx, _ = nearest_rows(stack.robot, stack.robot_sq, rows, n_m)  # (C, S * L, M)
+    ridx = ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
+    pick = jax.vmap(jax.vmap(_relaxed_pick), in_axes=(None, 0, 0, 0))
+    r, v = pick(stack, x, cand, ridx)  # (S, C, n), (S, C)
+    if identity:
+        return r[:, 0], v[:, 0]
+    return r.reshape(s, -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))
 
 
 Objective = Literal["weighted", "min"]

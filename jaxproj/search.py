@@ -17,12 +17,18 @@ rounds of "take the row's minimum, mask it" on GPUs and TPUs, and with ``lax.top
 fused reductions beat XLA's ``TopK`` kernel (one arm chain's robot search, 10 rows of 1,656
 landmarks per query, batch 65,536: 151 -> 90 ns per query, the same neighbour sets); on the CPU
 the rounds were 3x slower than ``TopK`` (``benchmarks/RESULTS.md``).
+
+``nearest_rows`` searches many rows of several landmark sets at once; on CUDA GPUs it runs the
+fused Pallas kernel of ``jaxproj._knn_pallas`` (distances, block minima and both selections in
+one kernel, no ``(rows, K)`` matrix in memory), elsewhere ``nearest``.
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+
+from jaxproj import _knn_pallas
 
 BLOCK = 16
 """Landmarks per block of the two-stage exact selection."""
@@ -71,6 +77,37 @@ def nearest(
     block_of = jnp.take_along_axis(best_blocks, pos // BLOCK, axis=-1)
     idx = block_of * BLOCK + pos % BLOCK
     return idx.astype(jnp.int32), jnp.maximum(val, 0.0)
+
+
+def nearest_rows(
+    points: jax.Array, points_sq: jax.Array, x: jax.Array, n: int
+) -> tuple[jax.Array, jax.Array]:
+    """The ``n`` nearest landmarks of many rows, per landmark set, exact.
+
+    Args:
+      points: ``(C, K, d)`` landmark sets.
+      points_sq: ``(C, K)`` ``sq_norms(points)``; ``+inf`` marks padding landmarks (never
+        returned while ``n`` others exist).
+      x: ``(C, R, d)`` query rows of each set.
+      n: how many (static), ``n <= K``.
+
+    Returns:
+      ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances. On CUDA
+      GPUs with ``n <= _knn_pallas.SLOTS`` the fused kernel computes ``|x - p|^2`` directly; the
+      XLA search (``nearest``) expands it, so the two may differ where distances tie to float32
+      round-off (``jaxproj._knn_pallas``).
+    """
+
+    def xla(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return jax.vmap(lambda p, s, q: nearest(p, s, q, n))(points, points_sq, x)
+
+    if n > _knn_pallas.SLOTS:
+        return xla(points, points_sq, x)
+
+    def fused(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return _knn_pallas.knn(points, jnp.isfinite(points_sq), x, n)
+
+    return jax.lax.platform_dependent(points, points_sq, x, cuda=fused, default=xla)
 
 
 def smallest(values: jax.Array, n: int) -> tuple[jax.Array, jax.Array]:

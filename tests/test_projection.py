@@ -360,3 +360,38 @@ def test_per_chain_settings_are_validated():
     assert cfg.chain_config(0).bandwidth == engine.HEAD_BANDWIDTH
     assert cfg.chain_config(1).landmarks == cfg.chain_config(2).landmarks == 800
     assert engine.BuildConfig(landmarks=(50, 800, 700)).chain_config(0).landmarks == 50
+
+
+def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model, monkeypatch):
+    """``engine.project_batch``'s relaxed path (all candidates' robot searches in one
+    ``nearest_rows`` call) gives the per-query projection's answers bit for bit on the CPU, and
+    the same answers with the CUDA path's fused Pallas search (run in Pallas' interpreter)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxproj import _knn_pallas, projection
+    from jaxproj._jit import jit
+
+    sp = chain_model.projector
+    h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
+
+    def batched():  # traced anew each call, so a patched search is picked up
+        return jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
+
+    one = jit(
+        lambda p, x: jax.vmap(
+            lambda q: projection.project_stacked_one(p, q, "relaxed", 5, 5, FullConfig())
+        )(x)
+    )
+    r, v = batched()
+    r1, v1 = one(sp, h)
+    np.testing.assert_array_equal(np.asarray(r), np.asarray(r1))
+    np.testing.assert_array_equal(np.asarray(v), np.asarray(v1))
+
+    def fused(points, points_sq, x, n):
+        return _knn_pallas.knn(points, jnp.isfinite(points_sq), x, n, interpret=True)
+
+    monkeypatch.setattr(projection, "nearest_rows", fused)
+    r2, v2 = batched()
+    np.testing.assert_allclose(np.asarray(r2), np.asarray(r), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(v2), np.asarray(v), rtol=1e-5)

@@ -1,0 +1,139 @@
+"""A/B of the robot-landmark search inside the relaxed projection on a CUDA GPU: the fused Pallas
+kernel (``jaxproj._knn_pallas``, the default there) against the XLA search (``search.nearest``),
+in one run, on the same model and queries; both checked against the float64 reference; then the
+public ``jaxproj.project`` on 1 M host poses.
+
+    python3 benchmarks/experiments/fused_knn_ab.py MODEL.npz [--ref-queries 500]
+
+Prints, for relaxed L = M = 10 at batch 65,536 in one jitted ``engine.project_batch``: ns per pose
+of both; the search alone on the batch's real candidate rows (ns per pose, neighbour sets equal,
+and the kernel's neighbour distances against float64 distances); both engines' largest
+difference from the float64 reference on held-out queries. Needs a CUDA GPU (elsewhere both
+paths are the XLA search).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj import _knn_pallas, datasets, engine, projection, search, testing
+from jaxproj._jit import jit
+
+BATCH = 65536
+
+
+def _per_pose_ns(f, *args, repeats: int = 5) -> float:
+    jax.block_until_ready(f(*args))  # compile + warm up
+    ts = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(f(*args))
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts)) / BATCH * 1e9
+
+
+def _xla_rows(points, points_sq, x, n):
+    return jax.vmap(lambda p, s, q: search.nearest(p, s, q, n))(points, points_sq, x)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("model")
+    ap.add_argument("--ref-queries", type=int, default=500)
+    args = ap.parse_args()
+    model = engine.load(args.model)
+    sp = model.projector
+    test = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS))
+    test = test[np.random.default_rng(0).permutation(len(test))].astype(np.float32)
+    q = jax.device_put(np.tile(test, (BATCH // len(test) + 1, 1))[:BATCH])
+    print(jax.devices()[0].device_kind, "landmarks", model.landmarks, flush=True)
+
+    def compiled():  # through the library's jit policy: full float32 matmul precision
+        cfg = projection.FullConfig()
+        return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, cfg))
+
+    fused = compiled()
+    r_new, t_new = np.asarray(fused(sp, q)[0]), _per_pose_ns(fused, sp, q)
+    default = projection.nearest_rows
+    projection.nearest_rows = _xla_rows  # the XLA search, traced anew
+    try:
+        xla = compiled()
+        r_old, t_old = np.asarray(xla(sp, q)[0]), _per_pose_ns(xla, sp, q)
+    finally:
+        projection.nearest_rows = default
+    diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
+    print(
+        f"relaxed L=M=10, batch {BATCH}: XLA search {t_old:.1f} ns/pose, fused kernel "
+        f"{t_new:.1f} ns/pose ({t_old / t_new:.2f}x); identical answers {np.mean(diff == 0):.5f}, "
+        f"max diff {diff.max():.2e} deg",
+        flush=True,
+    )
+
+    # the search alone, on the batch's real candidate rows
+    st = sp.stack
+    lay = sp.layout
+    x = jnp.concatenate([q, jnp.zeros((BATCH, 1), q.dtype)], axis=1)[:, lay.input_index()]
+    cands = jax.jit(
+        lambda s, x: jax.vmap(
+            jax.vmap(projection.candidates, in_axes=(0, 0, None)), in_axes=(None, 0, None)
+        )(s, x, 10)
+    )
+    with jax.default_matmul_precision("highest"):
+        cand = cands(st, x)
+    c, n = cand.shape[1], cand.shape[3]
+    rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * 10, n)
+    kern = jax.jit(lambda p, s, r: _knn_pallas.knn(p, jnp.isfinite(s), r, 10))
+    ref = jax.jit(lambda p, s, r: _xla_rows(p, s, r, 10))
+    with jax.default_matmul_precision("highest"):
+        t_k = _per_pose_ns(kern, st.robot, st.robot_sq, rows)
+        t_x = _per_pose_ns(ref, st.robot, st.robot_sq, rows)
+        i_k = np.asarray(kern(st.robot, st.robot_sq, rows)[0])
+        i_x = np.asarray(ref(st.robot, st.robot_sq, rows)[0])
+    same = np.all(np.sort(i_k, -1) == np.sort(i_x, -1), axis=-1)
+    # exactness of the kernel's sets against float64 distances on a sample of rows
+    rows_np, pts = np.asarray(rows, np.float64), np.asarray(st.robot, np.float64)
+    valid = np.isfinite(np.asarray(st.robot_sq))
+    worst = 0.0
+    for ci in range(c):
+        sample = rows_np[ci, :: max(1, rows_np.shape[1] // 4096)]
+        d = ((sample[:, None, :] - pts[ci][None]) ** 2).sum(-1)
+        d[:, ~valid[ci]] = np.inf
+        kth = np.sort(d, axis=1)[:, 9]
+        got = np.take_along_axis(d, i_k[ci, :: max(1, rows_np.shape[1] // 4096)], axis=1)
+        worst = max(worst, float(np.max(got.max(axis=1) - kth)))
+    print(
+        f"robot search alone ({c} chains x {BATCH * 10} rows): XLA {t_x:.1f} ns/pose, fused "
+        f"{t_k:.1f} ns/pose ({t_x / t_k:.2f}x); equal neighbour sets {same.mean():.5f}; fused "
+        f"farthest kept neighbour beyond the float64 10th distance by at most {worst:.2e}",
+        flush=True,
+    )
+
+    # both engines against the float64 reference
+    reference = testing.StackedReference(sp)
+    nq = min(args.ref_queries, BATCH)
+    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in range(nq)])
+    for name, r in (("fused", r_new), ("XLA", r_old)):
+        d = np.degrees(np.abs(r[:nq] - want)).max(axis=1)
+        print(
+            f"{name} vs float64 reference on {nq} queries: max {d.max():.2e} deg, "
+            f"> 0.001 deg on {int(np.sum(d > 1e-3))}",
+            flush=True,
+        )
+
+    hosts = np.tile(test, (2**20 // len(test) + 1, 1))[: 2**20]
+    engine.project(model, hosts)  # compile
+    ts = []
+    for _ in range(3):
+        t = time.perf_counter()
+        engine.project(model, hosts)
+        ts.append(time.perf_counter() - t)
+    print(f"public jaxproj.project relaxed, 1 M host poses: {2**20 / np.median(ts) / 1e6:.3f} M/s")
+
+
+if __name__ == "__main__":
+    main()

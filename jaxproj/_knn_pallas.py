@@ -1,0 +1,161 @@
+"""Fused exact k-nearest-neighbour search on CUDA GPUs: one Pallas (Triton) kernel.
+
+``search.nearest_rows`` calls it on CUDA GPUs; every other platform runs the XLA search
+(``search.nearest``). The kernel does, per program (``ROWS`` query rows of one landmark set):
+
+1. distances ``|x - p|^2`` (computed directly, coordinate by coordinate) to every landmark, a
+   tile of ``TILE_BLOCKS * BLOCK`` landmarks at a time, reduced at once to the minimum of each
+   block of ``BLOCK`` landmarks (written to a scratch output: the ``(rows, K)`` distance matrix is
+   never stored);
+2. the ``n`` blocks with the smallest minima, by ``n`` rounds of (minimum, mask);
+3. the distances to the ``n * BLOCK`` landmarks of those blocks, recomputed with the same
+   arithmetic, and their ``n`` smallest, nearest first, by ``n`` more rounds.
+
+Exact for the same reason as the XLA two-stage search (``search`` module doc): the ``n`` nearest
+lie in the ``n`` blocks with the smallest minima. Ties at exactly equal distances may resolve to
+either landmark. The XLA search expands ``|x|^2 + |p|^2 - 2 x.p``, which rounds differently:
+where two landmarks lie within float32 round-off of the ``n``-th distance the two searches may
+keep different ones (the direct form is the more accurate; both are checked against the float64
+reference in ``benchmarks/``). Measured on an H200 on the per-chain model's real candidate rows
+(3 chains, 655,360 rows each, n = 10; ``benchmarks/experiments/fused_knn_ab.py``): 175 against
+383 ns per pose for the XLA search, the same neighbour sets on 99.999 % of rows, and the relaxed
+projection's answers identical on all 65,536 poses.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+from jax.experimental import pallas as pl
+
+ROWS = 16
+"""Query rows per program (swept on an H100: 16 rows, 8-block tiles, 4 warps was fastest)."""
+
+BLOCK = 16
+"""Landmarks per block of the two-stage selection."""
+
+TILE_BLOCKS = 8
+"""Blocks per tile of the distance pass."""
+
+SLOTS = 16
+"""Width of the selection registers: the largest ``n`` the kernel serves."""
+
+WARPS = 4
+
+
+def _pow2(v: int) -> int:
+    p = 1
+    while p < v:
+        p *= 2
+    return p
+
+
+def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, sync: bool):
+    xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
+
+    def tile(t: jax.Array, carry: int) -> int:
+        s = pl.multiple_of(t * TILE_BLOCKS, TILE_BLOCKS)
+        d2 = jnp.zeros((ROWS, TILE_BLOCKS, BLOCK), jnp.float32)
+        for j in range(d):
+            diff = xs[j][:, None, None] - p_ref[j, pl.ds(s, TILE_BLOCKS), :][None]
+            d2 = d2 + diff * diff
+        bm_ref[:, pl.ds(s, TILE_BLOCKS)] = jnp.min(d2, axis=2)
+        return carry
+
+    jax.lax.fori_loop(0, nb // TILE_BLOCKS, tile, 0)
+    if sync:  # the block minima were written by other threads of this program
+        from jax.experimental.pallas import triton as plgpu
+
+        plgpu.debug_barrier()
+    bm = bm_ref[...]  # (ROWS, nb)
+    cols = jax.lax.broadcasted_iota(jnp.int32, (ROWS, nb), 1)
+    slots = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS), 1)
+    blk = jnp.zeros((ROWS, SLOTS), jnp.int32)
+    taken = cols < 0  # chosen blocks (masking with +inf would confuse them with padding's +inf)
+    for r in range(n):
+        m = jnp.min(jnp.where(taken, jnp.inf, bm), axis=1)
+        pos = jnp.min(jnp.where((bm == m[:, None]) & ~taken, cols, nb), axis=1)
+        blk = jnp.where(slots == r, pos[:, None], blk)
+        taken = taken | (cols == pos[:, None])
+    member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 2)
+    slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 1)
+    pidx = blk[:, :, None] * BLOCK + member  # (ROWS, SLOTS, BLOCK) landmark indices
+    d2 = jnp.zeros((ROWS, SLOTS, BLOCK), jnp.float32)
+    for j in range(d):
+        diff = xs[j][:, None, None] - pf_ref[j, pidx]
+        d2 = d2 + diff * diff
+    width = SLOTS * BLOCK
+    d2 = jnp.where(slot3 < n, d2, jnp.inf).reshape(ROWS, width)
+    pidx = pidx.reshape(ROWS, width)
+    c2 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, width), 1)
+    out_v = jnp.full((ROWS, SLOTS), jnp.inf, jnp.float32)
+    out_i = jnp.zeros((ROWS, SLOTS), jnp.int32)
+    taken = c2 < 0
+    for r in range(n):
+        m = jnp.min(jnp.where(taken, jnp.inf, d2), axis=1)
+        pos = jnp.min(jnp.where((d2 == m[:, None]) & ~taken, c2, width), axis=1)
+        sel = c2 == pos[:, None]
+        i = jnp.sum(jnp.where(sel, pidx, 0), axis=1)
+        out_v = jnp.where(slots == r, m[:, None], out_v)
+        out_i = jnp.where(slots == r, i[:, None], out_i)
+        taken = taken | sel
+    idx_ref[...] = out_i
+    d_ref[...] = out_v
+
+
+def knn(
+    points: jax.Array, valid: jax.Array, x: jax.Array, n: int, interpret: bool = False
+) -> tuple[jax.Array, jax.Array]:
+    """Exact ``n`` nearest landmarks of every row, per landmark set (traceable).
+
+    Args:
+      points: ``(C, K, d)`` float32 landmark sets.
+      valid: ``(C, K)`` bool, ``False`` for padding landmarks (never returned while ``n`` valid
+        ones exist).
+      x: ``(C, R, d)`` float32 query rows.
+      n: how many (static), ``1 <= n <= SLOTS``.
+      interpret: run the kernel in Pallas' interpreter (any platform; for tests).
+
+    Returns:
+      ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances.
+    """
+    if not 1 <= n <= SLOTS:
+        raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
+    c, k, d = points.shape
+    r = x.shape[1]
+    nb = max(_pow2(-(-k // BLOCK)), TILE_BLOCKS)
+    kp = nb * BLOCK
+    rp = -(-r // ROWS) * ROWS
+    pts = jnp.where(valid[..., None], points.astype(jnp.float32), jnp.inf)
+    pt = jnp.full((c, d, kp), jnp.inf, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
+    xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
+    kern = functools.partial(_kernel, n=n, d=d, nb=nb, sync=not interpret)
+    params = {}
+    if not interpret:
+        from jax.experimental.pallas import triton as plgpu
+
+        params = dict(compiler_params=plgpu.CompilerParams(num_warps=WARPS))
+    idx, d2, _ = pl.pallas_call(
+        kern,
+        grid=(c, rp // ROWS),
+        in_specs=[
+            pl.BlockSpec((None, ROWS, d), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, d, nb, BLOCK), lambda ci, b: (ci, 0, 0, 0)),
+            pl.BlockSpec((None, d, kp), lambda ci, b: (ci, 0, 0)),
+        ],
+        out_specs=[
+            pl.BlockSpec((None, ROWS, SLOTS), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, ROWS, SLOTS), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, ROWS, nb), lambda ci, b: (ci, b, 0)),
+        ],
+        out_shape=[
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.int32),
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.float32),
+            jax.ShapeDtypeStruct((c, rp, nb), jnp.float32),
+        ],
+        interpret=interpret,
+        **params,
+    )(xp, pt.reshape(c, d, nb, BLOCK), pt)
+    return idx[:, :r, :n], d2[:, :r, :n]

@@ -1,0 +1,86 @@
+"""Exact k-nearest-neighbour search: the XLA search and the fused Pallas kernel.
+
+The kernel serves CUDA GPUs only (``search.nearest_rows``); here it runs in Pallas' interpreter,
+which executes the same kernel program on the CPU, so its logic (block minima, both selections,
+padding, ragged row counts) is checked without a GPU. Its Triton lowering and speed are checked
+on a GPU by ``benchmarks/experiments/fused_knn_ab.py``.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxproj import _knn_pallas, search
+
+
+def _sets(rng, c, k, d, r, valid_k):
+    pts = rng.normal(size=(c, k, d)).astype(np.float32)
+    valid = np.zeros((c, k), bool)
+    for i, v in enumerate(valid_k):
+        valid[i, :v] = True
+    x = rng.normal(size=(c, r, d)).astype(np.float32)
+    return pts, valid, x
+
+
+def _check_exact(pts, valid, x, idx, d2, n):
+    """Every returned set is the n nearest valid landmarks, by float64 distances."""
+    assert idx.shape == d2.shape == (*x.shape[:2], n)
+    for c in range(pts.shape[0]):
+        d = ((x[c, :, None, :].astype(np.float64) - pts[c][None].astype(np.float64)) ** 2).sum(-1)
+        d[:, ~valid[c]] = np.inf
+        assert valid[c][idx[c]].all(), "a padding landmark was returned"
+        want = np.sort(d, axis=1)[:, :n]
+        got = np.take_along_axis(d, idx[c], axis=1)
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)  # the same distances, sorted
+        np.testing.assert_allclose(d2[c], got, rtol=1e-5, atol=1e-6)  # and reported as such
+        assert (np.diff(d2[c], axis=1) >= 0).all(), "not nearest first"
+
+
+@pytest.mark.parametrize(
+    "k, d, r, n, valid_k",
+    [
+        (300, 4, 37, 10, (300, 120, 11)),  # ragged rows, padded sets, one barely >= n
+        (1725, 4, 16, 10, (799, 1656, 1725)),  # the per-chain model's sizes
+        (200, 6, 20, 16, (200, 200, 200)),  # the widest selection, a 6-D human search
+        (64, 2, 5, 1, (64, 64, 64)),  # one neighbour, fewer landmarks than one tile
+    ],
+)
+def test_fused_kernel_is_exact(k, d, r, n, valid_k):
+    pts, valid, x = _sets(np.random.default_rng(k + d + n), 3, k, d, r, valid_k)
+    idx, d2 = _knn_pallas.knn(jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), n, True)
+    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), n)
+
+
+def test_fused_kernel_on_clustered_landmarks_and_duplicates():
+    """Landmarks in tight clusters (many blocks hold near-equal minima) and exact duplicates."""
+    rng = np.random.default_rng(7)
+    centres = rng.normal(size=(20, 4))
+    pts = (centres[rng.integers(0, 20, 600)] + 1e-3 * rng.normal(size=(600, 4))).astype(np.float32)
+    pts[300:320] = pts[0]  # 21 copies of one landmark
+    x = np.concatenate([pts[:8] + 1e-4, centres[:8]]).astype(np.float32)
+    pts, x = pts[None], x[None]
+    valid = np.ones((1, 600), bool)
+    idx, d2 = _knn_pallas.knn(jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), 10, True)
+    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), 10)
+
+
+def test_fused_kernel_rejects_a_selection_wider_than_its_registers():
+    pts = jnp.zeros((1, 64, 4))
+    with pytest.raises(ValueError, match="n=17"):
+        _knn_pallas.knn(pts, jnp.ones((1, 64), bool), jnp.zeros((1, 4, 4)), 17, True)
+
+
+@pytest.mark.parametrize("n", [10, 20])
+def test_nearest_rows_off_gpu_is_the_xla_search(n):
+    """On the CPU ``nearest_rows`` is ``nearest`` per set: the same neighbours in the same order,
+    the distances to float32 round-off (one batched product over the sets instead of one per
+    set); also above the kernel's widest selection, where every platform takes this search."""
+    pts, valid, x = _sets(np.random.default_rng(3), 2, 400, 4, 30, (400, 150))
+    sq = np.where(valid, (pts.astype(np.float32) ** 2).sum(-1), np.inf).astype(np.float32)
+    idx, d2 = jax.jit(search.nearest_rows, static_argnames="n")(pts, sq, x, n=n)
+    for c in range(2):
+        i1, v1 = search.nearest(jnp.asarray(pts[c]), jnp.asarray(sq[c]), jnp.asarray(x[c]), n)
+        np.testing.assert_array_equal(np.asarray(idx[c]), np.asarray(i1))
+        np.testing.assert_allclose(np.asarray(d2[c]), np.asarray(v1), rtol=1e-5, atol=1e-6)
+    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), n)
