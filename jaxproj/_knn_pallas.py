@@ -44,6 +44,11 @@ SLOTS = 16
 
 WARPS = 4
 
+FAR = 1e18
+"""Coordinate of padding landmarks (and of the blocks padding ``K`` up to a power of two): far
+but finite, so their squared distances (~1e36) stay below the ``+inf`` that marks a landmark or
+block already chosen, and a chosen one is never chosen again."""
+
 
 def _pow2(v: int) -> int:
     p = 1
@@ -73,12 +78,11 @@ def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb:
     cols = jax.lax.broadcasted_iota(jnp.int32, (ROWS, nb), 1)
     slots = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS), 1)
     blk = jnp.zeros((ROWS, SLOTS), jnp.int32)
-    taken = cols < 0  # chosen blocks (masking with +inf would confuse them with padding's +inf)
-    for r in range(n):
-        m = jnp.min(jnp.where(taken, jnp.inf, bm), axis=1)
-        pos = jnp.min(jnp.where((bm == m[:, None]) & ~taken, cols, nb), axis=1)
+    for r in range(n):  # a chosen block is masked with +inf, above every real or padding minimum
+        m = jnp.min(bm, axis=1)
+        pos = jnp.min(jnp.where(bm == m[:, None], cols, nb), axis=1)
         blk = jnp.where(slots == r, pos[:, None], blk)
-        taken = taken | (cols == pos[:, None])
+        bm = jnp.where(cols == pos[:, None], jnp.inf, bm)
     member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 2)
     slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 1)
     pidx = blk[:, :, None] * BLOCK + member  # (ROWS, SLOTS, BLOCK) landmark indices
@@ -92,15 +96,14 @@ def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb:
     c2 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, width), 1)
     out_v = jnp.full((ROWS, SLOTS), jnp.inf, jnp.float32)
     out_i = jnp.zeros((ROWS, SLOTS), jnp.int32)
-    taken = c2 < 0
     for r in range(n):
-        m = jnp.min(jnp.where(taken, jnp.inf, d2), axis=1)
-        pos = jnp.min(jnp.where((d2 == m[:, None]) & ~taken, c2, width), axis=1)
+        m = jnp.min(d2, axis=1)
+        pos = jnp.min(jnp.where(d2 == m[:, None], c2, width), axis=1)
         sel = c2 == pos[:, None]
         i = jnp.sum(jnp.where(sel, pidx, 0), axis=1)
         out_v = jnp.where(slots == r, m[:, None], out_v)
         out_i = jnp.where(slots == r, i[:, None], out_i)
-        taken = taken | sel
+        d2 = jnp.where(sel, jnp.inf, d2)
     idx_ref[...] = out_i
     d_ref[...] = out_v
 
@@ -113,7 +116,7 @@ def knn(
     Args:
       points: ``(C, K, d)`` float32 landmark sets.
       valid: ``(C, K)`` bool, ``False`` for padding landmarks (never returned while ``n`` valid
-        ones exist).
+        ones exist). Query coordinates must be finite and far below ``FAR``.
       x: ``(C, R, d)`` float32 query rows.
       n: how many (static), ``1 <= n <= SLOTS``.
       interpret: run the kernel in Pallas' interpreter (any platform; for tests).
@@ -125,11 +128,11 @@ def knn(
         raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
     c, k, d = points.shape
     r = x.shape[1]
-    nb = max(_pow2(-(-k // BLOCK)), TILE_BLOCKS)
+    nb = max(_pow2(-(-k // BLOCK)), TILE_BLOCKS, _pow2(n))  # at least n blocks to choose from
     kp = nb * BLOCK
     rp = -(-r // ROWS) * ROWS
-    pts = jnp.where(valid[..., None], points.astype(jnp.float32), jnp.inf)
-    pt = jnp.full((c, d, kp), jnp.inf, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
+    pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
+    pt = jnp.full((c, d, kp), FAR, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
     xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
     kern = functools.partial(_kernel, n=n, d=d, nb=nb, sync=not interpret)
     params = {}
