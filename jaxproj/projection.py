@@ -140,9 +140,10 @@ def project_relaxed_rows(
     """Relaxed projection of a batch of queries, every chain at once.
 
     The same answers as ``project_relaxed_one`` (``project_stacked_one`` for a stacked
-    projector) vmapped over the batch, but the robot-landmark searches of all the batch's
-    candidates run as one ``search.nearest_rows`` call per batch (the fused Pallas kernel on
-    CUDA GPUs, ``jaxproj._knn_pallas``), not one small search per query.
+    projector) vmapped over the batch, but the human-landmark searches of all the batch's queries
+    and the robot-landmark searches of all their candidates run as one ``search.nearest_rows``
+    call each (the fused Pallas kernel on CUDA GPUs, ``jaxproj._knn_pallas``), not one small
+    search per query.
 
     Args:
       p: a projector, or one projector per chain.
@@ -163,9 +164,14 @@ def project_relaxed_rows(
         x = h[:, None, :]  # (S, 1, m)
     else:
         x = jnp.concatenate([h, jnp.zeros((s, 1), h.dtype)], axis=1)[:, lay.input_index()]
-    per_chain = jax.vmap(candidates, in_axes=(0, 0, None))
-    cand = jax.vmap(per_chain, in_axes=(None, 0, None))(stack, x, n_l)  # (S, C, L, n)
-    c, n = cand.shape[1], cand.shape[3]
+    hidx, _ = nearest_rows(stack.human, stack.human_sq, x.transpose(1, 0, 2), n_l)  # (C, S, L)
+
+    def forward(p: Projector, q: jax.Array, idx: jax.Array) -> jax.Array:
+        return predict(p.forward, q, idx)  # (L, n), as ``candidates``
+
+    per_chain = jax.vmap(forward)
+    cand = jax.vmap(per_chain, in_axes=(None, 0, 0))(stack, x, hidx.transpose(1, 0, 2))
+    c, n = cand.shape[1], cand.shape[3]  # cand: (S, C, L, n)
     rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
     ridx, _ = nearest_rows(stack.robot, stack.robot_sq, rows, n_m)  # (C, S * L, M)
     ridx = ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
