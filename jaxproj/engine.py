@@ -501,8 +501,10 @@ def _sharded_batch(
         return project_batch(p_local, h_local, objective, n_l, n_m, full)
 
     spec = PartitionSpec("batch")
+    # check_vma=False: the fused k-NN kernel's pallas_call (CUDA) declares plain output shapes,
+    # which shard_map's varying-axes check rejects; every output here varies along "batch".
     return jax.shard_map(
-        local, mesh=mesh, in_specs=(PartitionSpec(), spec), out_specs=(spec, spec)
+        local, mesh=mesh, in_specs=(PartitionSpec(), spec), out_specs=(spec, spec), check_vma=False
     )(p, h)
 
 

@@ -3,7 +3,8 @@
 Each frame runs the whole pipeline in one jitted call::
 
     (20, 3) joint positions -> descriptor (skeleton.descriptor)
-      -> relaxed projection (projection.project_relaxed_one, L and M nearest landmarks)
+      -> relaxed projection (projection.project_relaxed_rows, the batch code of
+         engine.project on a batch of one; L and M nearest landmarks)
       -> one step of the double exponential smoother (smoothing.step, the same function the
          whole-motion smoother scans) -> clipped to the joint limits -> (n,) driven angles
 
@@ -38,13 +39,7 @@ from jaxproj import robot
 from jaxproj._jit import jit
 from jaxproj.engine import Model, check_neighbours
 from jaxproj.exceptions import ConfigError
-from jaxproj.projection import (
-    FullConfig,
-    Projector,
-    StackedProjector,
-    project_relaxed_one,
-    project_stacked_one,
-)
+from jaxproj.projection import Projector, StackedProjector, project_relaxed_rows
 from jaxproj.skeleton import N_JOINTS, descriptor, resolve_bones
 from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams
 from jaxproj.smoothing import step as smoothing_step
@@ -124,10 +119,7 @@ def _update(
     mirror: bool,
 ) -> tuple[jax.Array, StreamState]:
     d, ok = descriptor(positions, bones=bones, mirror=mirror)  # (m,), ()
-    if isinstance(p, StackedProjector):
-        r, _ = project_stacked_one(p, d, "relaxed", n_l, n_m, FullConfig())  # (n,), clipped
-    else:
-        r, _ = project_relaxed_one(p, d, n_l, n_m)
+    r = project_relaxed_rows(p, d[None], n_l, n_m)[0][0]  # (n,), clipped; engine.project's code
     s_t, b_t = smoothing_step(state.level, state.trend, r, gains)
     # the first valid frame starts the smoother, as smoothing.smooth starts a motion
     s_t = jnp.where(state.started, s_t, r)
