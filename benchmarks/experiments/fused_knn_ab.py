@@ -20,25 +20,10 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
+from selection_ab import BATCH, held_out_queries, per_pose_ns, xla_rows  # this folder
 
-from jaxproj import _knn_pallas, datasets, engine, projection, search, testing
+from jaxproj import _knn_pallas, engine, projection, testing
 from jaxproj._jit import jit
-
-BATCH = 65536
-
-
-def _per_pose_ns(f, *args, repeats: int = 5) -> float:
-    jax.block_until_ready(f(*args))  # compile + warm up
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(f(*args))
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts)) / BATCH * 1e9
-
-
-def _xla_rows(points, points_sq, x, n):
-    return jax.vmap(lambda p, s, q: search.nearest(p, s, q, n))(points, points_sq, x)
 
 
 def main() -> None:
@@ -48,9 +33,7 @@ def main() -> None:
     args = ap.parse_args()
     model = engine.load(args.model)
     sp = model.projector
-    test = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS))
-    test = test[np.random.default_rng(0).permutation(len(test))].astype(np.float32)
-    q = jax.device_put(np.tile(test, (BATCH // len(test) + 1, 1))[:BATCH])
+    q = jax.device_put(held_out_queries(BATCH))
     print(jax.devices()[0].device_kind, "landmarks", model.landmarks, flush=True)
 
     def compiled():  # through the library's jit policy: full float32 matmul precision
@@ -58,12 +41,12 @@ def main() -> None:
         return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, cfg))
 
     fused = compiled()
-    r_new, t_new = np.asarray(fused(sp, q)[0]), _per_pose_ns(fused, sp, q)
+    r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)
     default = projection.nearest_rows
-    projection.nearest_rows = _xla_rows  # the XLA search, traced anew
+    projection.nearest_rows = xla_rows  # the XLA search, traced anew
     try:
         xla = compiled()
-        r_old, t_old = np.asarray(xla(sp, q)[0]), _per_pose_ns(xla, sp, q)
+        r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
     finally:
         projection.nearest_rows = default
     diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
@@ -88,10 +71,10 @@ def main() -> None:
     c, n = cand.shape[1], cand.shape[3]
     rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * 10, n)
     kern = jax.jit(lambda p, s, r: _knn_pallas.knn(p, jnp.isfinite(s), r, 10))
-    ref = jax.jit(lambda p, s, r: _xla_rows(p, s, r, 10))
+    ref = jax.jit(lambda p, s, r: xla_rows(p, s, r, 10))
     with jax.default_matmul_precision("highest"):
-        t_k = _per_pose_ns(kern, st.robot, st.robot_sq, rows)
-        t_x = _per_pose_ns(ref, st.robot, st.robot_sq, rows)
+        t_k = per_pose_ns(kern, st.robot, st.robot_sq, rows)
+        t_x = per_pose_ns(ref, st.robot, st.robot_sq, rows)
         i_k = np.asarray(kern(st.robot, st.robot_sq, rows)[0])
         i_x = np.asarray(ref(st.robot, st.robot_sq, rows)[0])
     same = np.all(np.sort(i_k, -1) == np.sort(i_x, -1), axis=-1)
@@ -125,7 +108,7 @@ def main() -> None:
             flush=True,
         )
 
-    hosts = np.tile(test, (2**20 // len(test) + 1, 1))[: 2**20]
+    hosts = held_out_queries(2**20)
     engine.project(model, hosts)  # compile
     ts = []
     for _ in range(3):
