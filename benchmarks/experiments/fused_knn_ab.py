@@ -15,12 +15,17 @@ paths are the XLA search).
 from __future__ import annotations
 
 import argparse
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from selection_ab import BATCH, held_out_queries, per_pose_ns, xla_rows  # this folder
+from selection_ab import (  # this folder
+    BATCH,
+    held_out_queries,
+    per_pose_ns,
+    print_public_rate,
+    xla_rows,
+)
 
 from jaxproj import _knn_pallas, engine, projection, testing
 from jaxproj._jit import jit
@@ -108,14 +113,7 @@ def main() -> None:
             flush=True,
         )
 
-    hosts = held_out_queries(2**20)
-    engine.project(model, hosts)  # compile
-    ts = []
-    for _ in range(3):
-        t = time.perf_counter()
-        engine.project(model, hosts)
-        ts.append(time.perf_counter() - t)
-    print(f"public jaxproj.project relaxed, 1 M host poses: {2**20 / np.median(ts) / 1e6:.3f} M/s")
+    print_public_rate(model)
 
 
 if __name__ == "__main__":
