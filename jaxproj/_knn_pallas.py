@@ -81,6 +81,7 @@ def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb:
     for r in range(n):  # a chosen block is masked with +inf, above every real or padding minimum
         m = jnp.min(bm, axis=1)
         pos = jnp.min(jnp.where(bm == m[:, None], cols, nb), axis=1)
+        pos = jnp.minimum(pos, nb - 1)  # a NaN row matches no column: keep its loads in bounds
         blk = jnp.where(slots == r, pos[:, None], blk)
         bm = jnp.where(cols == pos[:, None], jnp.inf, bm)
     member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 2)
@@ -99,6 +100,7 @@ def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb:
     for r in range(n):
         m = jnp.min(d2, axis=1)
         pos = jnp.min(jnp.where(d2 == m[:, None], c2, width), axis=1)
+        pos = jnp.minimum(pos, width - 1)
         sel = c2 == pos[:, None]
         i = jnp.sum(jnp.where(sel, pidx, 0), axis=1)
         out_v = jnp.where(slots == r, m[:, None], out_v)
@@ -116,7 +118,9 @@ def knn(
     Args:
       points: ``(C, K, d)`` float32 landmark sets.
       valid: ``(C, K)`` bool, ``False`` for padding landmarks (never returned while ``n`` valid
-        ones exist). Query coordinates must be finite and far below ``FAR``.
+        ones exist). Finite query rows must lie far below ``FAR``; a non-finite row gets
+        indices inside the padded landmark array (its answer is meaningless, nothing is read
+        out of bounds).
       x: ``(C, R, d)`` float32 query rows.
       n: how many (static), ``1 <= n <= SLOTS``.
       interpret: run the kernel in Pallas' interpreter (any platform; for tests).

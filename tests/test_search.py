@@ -65,6 +65,23 @@ def test_fused_kernel_on_clustered_landmarks_and_duplicates():
     _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), 10)
 
 
+def test_fused_kernel_on_non_finite_rows_stays_in_bounds():
+    """A NaN or infinite query row (e.g. a lost joint's descriptor in streaming) gets indices
+    inside the kernel's padded landmark array, and the finite rows beside it their exact
+    neighbours. (That its loads stay in bounds on a GPU follows from the clamp on the chosen
+    block, which the interpreter's outputs cannot show: it clamps gathers itself.)"""
+    pts, valid, x = _sets(np.random.default_rng(11), 2, 300, 4, 20, (300, 200))
+    x[:, 3] = np.nan
+    x[:, 7, 1] = np.inf
+    x[:, 9, 0] = -np.inf
+    idx, d2 = _knn_pallas.knn(jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), 10, True)
+    idx, d2 = np.asarray(idx), np.asarray(d2)
+    blocks = max(_knn_pallas._pow2(-(-300 // _knn_pallas.BLOCK)), _knn_pallas.TILE_BLOCKS)
+    assert ((idx >= 0) & (idx < blocks * _knn_pallas.BLOCK)).all()
+    good = np.setdiff1d(np.arange(20), [3, 7, 9])
+    _check_exact(pts, valid, x[:, good], idx[:, good], d2[:, good], 10)
+
+
 def test_fused_kernel_rejects_a_selection_wider_than_its_registers():
     pts = jnp.zeros((1, 64, 4))
     with pytest.raises(ValueError, match="n=17"):
