@@ -418,11 +418,12 @@ def project_batch(
 
     ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``, in sub-batches of ``sub_batch(...)``
     queries looped with ``lax.map``. Relaxed: ``projection.project_relaxed_rows`` per sub-batch
-    (one robot-landmark search for all its candidates); full: the one-query projection (of every
+    (one human-landmark search for all its queries, one robot-landmark search and one
+    back-projection for all their candidates); full: the one-query projection (of every
     chain, for a ``StackedProjector``; ``projection.project_stacked_one``) vmapped.
     """
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
-    if objective == "relaxed":  # batched form: one robot-landmark search per sub-batch
+    if objective == "relaxed":  # batched form: one search / back-projection call per sub-batch
 
         def rows(x: jax.Array) -> tuple[jax.Array, jax.Array]:
             return project_relaxed_rows(p, x, n_l, n_m)

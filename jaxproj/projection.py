@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Literal, NamedTuple
 
 import jax
@@ -29,6 +30,7 @@ import optax
 from optax.projections import projection_simplex
 
 from jaxproj import robot
+from jaxproj._backproj_pallas import back_min
 from jaxproj.exceptions import ConfigError
 from jaxproj.kernels import ELMBank, KernelSlice, predict, predict_slice, project_inputs, take
 from jaxproj.search import nearest, nearest_rows, sq_norms
@@ -128,10 +130,81 @@ def _relaxed_pick(
     """Steps 2-3 of the relaxed projection of one query, given its candidates ``(L, n)`` and
     their robot landmarks ``ridx (L, M)``: the candidate with the least back-projected deviation
     and that deviation (``project_relaxed_one``'s result)."""
+    return _pick(p, cand, _least_deviations(p, h, cand, ridx))
+
+
+def _least_deviations(p: Projector, h: jax.Array, cand: jax.Array, ridx: jax.Array) -> jax.Array:
+    """``(L,)``: each candidate's least squared back-projected deviation over its ``M`` kernels."""
     dev = jax.vmap(back_deviation, in_axes=(None, 0, None, 0))(p, cand, h, ridx)  # (L, M)
-    best_per_j = jnp.min(dev, axis=1)
-    j = jnp.argmin(best_per_j)
-    return jnp.clip(cand[j], p.lower, p.upper), jnp.sqrt(best_per_j[j])
+    return jnp.min(dev, axis=1)
+
+
+def _pick(p: Projector, cand: jax.Array, best: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The candidate ``(L, n)`` whose least squared deviation ``best (L,)`` is smallest: its
+    pose clipped to the joint limits, and its deviation."""
+    j = jnp.argmin(best)
+    return jnp.clip(cand[j], p.lower, p.upper), jnp.sqrt(best[j])
+
+
+def backward_widths(p: Projector | StackedProjector) -> list[tuple[int, int, int]]:
+    """Per chain ``(n, m, hidden)``: robot width, descriptor width and backward hidden units
+    (one entry for a plain projector), before any padding of the stacked arrays."""
+    if isinstance(p, StackedProjector):
+        lay = p.layout
+        widths = zip(lay.outputs, lay.inputs, lay.hidden, strict=True)
+        return [(len(o), len(i), hidden) for o, i, hidden in widths]
+    return [(p.robot.shape[1], p.human.shape[1], p.backward.hidden)]
+
+
+def least_deviations_rows(
+    stack: Projector,
+    dims: Sequence[tuple[int, int, int]],
+    x: jax.Array,
+    cand: jax.Array,
+    ridx: jax.Array,
+    fused: bool | None = None,
+) -> jax.Array:
+    """Every candidate's least squared back-projected deviation, for a batch and every chain.
+
+    Args:
+      stack: one projector per chain, stacked on a leading axis.
+      dims: per chain ``(n, m, hidden)`` (``backward_widths``; the stacked arrays may be
+        padded beyond them).
+      x: ``(S, C, m)`` queries per chain; cand: ``(S, C, L, n)`` candidates; ridx:
+        ``(S, C, L, M)`` their robot landmarks.
+      fused: ``None`` (default): the fused Pallas kernel (``jaxproj._backproj_pallas``) on CUDA
+        GPUs and XLA elsewhere; ``True``: the kernel in Pallas' interpreter on any platform (for
+        tests); ``False``: XLA.
+
+    Returns:
+      ``(S, C, L)``: ``min_k ||kappa^r_{j,k}(r_j) - h||^2`` (``_least_deviations`` per query).
+    """
+
+    def xla(stack: Projector, x: jax.Array, cand: jax.Array, ridx: jax.Array) -> jax.Array:
+        per_query = jax.vmap(_least_deviations)  # over chains
+        return jax.vmap(per_query, in_axes=(None, 0, 0, 0))(stack, x, cand, ridx)
+
+    def kernel(
+        stack: Projector, x: jax.Array, cand: jax.Array, ridx: jax.Array, interpret: bool
+    ) -> jax.Array:
+        s, _, n_l, n_m = ridx.shape
+        best = []
+        for c, (n, m, hidden) in enumerate(dims):
+            bank = jax.tree.map(lambda a, c=c: a[c], stack.backward)
+            rows = cand[:, c].reshape(s * n_l, -1)
+            queries = jnp.repeat(x[:, c], n_l, axis=0)
+            idx = ridx[:, c].reshape(s * n_l, n_m)
+            b = back_min(bank, rows, queries, idx, n, m, hidden, interpret=interpret)
+            best.append(b.reshape(s, n_l))
+        return jnp.stack(best, axis=1)
+
+    if fused is False:
+        return xla(stack, x, cand, ridx)
+    if fused:
+        return kernel(stack, x, cand, ridx, True)
+    return jax.lax.platform_dependent(
+        stack, x, cand, ridx, cuda=partial(kernel, interpret=False), default=xla
+    )
 
 
 def project_relaxed_rows(
@@ -143,7 +216,9 @@ def project_relaxed_rows(
     projector) vmapped over the batch, but the human-landmark searches of all the batch's queries
     and the robot-landmark searches of all their candidates run as one ``search.nearest_rows``
     call each (the fused Pallas kernel on CUDA GPUs, ``jaxproj._knn_pallas``), not one small
-    search per query.
+    search per query, and the back-projection of all candidates as one
+    ``least_deviations_rows`` call (on CUDA GPUs the fused kernel of
+    ``jaxproj._backproj_pallas``, whose sums round differently: see there).
 
     Args:
       p: a projector, or one projector per chain.
@@ -175,8 +250,8 @@ def project_relaxed_rows(
     rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
     ridx, _ = nearest_rows(stack.robot, stack.robot_sq, rows, n_m)  # (C, S * L, M)
     ridx = ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
-    pick = jax.vmap(jax.vmap(_relaxed_pick), in_axes=(None, 0, 0, 0))
-    r, v = pick(stack, x, cand, ridx)  # (S, C, n), (S, C)
+    best = least_deviations_rows(stack, backward_widths(p), x, cand, ridx)  # (S, C, L)
+    r, v = jax.vmap(jax.vmap(_pick), in_axes=(None, 0, 0))(stack, cand, best)  # (S, C, n), (S, C)
     if identity:
         return r[:, 0], v[:, 0]
     return r.reshape(s, -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))

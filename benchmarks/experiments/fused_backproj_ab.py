@@ -1,0 +1,124 @@
+"""A/B of the back-projection inside the relaxed projection on a CUDA GPU: the fused Pallas kernel
+(``jaxproj._backproj_pallas``, the default there) against XLA's three passes, in one run, on the
+same model and queries; both checked against the float64 reference; then the public
+``jaxproj.project`` on 1 M host poses.
+
+    python3 benchmarks/experiments/fused_backproj_ab.py MODEL.npz [--ref-queries 1000]
+
+Prints, for relaxed L = M = 10 at batch 65,536: ns per pose of one jitted ``engine.project_batch``
+with each back-projection; the back-projection alone on the batch's real candidate rows; how
+many answers are identical; both engines' distance from the float64 reference on held-out
+queries. Needs a CUDA GPU (elsewhere both paths are XLA).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import jax
+import numpy as np
+from selection_ab import BATCH, held_out_queries, per_pose_ns, print_public_rate  # this folder
+
+from jaxproj import engine, projection, testing
+from jaxproj._jit import jit
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("model")
+    ap.add_argument("--ref-queries", type=int, default=1000)
+    args = ap.parse_args()
+    model = engine.load(args.model)
+    sp = model.projector
+    q = jax.device_put(held_out_queries(BATCH))
+    print(jax.devices()[0].device_kind, "landmarks", model.landmarks, flush=True)
+
+    def compiled():  # through the library's jit policy: full float32 matmul precision
+        return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10))
+
+    fused = compiled()
+    r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)
+    default = projection.least_deviations_rows
+
+    def xla_only(*a):
+        return default(*a, fused=False)
+
+    projection.least_deviations_rows = xla_only  # XLA's back-projection, traced anew
+    try:
+        xla = compiled()
+        r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
+    finally:
+        projection.least_deviations_rows = default
+    diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
+    print(
+        f"relaxed L=M=10, batch {BATCH}: XLA back-projection {t_old:.1f} ns/pose, fused kernel "
+        f"{t_new:.1f} ns/pose ({t_old / t_new:.2f}x); identical answers {np.mean(diff == 0):.5f}, "
+        f"within 0.001 deg {np.mean(diff <= 1e-3):.5f}, max diff {diff.max():.2e} deg",
+        flush=True,
+    )
+
+    # the back-projection alone, on the batch's real candidates
+    st, lay = sp.stack, sp.layout
+    dims = projection.backward_widths(sp)
+
+    @jit
+    def prep(st, h):
+        x = jax.numpy.concatenate([h, jax.numpy.zeros((BATCH, 1))], 1)[:, lay.input_index()]
+        hidx, _ = projection.nearest_rows(st.human, st.human_sq, x.transpose(1, 0, 2), 10)
+        cand = jax.vmap(
+            jax.vmap(lambda p, y, i: projection.predict(p.forward, y, i)), in_axes=(None, 0, 0)
+        )(st, x, hidx.transpose(1, 0, 2))
+        c, n = cand.shape[1], cand.shape[3]
+        rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * 10, n)
+        ridx, _ = projection.nearest_rows(st.robot, st.robot_sq, rows, 10)
+        return x, cand, ridx.reshape(c, BATCH, 10, 10).transpose(1, 0, 2, 3)
+
+    x, cand, ridx = prep(st, q)
+    kern = jit(lambda s, x, c, r: projection.least_deviations_rows(s, dims, x, c, r))
+    ref = jit(lambda s, x, c, r: projection.least_deviations_rows(s, dims, x, c, r, False))
+    t_k, t_x = per_pose_ns(kern, st, x, cand, ridx), per_pose_ns(ref, st, x, cand, ridx)
+    b_k, b_x = np.asarray(kern(st, x, cand, ridx)), np.asarray(ref(st, x, cand, ridx))
+    rel = np.abs(b_k - b_x) / np.maximum(b_x, 1e-30)
+    same = np.mean(np.argmin(b_k, -1) == np.argmin(b_x, -1), axis=0)
+    print(
+        f"back-projection alone ({len(dims)} chains x {BATCH * 10} candidates x 10 kernels): "
+        f"XLA {t_x:.1f} ns/pose, fused {t_k:.1f} ns/pose ({t_x / t_k:.2f}x); deviations' "
+        f"relative difference median {np.median(rel):.1e}, max {rel.max():.1e}; same chosen "
+        f"candidate per chain {np.array2string(same, precision=5)}",
+        flush=True,
+    )
+
+    # both engines against the float64 reference
+    reference = testing.StackedReference(sp)
+    nq = min(args.ref_queries, BATCH)
+    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in range(nq)])
+    for name, r in (("fused", r_new), ("XLA", r_old)):
+        d = np.degrees(np.abs(r[:nq] - want)).max(axis=1)
+        print(
+            f"{name} vs float64 reference on {nq} queries: max {d.max():.2e} deg, "
+            f"> 0.001 deg on {int(np.sum(d > 1e-3))}, > 0.01 deg on {int(np.sum(d > 1e-2))}",
+            flush=True,
+        )
+
+    # where the two differ (float32 near-ties of the deviations): which one float64 agrees with
+    moved = np.flatnonzero(diff > 1e-3)[: args.ref_queries]
+    if moved.size:
+        want = np.stack(
+            [reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in moved]
+        )
+        e_new = np.degrees(np.abs(r_new[moved] - want)).max(axis=1)
+        e_old = np.degrees(np.abs(r_old[moved] - want)).max(axis=1)
+        print(
+            f"the {moved.size} queries whose answers differ by > 0.001 deg: float64 reference "
+            f"within 0.001 deg of fused on {int(np.sum(e_new <= 1e-3))}, of XLA on "
+            f"{int(np.sum(e_old <= 1e-3))}, of neither on "
+            f"{int(np.sum((e_new > 1e-3) & (e_old > 1e-3)))}; max error fused "
+            f"{e_new.max():.2e} deg, XLA {e_old.max():.2e} deg",
+            flush=True,
+        )
+
+    print_public_rate(model)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,110 @@
+"""The fused back-projection kernel (``jaxproj._backproj_pallas``), run in Pallas' interpreter.
+
+The kernel serves CUDA GPUs only (``projection.least_deviations_rows``); the interpreter executes
+the same kernel program on the CPU, so its logic (hidden units in power-of-two chunks, padded
+banks, ragged row counts, the slot loop and its running minimum) is checked here against a
+float64 evaluation of the same kernels. Its Triton lowering, speed and answers on real data are
+checked on a GPU by ``benchmarks/experiments/fused_backproj_ab.py``.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxproj import _backproj_pallas, kernels
+
+
+def _bank(rng, k, d_in, d_out, hidden):
+    x = rng.normal(size=(k, d_in)).astype(np.float32)
+    t = rng.normal(size=(k, d_out)).astype(np.float32)
+    key = jax.random.PRNGKey(int(rng.integers(1 << 30)))
+    return kernels.train_bank(jnp.asarray(x), jnp.asarray(t), key, k=min(4, k), hidden=hidden)
+
+
+def _least64(bank, r, h, idx, d_in, d_out, hidden):
+    """float64 ``min_k ||kappa_k(r) - h||^2`` per row, from the bank's arrays."""
+    w = np.asarray(bank.w, np.float64)[:hidden, :d_in]
+    inv, bias = np.asarray(bank.inv_scale, np.float64), np.asarray(bank.bias, np.float64)
+    out, off = np.asarray(bank.out, np.float64), np.asarray(bank.offset, np.float64)
+    wx = r[:, :d_in].astype(np.float64) @ w.T  # (R, hidden)
+    pre = wx[:, None, :] * inv[idx][..., None] + bias[idx][..., :hidden]  # (R, M, hidden)
+    q = 1.0 / (1.0 + np.exp(-pre))
+    y = off[idx][..., :d_out] + np.einsum("rmh,rmoh->rmo", q, out[idx][..., :d_out, :hidden])
+    return np.min(np.sum((y - h[:, None, :d_out]) ** 2, axis=-1), axis=1)
+
+
+def _pad_bank(bank, k, d_in, d_out, hidden):
+    """The bank inside bigger arrays (as stacked chains are), padding filled with garbage."""
+
+    def pad(a, shape):
+        big = np.full(shape, 7.0, np.float32)
+        big[tuple(slice(0, s) for s in a.shape)] = np.asarray(a)
+        return jnp.asarray(big)
+
+    return kernels.ELMBank(
+        w=pad(bank.w, (hidden + 5, d_in + 1)),
+        inv_scale=pad(bank.inv_scale, (k,)),
+        bias=pad(bank.bias, (k, hidden + 5)),
+        out=pad(bank.out, (k, d_out + 2, hidden + 5)),
+        offset=pad(bank.offset, (k, d_out + 2)),
+        neighbours=bank.neighbours,
+        n_kernels=k,
+        hidden=hidden + 5,
+        d_in=d_in + 1,
+        d_out=d_out + 2,
+        k=bank.k,
+    )
+
+
+@pytest.mark.parametrize(
+    "k, d_in, d_out, hidden, rows, m, padded",
+    [
+        (60, 4, 6, 24, 37, 10, False),  # an arm chain's widths; 24 = 16 + 8; ragged rows
+        (40, 2, 3, 192, 16, 10, True),  # the head chain's widths, 192 = 128 + 64, padded bank
+        (30, 4, 6, 5, 5, 1, True),  # one slot, hidden 5 = 4 + 1, fewer rows than a program
+        (25, 3, 2, 32, 50, 7, False),  # a power-of-two hidden layer, M not a power of two
+    ],
+)
+def test_kernel_matches_float64(k, d_in, d_out, hidden, rows, m, padded):
+    rng = np.random.default_rng(k + hidden + rows)
+    bank = _bank(rng, k, d_in, d_out, hidden)
+    r = rng.normal(size=(rows, d_in + 1)).astype(np.float32)  # a padding column is never read
+    h = rng.normal(size=(rows, d_out + 1)).astype(np.float32)
+    idx = rng.integers(0, k, size=(rows, m)).astype(np.int32)
+    want = _least64(bank, r, h, idx, d_in, d_out, hidden)
+    use = _pad_bank(bank, k + 3, d_in, d_out, hidden) if padded else bank
+    got = _backproj_pallas.back_min(
+        use, jnp.asarray(r), jnp.asarray(h), jnp.asarray(idx), d_in, d_out, hidden, True
+    )
+    assert got.shape == (rows,) and got.dtype == jnp.float32
+    np.testing.assert_allclose(np.asarray(got), want, rtol=2e-5, atol=1e-6)
+
+
+def test_kernel_bad_rows_stay_in_bounds():
+    """Indices outside the bank are clamped (nothing is read out of bounds) and a NaN row gives
+    NaN for that row only."""
+    rng = np.random.default_rng(3)
+    bank = _bank(rng, 20, 4, 6, 24)
+    r = rng.normal(size=(20, 4)).astype(np.float32)
+    h = rng.normal(size=(20, 6)).astype(np.float32)
+    idx = rng.integers(0, 20, size=(20, 4)).astype(np.int32)
+    want = _least64(bank, r, h, idx, 4, 6, 24)
+    r[3] = np.nan
+    idx[3] = [-5, 10**6, 0, 19]
+    got = np.asarray(
+        _backproj_pallas.back_min(
+            bank, jnp.asarray(r), jnp.asarray(h), jnp.asarray(idx), 4, 6, 24, True
+        )
+    )
+    assert np.isnan(got[3])
+    keep = np.arange(20) != 3
+    np.testing.assert_allclose(got[keep], want[keep], rtol=2e-5, atol=1e-6)
+
+
+def test_chunks_cover_hidden():
+    for hidden in (1, 5, 24, 64, 96, 192, 255):
+        chunks = _backproj_pallas._chunks(hidden)
+        cols = [c for s, w in chunks for c in range(s, s + w)]
+        assert cols == list(range(hidden))
+        assert all(w & (w - 1) == 0 for _, w in chunks)
