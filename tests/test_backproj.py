@@ -61,7 +61,7 @@ def _pad_bank(bank, k, d_in, d_out, hidden):
     "k, d_in, d_out, hidden, rows, m, padded",
     [
         (60, 4, 6, 24, 37, 10, False),  # an arm chain's widths; 24 = 16 + 8; ragged rows
-        (40, 2, 3, 192, 16, 10, True),  # the head chain's widths, 192 = 128 + 64, padded bank
+        (40, 2, 3, 192, 16, 10, True),  # the head chain's widths, 192 = 6 x 32, padded bank
         (30, 4, 6, 5, 5, 1, True),  # one slot, hidden 5 = 4 + 1, fewer rows than a program
         (25, 3, 2, 32, 50, 7, False),  # a power-of-two hidden layer, M not a power of two
     ],
