@@ -31,8 +31,7 @@ import jax.numpy as jnp
 from jax.experimental import pallas as pl
 
 ROWS = 16
-"""Query rows per program for ``n <= SLOTS`` (swept on an H100: 16 rows, 8-block tiles, 4
-warps was fastest); wider selections take proportionally fewer rows (``_shape``)."""
+"""Query rows per program (swept on an H100: 16 rows, 8-block tiles, 4 warps was fastest)."""
 
 BLOCK = 16
 """Landmarks per block of the two-stage selection."""
@@ -41,10 +40,7 @@ TILE_BLOCKS = 8
 """Blocks per tile of the distance pass."""
 
 SLOTS = 16
-"""Narrowest selection registers (slots per row): ``n <= 16`` uses 16."""
-
-MAX_N = 64
-"""The largest ``n`` the kernel serves (64 slots per row, ``ROWS // 4`` rows per program)."""
+"""Width of the selection registers: the largest ``n`` the kernel serves."""
 
 WARPS = 4
 
@@ -61,19 +57,7 @@ def _pow2(v: int) -> int:
     return p
 
 
-def _shape(n: int) -> tuple[int, int]:
-    """``(rows per program, slots per row)`` for selecting ``n``: the slots are ``n`` rounded up
-    to a power of two (at least ``SLOTS``), the rows shrink so that a program's selection
-    registers stay ``ROWS * SLOTS * BLOCK`` wide."""
-    slots = max(SLOTS, _pow2(n))
-    return max(1, ROWS * SLOTS // slots), slots
-
-
-def _kernel(
-    x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, sync: bool,
-    n_rows: int, n_slots: int,
-):
-    ROWS, SLOTS = n_rows, n_slots  # noqa: N806 - this program's shape (``_shape``)
+def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, sync: bool):
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
 
     def tile(t: jax.Array, carry: int) -> int:
@@ -138,26 +122,23 @@ def knn(
         indices inside the padded landmark array (its answer is meaningless, nothing is read
         out of bounds).
       x: ``(C, R, d)`` float32 query rows.
-      n: how many (static), ``1 <= n <= MAX_N``.
+      n: how many (static), ``1 <= n <= SLOTS``.
       interpret: run the kernel in Pallas' interpreter (any platform; for tests).
 
     Returns:
       ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances.
     """
-    if not 1 <= n <= MAX_N:
-        raise ValueError(f"n={n} must lie in [1, {MAX_N}]")
-    rows, slots = _shape(n)
+    if not 1 <= n <= SLOTS:
+        raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
     c, k, d = points.shape
     r = x.shape[1]
     nb = max(_pow2(-(-k // BLOCK)), TILE_BLOCKS, _pow2(n))  # at least n blocks to choose from
     kp = nb * BLOCK
-    rp = -(-r // rows) * rows
+    rp = -(-r // ROWS) * ROWS
     pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
     pt = jnp.full((c, d, kp), FAR, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
     xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
-    kern = functools.partial(
-        _kernel, n=n, d=d, nb=nb, sync=not interpret, n_rows=rows, n_slots=slots
-    )
+    kern = functools.partial(_kernel, n=n, d=d, nb=nb, sync=not interpret)
     params = {}
     if not interpret:
         from jax.experimental.pallas import triton as plgpu
@@ -165,20 +146,20 @@ def knn(
         params = dict(compiler_params=plgpu.CompilerParams(num_warps=WARPS))
     idx, d2, _ = pl.pallas_call(
         kern,
-        grid=(c, rp // rows),
+        grid=(c, rp // ROWS),
         in_specs=[
-            pl.BlockSpec((None, rows, d), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, ROWS, d), lambda ci, b: (ci, b, 0)),
             pl.BlockSpec((None, d, nb, BLOCK), lambda ci, b: (ci, 0, 0, 0)),
             pl.BlockSpec((None, d, kp), lambda ci, b: (ci, 0, 0)),
         ],
         out_specs=[
-            pl.BlockSpec((None, rows, slots), lambda ci, b: (ci, b, 0)),
-            pl.BlockSpec((None, rows, slots), lambda ci, b: (ci, b, 0)),
-            pl.BlockSpec((None, rows, nb), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, ROWS, SLOTS), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, ROWS, SLOTS), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, ROWS, nb), lambda ci, b: (ci, b, 0)),
         ],
         out_shape=[
-            jax.ShapeDtypeStruct((c, rp, slots), jnp.int32),
-            jax.ShapeDtypeStruct((c, rp, slots), jnp.float32),
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.int32),
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.float32),
             jax.ShapeDtypeStruct((c, rp, nb), jnp.float32),
         ],
         interpret=interpret,

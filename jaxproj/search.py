@@ -93,7 +93,7 @@ def nearest_rows(
 
     Returns:
       ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances. On CUDA
-      GPUs with ``n <= _knn_pallas.MAX_N`` the fused kernel computes ``|x - p|^2`` directly; the
+      GPUs with ``n <= _knn_pallas.SLOTS`` the fused kernel computes ``|x - p|^2`` directly; the
       XLA search (``nearest``) expands it, so the two may differ where distances tie to float32
       round-off (``jaxproj._knn_pallas``).
     """
@@ -101,7 +101,7 @@ def nearest_rows(
     def xla(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
         return jax.vmap(lambda p, s, q: nearest(p, s, q, n))(points, points_sq, x)
 
-    if n > _knn_pallas.MAX_N:
+    if n > _knn_pallas.SLOTS:
         return xla(points, points_sq, x)
 
     def fused(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:

@@ -3,13 +3,13 @@ kernel (``jaxproj._knn_pallas``, the default there) against the XLA search (``se
 in one run, on the same model and queries; both checked against the float64 reference; then the
 public ``jaxproj.project`` on 1 M host poses.
 
-    python3 benchmarks/experiments/fused_knn_ab.py MODEL.npz [--ref-queries 500] [--lm 10]
+    python3 benchmarks/experiments/fused_knn_ab.py MODEL.npz [--ref-queries 500]
 
-Prints, for relaxed L = M = 10 (``--lm``) at batch 65,536 in one jitted
-``engine.project_batch``: ns per pose of both; the search alone on the batch's real candidate
-rows (ns per pose, neighbour sets equal, and the kernel's neighbour distances against float64
-distances); both engines' largest difference from the float64 reference on held-out queries.
-Needs a CUDA GPU (elsewhere both paths are the XLA search).
+Prints, for relaxed L = M = 10 at batch 65,536 in one jitted ``engine.project_batch``: ns per pose
+of both; the search alone on the batch's real candidate rows (ns per pose, neighbour sets equal,
+and the kernel's neighbour distances against float64 distances); both engines' largest
+difference from the float64 reference on held-out queries. Needs a CUDA GPU (elsewhere both
+paths are the XLA search).
 """
 
 from __future__ import annotations
@@ -35,9 +35,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("model")
     ap.add_argument("--ref-queries", type=int, default=500)
-    ap.add_argument("--lm", type=int, default=10, help="L = M (<= _knn_pallas.MAX_N)")
     args = ap.parse_args()
-    lm = args.lm
     model = engine.load(args.model)
     sp = model.projector
     q = jax.device_put(held_out_queries(BATCH))
@@ -45,7 +43,7 @@ def main() -> None:
 
     def compiled():  # through the library's jit policy: full float32 matmul precision
         cfg = projection.FullConfig()
-        return jit(lambda p, h: engine.project_batch(p, h, "relaxed", lm, lm, cfg))
+        return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, cfg))
 
     fused = compiled()
     r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)
@@ -58,7 +56,7 @@ def main() -> None:
         projection.nearest_rows = default
     diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
     print(
-        f"relaxed L=M={lm}, batch {BATCH}: XLA search {t_old:.1f} ns/pose, fused kernel "
+        f"relaxed L=M=10, batch {BATCH}: XLA search {t_old:.1f} ns/pose, fused kernel "
         f"{t_new:.1f} ns/pose ({t_old / t_new:.2f}x); identical answers {np.mean(diff == 0):.5f}, "
         f"max diff {diff.max():.2e} deg",
         flush=True,
@@ -71,19 +69,17 @@ def main() -> None:
     cands = jax.jit(
         lambda s, x: jax.vmap(
             jax.vmap(projection.candidates, in_axes=(0, 0, None)), in_axes=(None, 0, None)
-        )(s, x, lm)
+        )(s, x, 10)
     )
     with jax.default_matmul_precision("highest"):
         cand = cands(st, x)
     c, n = cand.shape[1], cand.shape[3]
-    rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * lm, n)
-    used = min(BATCH * lm, BATCH * 10)  # at most 655,360 rows per chain (the XLA search's memory)
-    rows, scale = rows[:, :used], BATCH * lm / used  # scale: ns per pose of `lm` rows per chain
-    kern = jax.jit(lambda p, s, r: _knn_pallas.knn(p, jnp.isfinite(s), r, lm))
-    ref = jax.jit(lambda p, s, r: xla_rows(p, s, r, lm))
+    rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * 10, n)
+    kern = jax.jit(lambda p, s, r: _knn_pallas.knn(p, jnp.isfinite(s), r, 10))
+    ref = jax.jit(lambda p, s, r: xla_rows(p, s, r, 10))
     with jax.default_matmul_precision("highest"):
-        t_k = per_pose_ns(kern, st.robot, st.robot_sq, rows) * scale
-        t_x = per_pose_ns(ref, st.robot, st.robot_sq, rows) * scale
+        t_k = per_pose_ns(kern, st.robot, st.robot_sq, rows)
+        t_x = per_pose_ns(ref, st.robot, st.robot_sq, rows)
         i_k = np.asarray(kern(st.robot, st.robot_sq, rows)[0])
         i_x = np.asarray(ref(st.robot, st.robot_sq, rows)[0])
     same = np.all(np.sort(i_k, -1) == np.sort(i_x, -1), axis=-1)
@@ -95,20 +91,20 @@ def main() -> None:
         sample = rows_np[ci, :: max(1, rows_np.shape[1] // 4096)]
         d = ((sample[:, None, :] - pts[ci][None]) ** 2).sum(-1)
         d[:, ~valid[ci]] = np.inf
-        kth = np.sort(d, axis=1)[:, lm - 1]
+        kth = np.sort(d, axis=1)[:, 9]
         got = np.take_along_axis(d, i_k[ci, :: max(1, rows_np.shape[1] // 4096)], axis=1)
         worst = max(worst, float(np.max(got.max(axis=1) - kth)))
     print(
-        f"robot search alone ({c} chains x {used} rows): XLA {t_x:.1f} ns/pose, fused "
+        f"robot search alone ({c} chains x {BATCH * 10} rows): XLA {t_x:.1f} ns/pose, fused "
         f"{t_k:.1f} ns/pose ({t_x / t_k:.2f}x); equal neighbour sets {same.mean():.5f}; fused "
-        f"farthest kept neighbour beyond the float64 {lm}th distance by at most {worst:.2e}",
+        f"farthest kept neighbour beyond the float64 10th distance by at most {worst:.2e}",
         flush=True,
     )
 
     # both engines against the float64 reference
     reference = testing.StackedReference(sp)
     nq = min(args.ref_queries, BATCH)
-    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", lm, lm)[0] for i in range(nq)])
+    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in range(nq)])
     for name, r in (("fused", r_new), ("XLA", r_old)):
         d = np.degrees(np.abs(r[:nq] - want)).max(axis=1)
         print(
