@@ -17,7 +17,13 @@ import argparse
 
 import jax
 import numpy as np
-from selection_ab import BATCH, held_out_queries, per_pose_ns, print_public_rate  # this folder
+from selection_ab import (  # this folder
+    BATCH,
+    held_out_queries,
+    per_pose_ns,
+    print_public_rate,
+    print_reference_errors,
+)
 
 from jaxproj import engine, projection, testing
 from jaxproj._jit import jit
@@ -89,20 +95,12 @@ def main() -> None:
     )
 
     # both engines against the float64 reference
-    reference = testing.StackedReference(sp)
-    nq = min(args.ref_queries, BATCH)
-    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in range(nq)])
-    for name, r in (("fused", r_new), ("XLA", r_old)):
-        d = np.degrees(np.abs(r[:nq] - want)).max(axis=1)
-        print(
-            f"{name} vs float64 reference on {nq} queries: max {d.max():.2e} deg, "
-            f"> 0.001 deg on {int(np.sum(d > 1e-3))}, > 0.01 deg on {int(np.sum(d > 1e-2))}",
-            flush=True,
-        )
+    print_reference_errors(sp, q, {"fused": r_new, "XLA": r_old}, args.ref_queries)
 
     # where the two differ (float32 near-ties of the deviations): which one float64 agrees with
     moved = np.flatnonzero(diff > 1e-3)[: args.ref_queries]
     if moved.size:
+        reference = testing.StackedReference(sp)
         want = np.stack(
             [reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in moved]
         )

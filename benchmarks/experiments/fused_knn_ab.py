@@ -24,10 +24,11 @@ from selection_ab import (  # this folder
     held_out_queries,
     per_pose_ns,
     print_public_rate,
+    print_reference_errors,
     xla_rows,
 )
 
-from jaxproj import _knn_pallas, engine, projection, testing
+from jaxproj import _knn_pallas, engine, projection
 from jaxproj._jit import jit
 
 
@@ -102,16 +103,7 @@ def main() -> None:
     )
 
     # both engines against the float64 reference
-    reference = testing.StackedReference(sp)
-    nq = min(args.ref_queries, BATCH)
-    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in range(nq)])
-    for name, r in (("fused", r_new), ("XLA", r_old)):
-        d = np.degrees(np.abs(r[:nq] - want)).max(axis=1)
-        print(
-            f"{name} vs float64 reference on {nq} queries: max {d.max():.2e} deg, "
-            f"> 0.001 deg on {int(np.sum(d > 1e-3))}",
-            flush=True,
-        )
+    print_reference_errors(sp, q, {"fused": r_new, "XLA": r_old}, args.ref_queries)
 
     print_public_rate(model)
 

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj import datasets, engine, projection, search
+from jaxproj import datasets, engine, projection, search, testing
 from jaxproj._jit import jit
 
 BATCH = 65536
@@ -59,6 +59,23 @@ def print_public_rate(model: engine.Model) -> None:
         engine.project(model, hosts)
         ts.append(time.perf_counter() - t)
     print(f"public jaxproj.project relaxed, 1 M host poses: {2**20 / np.median(ts) / 1e6:.3f} M/s")
+
+
+def print_reference_errors(
+    sp: projection.StackedProjector, q: jax.Array, answers: dict[str, np.ndarray], nq: int
+) -> None:
+    """Print each named engine's largest distance (deg) from the float64 reference (relaxed,
+    L = M = 10) on the first ``nq`` queries of ``q``, and how many are beyond 0.001 / 0.01 deg."""
+    reference = testing.StackedReference(sp)
+    nq = min(nq, q.shape[0])
+    want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in range(nq)])
+    for name, r in answers.items():
+        d = np.degrees(np.abs(r[:nq] - want)).max(axis=1)
+        print(
+            f"{name} vs float64 reference on {nq} queries: max {d.max():.2e} deg, "
+            f"> 0.001 deg on {int(np.sum(d > 1e-3))}, > 0.01 deg on {int(np.sum(d > 1e-2))}",
+            flush=True,
+        )
 
 
 def _top_k(v: jax.Array, n: int) -> tuple[jax.Array, jax.Array]:
