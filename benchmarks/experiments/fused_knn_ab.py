@@ -14,37 +14,26 @@ paths are the XLA search).
 
 from __future__ import annotations
 
-import argparse
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 from selection_ab import (  # this folder
     BATCH,
-    held_out_queries,
+    ab_setup,
     per_pose_ns,
     print_public_rate,
     print_reference_errors,
+    relaxed_batch,
     xla_rows,
 )
 
-from jaxproj import _knn_pallas, engine, projection
-from jaxproj._jit import jit
+from jaxproj import _knn_pallas, projection
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("model")
-    ap.add_argument("--ref-queries", type=int, default=500)
-    args = ap.parse_args()
-    model = engine.load(args.model)
+    args, model, q = ab_setup(__doc__, 500)
     sp = model.projector
-    q = jax.device_put(held_out_queries(BATCH))
-    print(jax.devices()[0].device_kind, "landmarks", model.landmarks, flush=True)
-
-    def compiled():  # through the library's jit policy: full float32 matmul precision
-        cfg = projection.FullConfig()
-        return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, cfg))
+    compiled = relaxed_batch
 
     fused = compiled()
     r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)

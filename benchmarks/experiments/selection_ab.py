@@ -11,6 +11,7 @@ paths are ``TopK``).
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 
@@ -59,6 +60,25 @@ def print_public_rate(model: engine.Model) -> None:
         engine.project(model, hosts)
         ts.append(time.perf_counter() - t)
     print(f"public jaxproj.project relaxed, 1 M host poses: {2**20 / np.median(ts) / 1e6:.3f} M/s")
+
+
+def ab_setup(doc: str, ref_queries: int) -> tuple[argparse.Namespace, engine.Model, jax.Array]:
+    """The A/B scripts' common start: ``MODEL.npz [--ref-queries N]`` parsed, the model loaded,
+    ``BATCH`` held-out queries on the device, the device printed."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("model")
+    ap.add_argument("--ref-queries", type=int, default=ref_queries)
+    args = ap.parse_args()
+    model = engine.load(args.model)
+    q = jax.device_put(held_out_queries(BATCH))
+    print(jax.devices()[0].device_kind, "landmarks", model.landmarks, flush=True)
+    return args, model, q
+
+
+def relaxed_batch():
+    """A freshly traced, jitted relaxed ``engine.project_batch`` (L = M = 10) through the
+    library's jit policy (full float32 matmul precision), so a patched function is picked up."""
+    return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10))
 
 
 def print_reference_errors(
