@@ -207,18 +207,13 @@ def least_deviations_rows(
     )
 
 
-def project_relaxed_rows(
+def relaxed_candidates(
     p: Projector | StackedProjector, h: jax.Array, n_l: int, n_m: int
-) -> tuple[jax.Array, jax.Array]:
-    """Relaxed projection of a batch of queries, every chain at once.
-
-    The same answers as ``project_relaxed_one`` (``project_stacked_one`` for a stacked
-    projector) vmapped over the batch, but the human-landmark searches of all the batch's queries
-    and the robot-landmark searches of all their candidates run as one ``search.nearest_rows``
-    call each (the fused Pallas kernel on CUDA GPUs, ``jaxproj._knn_pallas``), not one small
-    search per query, and the back-projection of all candidates as one
-    ``least_deviations_rows`` call (on CUDA GPUs the fused kernel of
-    ``jaxproj._backproj_pallas``, whose sums round differently: see there).
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Steps 1-2 of the relaxed projection for a batch, every chain at once: the human-landmark
+    searches of all queries and the robot-landmark searches of all their candidates as one
+    ``search.nearest_rows`` call each (the fused Pallas kernel on CUDA GPUs,
+    ``jaxproj._knn_pallas``), not one small search per query.
 
     Args:
       p: a projector, or one projector per chain.
@@ -226,16 +221,13 @@ def project_relaxed_rows(
       n_l, n_m: ``L`` and ``M`` (static).
 
     Returns:
-      ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the
-      whole descriptor: ``sqrt(sum_c dev_c^2)`` for chains).
+      ``(x, cand, ridx)``: ``(S, C, m_max)`` each chain's part of the queries, ``(S, C, L, n)``
+      the forward-kernel candidates (as ``candidates``) and ``(S, C, L, M)`` their robot
+      landmarks (``C = 1`` for a plain projector).
     """
-    if isinstance(p, StackedProjector):
-        stack, lay = p.stack, p.layout
-        identity = lay.identity
-    else:
-        stack, lay, identity = jax.tree.map(lambda a: a[None], p), None, True
+    stack, lay = _chains(p)
     s = h.shape[0]
-    if identity:
+    if lay is None or lay.identity:
         x = h[:, None, :]  # (S, 1, m)
     else:
         x = jnp.concatenate([h, jnp.zeros((s, 1), h.dtype)], axis=1)[:, lay.input_index()]
@@ -249,12 +241,44 @@ def project_relaxed_rows(
     c, n = cand.shape[1], cand.shape[3]  # cand: (S, C, L, n)
     rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
     ridx, _ = nearest_rows(stack.robot, stack.robot_sq, rows, n_m)  # (C, S * L, M)
-    ridx = ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
+    return x, cand, ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
+
+
+def _chains(p: Projector | StackedProjector) -> tuple[Projector, ChainLayout | None]:
+    """``p``'s projectors stacked on a leading chain axis, and the layout (``None`` for a plain
+    projector: one chain reading the whole descriptor)."""
+    if isinstance(p, StackedProjector):
+        return p.stack, p.layout
+    return jax.tree.map(lambda a: a[None], p), None
+
+
+def project_relaxed_rows(
+    p: Projector | StackedProjector, h: jax.Array, n_l: int, n_m: int
+) -> tuple[jax.Array, jax.Array]:
+    """Relaxed projection of a batch of queries, every chain at once.
+
+    The same answers as ``project_relaxed_one`` (``project_stacked_one`` for a stacked
+    projector) vmapped over the batch, but with every search of the batch as one call
+    (``relaxed_candidates``) and the back-projection of all candidates as one
+    ``least_deviations_rows`` call (on CUDA GPUs the fused kernel of
+    ``jaxproj._backproj_pallas``, whose sums round differently: see there).
+
+    Args:
+      p: a projector, or one projector per chain.
+      h: ``(S, m)`` human descriptors.
+      n_l, n_m: ``L`` and ``M`` (static).
+
+    Returns:
+      ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the
+      whole descriptor: ``sqrt(sum_c dev_c^2)`` for chains).
+    """
+    stack, lay = _chains(p)
+    x, cand, ridx = relaxed_candidates(p, h, n_l, n_m)
     best = least_deviations_rows(stack, backward_widths(p), x, cand, ridx)  # (S, C, L)
     r, v = jax.vmap(jax.vmap(_pick), in_axes=(None, 0, 0))(stack, cand, best)  # (S, C, n), (S, C)
-    if identity:
+    if lay is None or lay.identity:
         return r[:, 0], v[:, 0]
-    return r.reshape(s, -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))
+    return r.reshape(h.shape[0], -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))
 
 
 Objective = Literal["weighted", "min"]

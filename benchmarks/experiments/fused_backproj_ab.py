@@ -13,7 +13,6 @@ queries. Needs a CUDA GPU (elsewhere both paths are XLA).
 
 from __future__ import annotations
 
-import jax
 import numpy as np
 from selection_ab import (  # this folder
     BATCH,
@@ -31,9 +30,8 @@ from jaxproj._jit import jit
 def main() -> None:
     args, model, q = ab_setup(__doc__, 1000)
     sp = model.projector
-    compiled = relaxed_batch
 
-    fused = compiled()
+    fused = relaxed_batch()
     r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)
     default = projection.least_deviations_rows
 
@@ -42,7 +40,7 @@ def main() -> None:
 
     projection.least_deviations_rows = xla_only  # XLA's back-projection, traced anew
     try:
-        xla = compiled()
+        xla = relaxed_batch()
         r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
     finally:
         projection.least_deviations_rows = default
@@ -55,22 +53,9 @@ def main() -> None:
     )
 
     # the back-projection alone, on the batch's real candidates
-    st, lay = sp.stack, sp.layout
+    st = sp.stack
     dims = projection.backward_widths(sp)
-
-    @jit
-    def prep(st, h):
-        x = jax.numpy.concatenate([h, jax.numpy.zeros((BATCH, 1))], 1)[:, lay.input_index()]
-        hidx, _ = projection.nearest_rows(st.human, st.human_sq, x.transpose(1, 0, 2), 10)
-        cand = jax.vmap(
-            jax.vmap(lambda p, y, i: projection.predict(p.forward, y, i)), in_axes=(None, 0, 0)
-        )(st, x, hidx.transpose(1, 0, 2))
-        c, n = cand.shape[1], cand.shape[3]
-        rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * 10, n)
-        ridx, _ = projection.nearest_rows(st.robot, st.robot_sq, rows, 10)
-        return x, cand, ridx.reshape(c, BATCH, 10, 10).transpose(1, 0, 2, 3)
-
-    x, cand, ridx = prep(st, q)
+    x, cand, ridx = jit(lambda p, h: projection.relaxed_candidates(p, h, 10, 10))(sp, q)
     kern = jit(lambda s, x, c, r: projection.least_deviations_rows(s, dims, x, c, r))
     ref = jit(lambda s, x, c, r: projection.least_deviations_rows(s, dims, x, c, r, False))
     t_k, t_x = per_pose_ns(kern, st, x, cand, ridx), per_pose_ns(ref, st, x, cand, ridx)

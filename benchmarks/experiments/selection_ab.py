@@ -111,18 +111,14 @@ def main(path: str) -> None:
     # (fused_knn_ab.py) instead, so the XLA search is forced here for both variants
     projection.nearest_rows = xla_rows
 
-    def compiled():
-        cfg = projection.FullConfig()
-        # the library's jit policy (full float32 matmul precision); a bare jax.jit ran at XLA's
-        # TF32 default on GPUs until 2026-11-23 (the figures in RESULTS.md of that test say so)
-        return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, cfg))
-
-    new = compiled()
+    # relaxed_batch traces through the library's jit policy (full float32 matmul precision); a
+    # bare jax.jit ran at XLA's TF32 default on GPUs until 2026-11-23 (RESULTS.md says so)
+    new = relaxed_batch()
     r_new, t_new = np.asarray(new(sp, q)[0]), per_pose_ns(new, sp, q)
     default = search.smallest
     search.smallest = _top_k  # the selection before this change, traced anew
     try:
-        old = compiled()
+        old = relaxed_batch()
         r_old, t_old = np.asarray(old(sp, q)[0]), per_pose_ns(old, sp, q)
     finally:
         search.smallest = default
