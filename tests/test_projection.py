@@ -320,7 +320,14 @@ def test_stacked_chains_equal_each_chain_alone(chain_model, objective):
         p = sp.chain(c)
         x = d[:, list(sp.layout.inputs[c])]
         r, v = engine.project(p, x, objective, n_l=5, n_m=5)
-        np.testing.assert_allclose(got[:, list(sp.layout.outputs[c])], r, rtol=0, atol=2e-5)
+        # The padded stack sums in another order than the chain alone. The relaxed answers are
+        # one kernel evaluation deep; the full ones 30 Adam steps deep, and Adam's step
+        # m / sqrt(v) is scale-free, so where a gradient is ~0 its round-off sets the step:
+        # measured 2.18e-5 rad on one of 128 angles on the 2-core VM of 2026-11-23 (the same
+        # code stayed within 2e-5 on an earlier VM). A padding that entered a kernel or won a
+        # search would move answers by orders of magnitude more.
+        atol = 2e-5 if objective == "relaxed" else 1e-4
+        np.testing.assert_allclose(got[:, list(sp.layout.outputs[c])], r, rtol=0, atol=atol)
         per_chain.append(v)
     v = np.stack(per_chain, axis=1)
     want = np.sqrt((v**2).sum(1)) if objective == "relaxed" else v.sum(1)
