@@ -45,6 +45,7 @@ from bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
 
 from jaxproj import engine  # noqa: E402
 from jaxproj.projection import ChainLayout  # noqa: E402
+from jaxproj.timing import time_calls  # noqa: E402
 
 CHAIN = 64
 """Operations per element of a probe (one fused elementwise kernel)."""
@@ -84,16 +85,6 @@ def full_work(lay: ChainLayout, n_l: int, n_m: int, evaluations: int) -> Work:
     return Work(units, fmas)
 
 
-def _time(fn, x: jax.Array, repeats: int) -> float:
-    jax.block_until_ready(fn(x))  # compiled and warm
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(x))
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
-
-
 def measure_rates(device: jax.Device, size: int, repeats: int) -> dict[str, float]:
     """Multiply-adds and hidden units per second (see the module doc), every probe's rate."""
     a, b = np.float32(0.999), np.float32(1e-3)
@@ -119,7 +110,8 @@ def measure_rates(device: jax.Device, size: int, repeats: int) -> dict[str, floa
             if name.startswith("unit"):
                 y = 1.0 / (1.0 + np.exp(-y))
         _check(name, float(np.max(np.abs(got - y))), 1e-4)
-        rates[name] = size * CHAIN / _time(f, x, repeats)
+        jax.block_until_ready(f(x))  # compiled and warm
+        rates[name] = size * CHAIN / time_calls(lambda f=f: f(x), min_repeats=repeats).median_s
     n = 8192 if device.platform != "cpu" else 2048
     rng = np.random.default_rng(1)
     ma, mb = (rng.standard_normal((n, n)).astype(np.float32) for _ in range(2))
@@ -127,13 +119,8 @@ def measure_rates(device: jax.Device, size: int, repeats: int) -> dict[str, floa
     pa, pb = jax.device_put(ma, device), jax.device_put(mb, device)
     got = np.asarray(mm(pa, pb)[:64], np.float64)
     _check("fma_matmul", float(np.max(np.abs(got - ma[:64].astype(np.float64) @ mb))), 1e-2)
-    jax.block_until_ready(mm(pa, pb))
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(mm(pa, pb))
-        ts.append(time.perf_counter() - t0)
-    rates["fma_matmul"] = n**3 / float(np.median(ts))
+    jax.block_until_ready(mm(pa, pb))  # compiled and warm
+    rates["fma_matmul"] = n**3 / time_calls(lambda: mm(pa, pb), min_repeats=repeats).median_s
     if device.platform == "cpu":  # NumPy's SIMD exp on L2-sized blocks, one core, x cores
         blk = np.random.default_rng(2).uniform(-2, 2, 1 << 15).astype(np.float32)
         t = np.empty_like(blk)
