@@ -1,7 +1,8 @@
 """Speed benchmark of the projection engine.
 
     python benchmarks/bench_projection.py [--quick] [--device cpu|gpu] [--json OUT]
-        [--landmarks 86,1644] [--batches 1,256,4096] [--repeats N] [--ref-queries N]
+        [--landmarks 86,1644] [--batches 1,256,4096] [--configs relaxed:10:10,full:10:10]
+        [--repeats N] [--ref-queries N]
         [--no-streaming] [--no-rollout] [--full-clusters C] [--full-iterations I]
 
 (also ``python -m benchmarks.bench_projection ...`` from the repository root). Needs a checkout
@@ -598,6 +599,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             rollout=not args.no_rollout,
             landmarks=args.landmarks,
             batches=args.batches,
+            configs=args.configs,
             repeats=args.repeats,
             ref_queries=args.ref_queries,
             full=harness.full_config(args.full_clusters, args.full_iterations),

@@ -481,6 +481,24 @@ def format_table(records: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _configs(text: str) -> list[tuple[str, int, int]]:
+    out = []
+    for item in text.split(","):
+        parts = item.strip().split(":")
+        try:
+            objective, n_l, n_m = parts[0], int(parts[1]), int(parts[2])
+        except (IndexError, ValueError):
+            raise argparse.ArgumentTypeError(
+                f"expected objective:L:M items like relaxed:10:10, got {item!r}"
+            ) from None
+        if len(parts) != 3 or objective not in ("relaxed", "full") or min(n_l, n_m) < 1:
+            raise argparse.ArgumentTypeError(
+                f"expected objective:L:M with objective relaxed or full and L, M >= 1, got {item!r}"
+            )
+        out.append((objective, n_l, n_m))
+    return out
+
+
 def _ints(text: str) -> list[int]:
     try:
         return [int(t) for t in text.split(",") if t.strip()]
@@ -501,6 +519,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", default=None, metavar="OUT", help="write the records here")
     parser.add_argument("--landmarks", type=_ints, default=None, help="override N, e.g. 86,1644")
     parser.add_argument("--batches", type=_ints, default=None, help="override batch sizes")
+    parser.add_argument(
+        "--configs",
+        type=_configs,
+        default=None,
+        help="override the projections measured, e.g. relaxed:10:10,full:10:10 (objective:L:M)",
+    )
     parser.add_argument("--repeats", type=int, default=None, help="minimum timed calls")
     parser.add_argument("--ref-queries", type=int, default=None, help="reference queries")
     parser.add_argument("--no-streaming", action="store_true", help="skip streaming latency")

@@ -406,6 +406,33 @@ def sub_batch(p: AnyProjector, objective: str, n_l: int, n_m: int, batch: int) -
     return max(sub, 1)
 
 
+def search_batch(p: AnyProjector, n_l: int, batch: int, sub: int) -> int:
+    """Queries per search call of the relaxed projection (a multiple of ``sub``, dividing
+    ``batch``).
+
+    On the CPU the searches run XLA's ``TopK`` per row, whose per-call costs want many rows per
+    call, while the back-projection wants few queries at a time (``sub``, its gathered kernels
+    in cache): the searches take as many queries as keep their ``(L, K)`` distance rows per
+    chain (``4 * chains * L * K`` bytes per query) within the same 16 MiB budget, and the
+    back-projection loops over them ``sub`` at a time (``project_relaxed_rows``' ``chunk``).
+    Measured on the 2-core VM, per-chain model at N = 1644 (K up to 1,725), relaxed
+    L = M = 10: 164 -> 138 us per pose at 64 queries per search call, 142 at 128, answers
+    identical (``benchmarks/RESULTS.md``). Accelerators search and back-project ``sub``
+    queries together (their fused kernels hold no distance matrix): ``sub`` is returned.
+    """
+    if jax.default_backend() != "cpu":
+        return sub
+    if isinstance(p, StackedProjector):
+        chains, k = p.layout.n_chains, p.stack.human.shape[1]  # K of the largest chain
+    else:
+        chains, k = 1, p.n_landmarks
+    per_query = 4 * chains * n_l * k
+    out = sub
+    while out * 2 * per_query <= 16 * 2**20 and out * 2 <= batch and batch % (out * 2) == 0:
+        out *= 2
+    return out
+
+
 def project_batch(
     p: AnyProjector,
     h: jax.Array,
@@ -417,20 +444,22 @@ def project_batch(
     """The traceable core of ``project`` for one batch (call it inside a jitted function).
 
     ``(B, m)`` queries -> ``((B, n) angles, (B,) value)``, in sub-batches of ``sub_batch(...)``
-    queries looped with ``lax.map``. Relaxed: ``projection.project_relaxed_rows`` per sub-batch
-    (one human-landmark search for all its queries, one robot-landmark search and one
-    back-projection for all their candidates); full: the one-query projection (of every
-    chain, for a ``StackedProjector``; ``projection.project_stacked_one``) vmapped.
+    queries looped with ``lax.map``. Relaxed: ``projection.project_relaxed_rows`` per
+    ``search_batch(...)`` queries (one human-landmark search for all of them, one
+    robot-landmark search for all their candidates), back-projecting ``sub_batch(...)`` queries
+    at a time; full: the one-query projection (of every chain, for a ``StackedProjector``;
+    ``projection.project_stacked_one``) vmapped.
     """
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
-    if objective == "relaxed":  # batched form: one search / back-projection call per sub-batch
+    if objective == "relaxed":  # batched form: one search call per search batch
+        outer = search_batch(p, n_l, h.shape[0], sub)
 
         def rows(x: jax.Array) -> tuple[jax.Array, jax.Array]:
-            return project_relaxed_rows(p, x, n_l, n_m)
+            return project_relaxed_rows(p, x, n_l, n_m, chunk=sub)
 
-        if sub >= h.shape[0]:
+        if outer >= h.shape[0]:
             return rows(h)
-        r, v = jax.lax.map(rows, h.reshape(-1, sub, h.shape[1]))
+        r, v = jax.lax.map(rows, h.reshape(-1, outer, h.shape[1]))
         return r.reshape(h.shape[0], -1), v.reshape(-1)
 
     def one(x: jax.Array) -> tuple[jax.Array, jax.Array]:

@@ -253,32 +253,52 @@ def _chains(p: Projector | StackedProjector) -> tuple[Projector, ChainLayout | N
 
 
 def project_relaxed_rows(
-    p: Projector | StackedProjector, h: jax.Array, n_l: int, n_m: int
+    p: Projector | StackedProjector,
+    h: jax.Array,
+    n_l: int,
+    n_m: int,
+    chunk: int | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Relaxed projection of a batch of queries, every chain at once.
 
     The same answers as ``project_relaxed_one`` (``project_stacked_one`` for a stacked
     projector) vmapped over the batch, but with every search of the batch as one call
-    (``relaxed_candidates``) and the back-projection of all candidates as one
-    ``least_deviations_rows`` call (on CUDA GPUs the fused kernel of
+    (``relaxed_candidates``) and the back-projection of all candidates as
+    ``least_deviations_rows`` calls (on CUDA GPUs the fused kernel of
     ``jaxproj._backproj_pallas``, whose sums round differently: see there).
 
     Args:
       p: a projector, or one projector per chain.
       h: ``(S, m)`` human descriptors.
       n_l, n_m: ``L`` and ``M`` (static).
+      chunk: back-project ``chunk`` queries at a time (a ``lax.map`` loop inside the one
+        search call; static, must divide ``S``). ``None`` (default): all ``S`` at once. On the
+        CPU the searches want many queries per call and the back-projection few (its gathered
+        kernels should stay in cache): ``engine.project_batch`` sets both.
 
     Returns:
       ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the
       whole descriptor: ``sqrt(sum_c dev_c^2)`` for chains).
     """
     stack, lay = _chains(p)
+    s = h.shape[0]
     x, cand, ridx = relaxed_candidates(p, h, n_l, n_m)
-    best = least_deviations_rows(stack, backward_widths(p), x, cand, ridx)  # (S, C, L)
+    dims = backward_widths(p)
+    if chunk is None or chunk >= s:
+        best = least_deviations_rows(stack, dims, x, cand, ridx)  # (S, C, L)
+    else:
+        if s % chunk:
+            raise ConfigError(f"chunk={chunk} does not divide the batch of {s} queries")
+
+        def part(a: tuple[jax.Array, jax.Array, jax.Array]) -> jax.Array:
+            return least_deviations_rows(stack, dims, *a)
+
+        parts = jax.tree.map(lambda a: a.reshape(s // chunk, chunk, *a.shape[1:]), (x, cand, ridx))
+        best = jax.lax.map(part, parts).reshape(s, *ridx.shape[1:3])
     r, v = jax.vmap(jax.vmap(_pick), in_axes=(None, 0, 0))(stack, cand, best)  # (S, C, n), (S, C)
     if lay is None or lay.identity:
         return r[:, 0], v[:, 0]
-    return r.reshape(h.shape[0], -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))
+    return r.reshape(s, -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))
 
 
 Objective = Literal["weighted", "min"]

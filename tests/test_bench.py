@@ -137,6 +137,20 @@ def test_cli_arguments_parse():
     assert a.quick and a.device == "cpu" and a.landmarks == [86] and a.json == "x.json"
 
 
+def test_configs_option_parses_and_rejects_bad_items():
+    ap = argparse.ArgumentParser()
+    harness.add_arguments(ap)
+    a = ap.parse_args(["--configs", "relaxed:10:10,full:5:3"])
+    assert a.configs == [("relaxed", 10, 10), ("full", 5, 3)]
+    assert harness.make_plan(True, "cpu", configs=a.configs).configs == (
+        ("relaxed", 10, 10),
+        ("full", 5, 3),
+    )
+    for bad in ("relaxed:10", "fast:10:10", "relaxed:0:10", "relaxed:a:10", "relaxed:1:2:3"):
+        with pytest.raises(SystemExit):
+            ap.parse_args(["--configs", bad])
+
+
 def test_full_cli_options_reach_the_config():
     ap = argparse.ArgumentParser()
     harness.add_arguments(ap)

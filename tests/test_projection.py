@@ -404,6 +404,50 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model, monk
     np.testing.assert_allclose(np.asarray(v2), np.asarray(v), rtol=1e-5)
 
 
+def test_two_level_relaxed_batches_give_the_same_answers(chain_model, monkeypatch):
+    """Searching many queries per call and back-projecting them a few at a time
+    (``project_relaxed_rows``' ``chunk``, set by ``engine.search_batch`` on the CPU) changes no
+    answer; the reported deviations may differ in the last bit (XLA vectorises the per-chunk
+    sums differently); a chunk that does not divide the batch is refused."""
+    import jax.numpy as jnp
+
+    from jaxproj import projection
+    from jaxproj._jit import jit
+
+    sp = chain_model.projector
+    h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
+    rows = jit(projection.project_relaxed_rows, static_argnames=("n_l", "n_m", "chunk"))
+    r0, v0 = rows(sp, h, n_l=5, n_m=5)
+    for chunk in (8, 16, 48):
+        r, v = rows(sp, h, n_l=5, n_m=5, chunk=chunk)
+        np.testing.assert_array_equal(np.asarray(r), np.asarray(r0))
+        np.testing.assert_allclose(np.asarray(v), np.asarray(v0), rtol=1e-6, atol=0)
+    with pytest.raises(ConfigError, match="chunk=5 does not divide the batch of 48"):
+        rows(sp, h, n_l=5, n_m=5, chunk=5)
+
+    # the engine with both levels active: 48 queries searched per call, 8 back-projected at once
+    monkeypatch.setattr(engine, "sub_batch", lambda *a: 8)
+    monkeypatch.setattr(engine, "search_batch", lambda *a: 48)
+    r, v = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
+    np.testing.assert_array_equal(np.asarray(r), np.asarray(r0))
+    np.testing.assert_allclose(np.asarray(v), np.asarray(v0), rtol=1e-6, atol=0)
+
+
+def test_search_batch_divides_the_batch_within_the_cpu_budget(chain_model):
+    """``engine.search_batch``: a multiple of the back-projection sub-batch that divides the
+    batch, with the searches' distance rows within 16 MiB (the 2-core VM's 64 queries at
+    K = 1,725)."""
+    sp = chain_model.projector
+    chains, k = sp.layout.n_chains, sp.stack.human.shape[1]
+    for batch, sub in ((4096, 8), (96, 8), (8, 8), (4096, 1), (1000, 8)):
+        out = engine.search_batch(sp, 10, batch, sub)
+        assert out % sub == 0 and batch % out == 0, (batch, sub, out)
+        assert out == sub or 4 * chains * 10 * k * out <= 16 * 2**20
+        doubled = 2 * out
+        fits = 4 * chains * 10 * k * doubled <= 16 * 2**20
+        assert not (fits and doubled <= batch and batch % doubled == 0), (batch, sub, out)
+
+
 def test_fused_back_projection_matches_xla(chain_model, monkeypatch):
     """The CUDA path's fused back-projection kernel (run in Pallas' interpreter) gives XLA's
     least deviations to float32 round-off, and the batched relaxed projection with it gives the
