@@ -12,8 +12,12 @@ For one query ``h*`` (a human descriptor):
    ``full_objective``) by projected gradient (optax), and the answer is ``r(w*)`` of the ``j``
    with the least objective value.
 
-Everything here is written for ONE query and vmapped over batches by the public entry points
-(``project``), which are the only jitted functions. ``L`` and ``M`` are static.
+The ``*_one`` functions are written for ONE query (the full objective and the float32 reference
+of the relaxed one; callers vmap them). The relaxed projection of a batch runs as rows instead
+(``relaxed_candidates``, ``least_deviations_rows``, ``project_relaxed_rows``): every search of
+a batch is one call and the back-projection of all candidates one more, which is what
+``engine.project_batch`` uses. Nothing here is jitted; the public entry points
+(``engine.project``) are. ``L`` and ``M`` are static.
 """
 
 from __future__ import annotations
