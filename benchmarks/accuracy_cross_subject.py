@@ -10,7 +10,7 @@ Landmarks and kernels from MSR Action3D subjects 1,3,5,7,9 (all actions, valid f
   capture program): cross-dataset.
 
 Unsmoothed, L = M = 10, degrees over ``robot.DRIVEN_JOINTS`` against the analytic IK. Each
-method's block is ``jaxproj.metrics.summarize_errors``: the paper's M_max / M_avg, per-joint p50 /
+method's block is ``jaxproj.eval.metrics.summarize_errors``: the paper's M_max / M_avg, per-joint p50 /
 p95, M_max without the two ElbowYaw joints, and task-space errors from forward kinematics of the
 MJCF (wrist and elbow position in cm, upper-arm / forearm direction in degrees). The baselines
 (nearest landmark, kNN average, global ELM) run on the same landmarks, per chain for a per-chain
@@ -31,8 +31,11 @@ import time
 import jax
 import numpy as np
 
-from jaxproj import datasets, engine, evaluate, ik, metrics
-from jaxproj.projection import FullConfig
+from jaxproj.eval import evaluate, metrics
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection.objectives import FullConfig
+from jaxproj.robots.nao_h25 import ik
 
 OBJECTIVES = {
     "relaxed": ("relaxed", None),

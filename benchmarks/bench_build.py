@@ -35,8 +35,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj import datasets, meanshift
-from jaxproj.exceptions import ConfigError, JaxprojError
+from jaxproj.errors import ConfigError, JaxprojError
+from jaxproj.io import datasets
+from jaxproj.projection import meanshift
 from jaxproj.timing import Timing, compile_timed, time_calls
 
 SUBJECTS = (1, 3, 5, 7, 9)

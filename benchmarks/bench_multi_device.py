@@ -32,8 +32,9 @@ import bench_rollout  # noqa: E402
 from bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, queries, shuffled  # noqa: E402
 from harness import header  # noqa: E402
 
-from jaxproj import engine, robot  # noqa: E402
-from jaxproj.projection import FullConfig  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection.objectives import FullConfig  # noqa: E402
+from jaxproj.robots.nao_h25 import robot  # noqa: E402
 
 COLLECTIVES = ("all-gather", "all-reduce", "all-to-all", "collective-permute", "reduce-scatter")
 

@@ -31,12 +31,12 @@ timed apart; timing primitives from ``jaxproj.timing``):
   bandwidth search) -> both ELM kernel banks, timed on a second build so that compilation is
   excluded (``compile_s`` = first build minus second); ``banks_s`` times the two kernel banks
   alone (``engine.build_from_landmarks``).
-* the **streaming** record: latency of one frame through the public ``jaxproj.streaming.update``
+* the **streaming** record: latency of one frame through the public ``jaxproj.motion.streaming.update``
   (a ``(20, 3)`` host array of joint positions -> descriptor -> relaxed projection -> one
   smoothing step -> clip -> a host array of 10 angles; one jitted call, host <-> device transfers
   included), after 50 warm-up frames; median and p99. ``compile_s`` is the first call's time
   minus the median (trace + compile).
-* **rollout** records: MJX rollout (``jaxproj.rollout.simulate``) NAO physics steps per second
+* **rollout** records: MJX rollout (``jaxproj.eval.rollout.simulate``) NAO physics steps per second
   per batch size, through ``bench`` of ``bench_rollout.py`` (next to this script), with motion 0
   checked against CPU MuJoCo; marked ``skipped`` when MuJoCo MJX is not available.
 
@@ -95,12 +95,14 @@ from harness import (  # noqa: E402
     time_plan,
 )
 
-from jaxproj import datasets, engine, ik  # noqa: E402
-from jaxproj import streaming as jaxproj_streaming  # noqa: E402
-from jaxproj.exceptions import ConfigError, JaxprojError  # noqa: E402
-from jaxproj.projection import FullConfig, Projector, StackedProjector  # noqa: E402
-from jaxproj.skeleton import descriptor  # noqa: E402
-from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams  # noqa: E402
+from jaxproj.errors import ConfigError, JaxprojError  # noqa: E402
+from jaxproj.human.skeleton import descriptor  # noqa: E402
+from jaxproj.io import datasets  # noqa: E402
+from jaxproj.motion import streaming as jaxproj_streaming  # noqa: E402
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector  # noqa: E402
+from jaxproj.robots.nao_h25 import ik  # noqa: E402
 from jaxproj.testing import Reference, StackedReference  # noqa: E402
 from jaxproj.timing import compile_timed  # noqa: E402
 
@@ -235,7 +237,7 @@ def bench_streaming(
     params: SmoothingParams = PAPER_SMOOTHING,
     warmup: int = 50,
 ) -> dict:
-    """Per-frame latency of ``jaxproj.streaming.update`` over ``positions (T, 20, 3)`` (cycled):
+    """Per-frame latency of ``jaxproj.motion.streaming.update`` over ``positions (T, 20, 3)`` (cycled):
     a host array in, a host array of angles out, the state carried from frame to frame."""
     frames = np.asarray(positions, np.float32)
     state = jax.device_put(jaxproj_streaming.init(model), device)
@@ -419,7 +421,7 @@ def bench_rollout(
     MJX cannot be imported."""
     rec = record("rollout", objective="rollout", device=device.platform)
     try:
-        import bench_rollout as mod  # the sibling script (imports jaxproj.rollout, MJX)
+        import bench_rollout as mod  # the sibling script (imports jaxproj.eval.rollout, MJX)
     except ImportError as e:
         return [rec | {"skipped": f"rollout module not available ({e})"}]
     if device.platform == "cpu":
@@ -428,7 +430,7 @@ def bench_rollout(
         batches = (32768,) if quick else (4096, 16384, 32768)  # the target is quoted at 32,768
     out = []
     try:
-        from jaxproj import robot
+        from jaxproj.robots.nao_h25 import robot
 
         substeps = round((1.0 / 15.0) / robot.load_model("fixed").opt.timestep)
         ref = mod.motions(1, frames, 0)[0]

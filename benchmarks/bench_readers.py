@@ -1,4 +1,4 @@
-"""Speed of the skeleton file readers (``jaxproj.readers.read_skeleton``) on dataset-sized files.
+"""Speed of the skeleton file readers (``jaxproj.io.readers.read_skeleton``) on dataset-sized files.
 
 The files are written from the bundled MSR Action3D data, so they have the sizes of the real
 ones: the median-length motion (39 frames) and the longest (936 frames), each as an MSR Action3D
@@ -25,10 +25,12 @@ from pathlib import Path
 import numpy as np
 
 try:
-    from jaxproj import datasets, readers, timing
+    from jaxproj import timing
+    from jaxproj.io import datasets, readers
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from jaxproj import datasets, readers, timing
+    from jaxproj import timing
+    from jaxproj.io import datasets, readers
 
 MOTIONS = {"median": "a06_s01_e01", "longest": "a13_s09_e03"}
 """The bundled motions the files are made of: the median length (39 frames) and the longest."""

@@ -1,4 +1,4 @@
-"""Throughput of the MJX rollout (``jaxproj.rollout.simulate``) in NAO physics steps per second.
+"""Throughput of the MJX rollout (``jaxproj.eval.rollout.simulate``) in NAO physics steps per second.
 
 Synthetic arm/head motions (sinusoids around the standing posture, inside the joint limits) are
 played on the fixed-torso NAO at 15 frames/s (33 physics steps of 2 ms per frame). Before timing,
@@ -89,10 +89,12 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 try:
-    from jaxproj import robot, rollout
+    from jaxproj.eval import rollout
+    from jaxproj.robots.nao_h25 import robot
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from jaxproj import robot, rollout
+    from jaxproj.eval import rollout
+    from jaxproj.robots.nao_h25 import robot
 
 
 def motions(batch: int, frames: int, seed: int) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 For each split (held-out MSR Action3D subjects 2,4,6,8,10, arm actions, 15 fps assumed; the
 UTKinect-Action3D upper-body segments, times from their frame numbers) the relaxed projection is
-smoothed (the default) and run through ``jaxproj.feasible`` with its defaults; the IK trajectory
+smoothed (the default) and run through ``jaxproj.motion.feasible`` with its defaults; the IK trajectory
 too. Printed and written as JSON: speed-limit violations, largest step and acceleration before ->
 after, errors against the IK before -> after, and the change against the unfiltered motion.
 
@@ -20,8 +20,9 @@ import sys
 import time
 from pathlib import Path
 
-from jaxproj import datasets, engine
-from jaxproj import evaluate as ev
+from jaxproj.eval import evaluate as ev
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
 
 
 def _splits() -> dict[str, list]:

@@ -25,8 +25,8 @@ from typing import Any
 import jax
 import numpy as np
 
-from jaxproj.exceptions import ConfigError
-from jaxproj.projection import FullConfig
+from jaxproj.errors import ConfigError
+from jaxproj.projection.objectives import FullConfig
 from jaxproj.timing import Timing, time_calls
 
 SYNTHETIC_N = 8192

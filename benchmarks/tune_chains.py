@@ -66,10 +66,14 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxproj import datasets, engine, ik, landmarks, metrics, robot
-from jaxproj.meanshift import find_bandwidth
-from jaxproj.projection import FullConfig
-from jaxproj.skeleton import descriptor
+from jaxproj.eval import metrics
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection import landmarks
+from jaxproj.projection.meanshift import find_bandwidth
+from jaxproj.projection.objectives import FullConfig
+from jaxproj.robots.nao_h25 import ik, robot
 
 TRAIN_SUBJECTS = (1, 3, 5, 7, 9)
 TEST_SUBJECTS = (2, 4, 6, 8, 10)
@@ -86,7 +90,7 @@ FULL_CONFIGS = {
     "full_min_cand": FullConfig(objective="min", include_candidate=True),
     "full_weighted_cand": FullConfig(include_candidate=True),
 }
-KINECT_NOISE_M = 0.0037  # per joint coordinate (jaxproj.synthetic)
+KINECT_NOISE_M = 0.0037  # per joint coordinate (jaxproj.paper.synthetic)
 TIE_ABS, TIE_P95_ABS, TIE_REL = 0.01, 0.05, 0.02
 
 

@@ -13,14 +13,14 @@ IK. ``synthetic`` (the paper's basic poses and motions) and ``experiments`` (the
 on them) reproduce the paper's section IV.
 
 Jit, precision, configs, errors and progress follow one policy each, stated in the README's
-Development section (jit: ``jaxproj._jit``).
+Development section (jit: ``jaxproj._internal.jit``).
 """
 
 __version__ = "0.1.0"
 
-from jaxproj.engine import BuildConfig, Model, build, load, project, save
-from jaxproj.projection import FullConfig
-from jaxproj.smoothing import SmoothingParams, smooth, smooth_batch
+from jaxproj.motion.smoothing import SmoothingParams, smooth, smooth_batch
+from jaxproj.projection.api import BuildConfig, Model, build, load, project, save
+from jaxproj.projection.objectives import FullConfig
 
 __all__ = [
     "BuildConfig",

@@ -1,6 +1,6 @@
 """The test oracle of the projection engine: the paper's algorithm, per query, in float64 NumPy.
 
-``Reference`` re-implements ``jaxproj.projection`` (relaxed and full objectives) independently:
+``Reference`` re-implements ``jaxproj.projection.objectives`` (relaxed and full objectives) independently:
 NumPy in float64, one query at a time, exact k nearest neighbours from
 ``scipy.spatial.cKDTree``, the full objective's gradients written out by hand (no autodiff,
 no optax). It reads the landmarks and kernel banks of a trained ``Projector`` as they are, so
@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from jaxproj.exceptions import ConfigError
-from jaxproj.projection import FullConfig, Projector, StackedProjector
+from jaxproj.errors import ConfigError
+from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:

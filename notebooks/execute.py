@@ -11,7 +11,7 @@ notebooks by file name or prefix (``01``, ``02_paper_experiments``); default: al
 Each executed notebook records in its metadata (``metadata.jaxproj``) the run mode, the wall
 time and a hash of its code cells (``source_sha256``); ``tests/test_notebooks.py`` uses the hash
 to tell whether the code was edited after the run, and the library stamp the first cell printed
-(``jaxproj.notebook.library_stamp``) to tell whether the library was.
+(``jaxproj.viz.notebook.library_stamp``) to tell whether the library was.
 """
 
 from __future__ import annotations

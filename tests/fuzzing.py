@@ -14,9 +14,9 @@ import numpy as np
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
-from jaxproj import datasets
 from jaxproj.cli import main
-from jaxproj.readers import MSR_TO_SDK
+from jaxproj.io import datasets
+from jaxproj.io.readers import MSR_TO_SDK
 
 FUZZ = settings(
     deadline=None,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxproj.skeleton import J
+from jaxproj.human.skeleton import J
 
 # MSR Action3D row (1-based) of each joint, copied from the dataset notes' table; deliberately not
 # derived from readers.MSR_TO_SDK, so that the conversion is checked against an independent source.
@@ -42,7 +42,9 @@ def small_projector():
     0) and their IK poses, with the kernel settings the streaming and oracle tests' float32
     tolerances were measured with (the whole-body defaults; the tuned per-chain defaults, hidden
     192 and ridge 1e-4, round differently)."""
-    from jaxproj import datasets, engine, ik
+    from jaxproj.io import datasets
+    from jaxproj.projection import api as engine
+    from jaxproj.robots.nao_h25 import ik
 
     kernels = engine.BuildConfig(chains="whole", k=96, hidden=96, lam=1e-3, input_scale=0.5)
     train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))

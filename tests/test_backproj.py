@@ -1,4 +1,4 @@
-"""The fused back-projection kernel (``jaxproj._backproj_pallas``), run in Pallas' interpreter.
+"""The fused back-projection kernel (``jaxproj.projection.ops.backproj_pallas``), run in Pallas' interpreter.
 
 The kernel serves CUDA GPUs only (``projection.least_deviations_rows``); the interpreter executes
 the same kernel program on the CPU, so its logic (hidden units in power-of-two chunks, padded
@@ -12,7 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxproj import _backproj_pallas, kernels
+from jaxproj.projection import elm as kernels
+from jaxproj.projection.ops import backproj_pallas as _backproj_pallas
 
 
 def _bank(rng, k, d_in, d_out, hidden):

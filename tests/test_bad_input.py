@@ -35,13 +35,15 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import jaxproj
-from jaxproj import datasets, engine, robot
 from jaxproj.cli import main
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.motion_io import load_motion
-from jaxproj.readers import read_skeleton
-from jaxproj.retarget import retarget
-from jaxproj.smoothing import SmoothingParams
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.io import datasets
+from jaxproj.io.motion_files import load_motion
+from jaxproj.io.readers import read_skeleton
+from jaxproj.motion.retarget import retarget
+from jaxproj.motion.smoothing import SmoothingParams
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import robot
 
 _ONES = np.ones((3, 20, 3))
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from jaxproj import cli
-from jaxproj.exceptions import ConfigError
-from jaxproj.projection import FullConfig
+from jaxproj.errors import ConfigError
+from jaxproj.projection.objectives import FullConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"

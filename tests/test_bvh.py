@@ -1,4 +1,4 @@
-"""BVH input (jaxproj.bvh, readers.read_skeleton(format="bvh")): parsing, forward kinematics
+"""BVH input (jaxproj.io.bvh, readers.read_skeleton(format="bvh")): parsing, forward kinematics
 against an independent rotation library, joint maps, the real CMU excerpts through the
 descriptor, the IK and a projector, resampling, bad files and the CLI.
 
@@ -17,12 +17,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from jaxproj import bvh, datasets, engine, ik, robot
 from jaxproj.cli import main
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.readers import read_skeleton, recording_format
-from jaxproj.retarget import retarget
-from jaxproj.skeleton import BONE_NAMES, JOINT_NAMES, descriptor
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.human.skeleton import BONE_NAMES, JOINT_NAMES, descriptor
+from jaxproj.io import bvh, datasets
+from jaxproj.io.readers import read_skeleton, recording_format
+from jaxproj.motion.retarget import retarget
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
 
 DATA = Path(__file__).with_name("data") / "cmu_bvh"
 CLIPS = ("131_01_every6.bvh", "131_03_every6.bvh")
@@ -269,7 +271,7 @@ def small_model():
 
 
 def test_real_clips_ik_and_projection_within_limits(clips, small_model):
-    from jaxproj.feasible import FeasibleConfig
+    from jaxproj.motion.feasible import FeasibleConfig
 
     for rec in clips.values():  # 166 and 184 frames: one compiled length (256) for both
         q_ik = retarget(rec.positions, rec.valid, times=rec.times, smoothing=None).angles

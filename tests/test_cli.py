@@ -4,10 +4,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxproj import datasets, engine, evaluate, ik, robot
 from jaxproj.cli import main
-from jaxproj.readers import MSR_TO_SDK
-from jaxproj.skeleton import descriptor
+from jaxproj.eval import evaluate
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.io.readers import MSR_TO_SDK
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
 
 
 def _run(capsys, *argv: str) -> tuple[int, str, str]:
@@ -88,8 +91,8 @@ def test_retarget_utkinect_to_robot_files_with_time_and_no_speed_violation(tmp_p
     """The issue's path: a UTKinect recording -> CSV and NAOqi JSON a NAO can play."""
     import json
 
-    from jaxproj.feasible import feasibility_report
-    from jaxproj.motion_io import load_motion
+    from jaxproj.io.motion_files import load_motion
+    from jaxproj.motion.feasible import feasibility_report
 
     seq = datasets.utkinect_action3d(subjects=[3], segments=False)[0]
     n = 160

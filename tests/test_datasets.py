@@ -1,4 +1,4 @@
-"""Tests of jaxproj.datasets: the bundled MSR Action3D archive and the bundling round trip."""
+"""Tests of jaxproj.io.datasets: the bundled MSR Action3D archive and the bundling round trip."""
 
 from __future__ import annotations
 
@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 from helpers import MSR_ROW, msr_text
 
-from jaxproj import datasets
-from jaxproj.datasets import (
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.human.skeleton import JOINT_NAMES, J
+from jaxproj.io import datasets
+from jaxproj.io.datasets import (
     ACTION_NAMES,
     ARM_ACTIONS,
     MotionSequence,
@@ -19,8 +21,6 @@ from jaxproj.datasets import (
     dataset_summary,
     msr_action3d,
 )
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.skeleton import JOINT_NAMES, J
 
 ARMS = [J[f"{part}{side}"] for part in ("Elbow", "Wrist", "Hand") for side in ("Left", "Right")]
 NON_ARM = [j for j in range(20) if j not in ARMS]
@@ -471,7 +471,7 @@ def utk_raw(tmp_path: Path) -> tuple[Path, np.ndarray]:
 
 
 def test_utk_bundle_round_trip(tmp_path: Path, utk_raw: tuple[Path, np.ndarray]) -> None:
-    from jaxproj.readers import read_skeleton
+    from jaxproj.io.readers import read_skeleton
 
     src, xyz = utk_raw
     out = tmp_path / "utk.npz"

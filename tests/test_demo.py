@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from jaxproj.demo import run_demo
+from jaxproj.paper.demo import run_demo
 
 
 @pytest.mark.slow

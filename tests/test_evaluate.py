@@ -1,7 +1,11 @@
 import numpy as np
 import pytest
 
-from jaxproj import datasets, engine, evaluate, ik, metrics, report, robot
+from jaxproj.eval import evaluate, metrics
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.viz import report
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +62,7 @@ def test_evaluate_report_layout_and_ordering(model, data, tmp_path):
         sm = out["smoothness"][m]
         assert sm["jerk_smoothed"] < sm["jerk_raw"]
         assert set(out["per_sequence"][data.names[0]][m]) == {"M_max_mean", "M_avg_mean"}
-    # where the error is (jaxproj.metrics): the new keys, next to the headline
+    # where the error is (jaxproj.eval.metrics): the new keys, next to the headline
     for block in (out["summary"], out["unsmoothed"]):
         for m in evaluate.METHODS:
             b = block[m]

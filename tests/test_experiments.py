@@ -6,8 +6,12 @@ import jax
 import numpy as np
 import pytest
 
-from jaxproj import datasets, engine, experiments, ik, robot, synthetic, timing
-from jaxproj.skeleton import descriptor
+from jaxproj import timing
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.paper import experiments, synthetic
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
 
 CFG = engine.BuildConfig(
     chains="whole", landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, input_scale=1.0

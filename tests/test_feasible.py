@@ -1,4 +1,4 @@
-"""jaxproj.feasible: hard limits, the acceleration bound, ElbowYaw rules, batching, errors."""
+"""jaxproj.motion.feasible: hard limits, the acceleration bound, ElbowYaw rules, batching, errors."""
 
 from __future__ import annotations
 
@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from jaxproj import robot
-from jaxproj.exceptions import ConfigError
-from jaxproj.feasible import (
+from jaxproj.errors import ConfigError
+from jaxproj.motion.feasible import (
     DEFAULT_FEASIBLE,
     FeasibleConfig,
     feasibility_report,
     make_feasible,
 )
+from jaxproj.robots.nao_h25 import robot
 
 J = robot.JOINT_NAMES.index
 DRIVEN = robot.DRIVEN_INDEX

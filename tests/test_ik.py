@@ -6,8 +6,9 @@ import jax
 import numpy as np
 import pytest
 
-from jaxproj import datasets, ik, robot
-from jaxproj.skeleton import descriptor
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.robots.nao_h25 import ik, robot
 
 ARM = {
     "L": ("LShoulderPitch", "LShoulderRoll", "LElbowYaw", "LElbowRoll"),
@@ -177,7 +178,7 @@ def test_whole_bundled_dataset_in_one_jitted_call():
 def test_chains_cover_the_driven_joints_once_and_factorise_the_ik():
     """Perturbing one chain's bones leaves every other chain's IK output bit-identical, and
     changes the chain's own output (so the chains are exactly the IK's factorisation)."""
-    from jaxproj.skeleton import UPPER_BODY
+    from jaxproj.human.skeleton import UPPER_BODY
 
     joints = [j for c in ik.CHAINS for j in c.joints]
     assert sorted(joints) == sorted(robot.DRIVEN_JOINTS) and len(joints) == len(set(joints))

@@ -3,10 +3,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxproj import search
-from jaxproj.exceptions import ConfigError
-from jaxproj.kernels import knn_indices, predict, train_bank
-from jaxproj.search import nearest, sq_norms
+from jaxproj.errors import ConfigError
+from jaxproj.projection import search
+from jaxproj.projection.elm import knn_indices, predict, train_bank
+from jaxproj.projection.search import nearest, sq_norms
 
 
 def _data(n=120, d_in=6, d_out=4, seed=0):
@@ -55,7 +55,7 @@ def _elm_float32_error_bound(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """A kernel's prediction at ``q`` in float64, and how far a float32 evaluation can be from it.
 
-    The kernel (see ``jaxproj.kernels``) predicts ``f = t_0 + a^T B``, ``B = H^T c``,
+    The kernel (see ``jaxproj.projection.elm``) predicts ``f = t_0 + a^T B``, ``B = H^T c``,
     ``c = G^-1 (T - t_0)``, ``G = lam I + H H^T``, with ``a`` the query's hidden features (minus
     the landmark's, anchored). The ill-conditioned step is the solve: here ``cond(G)`` is 2e3-1e4
     (anchored) and 2e4-7e4 (plain sigmoid features, whose Gram matrix has one large eigenvalue,

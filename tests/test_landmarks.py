@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxproj import datasets, ik, landmarks, meanshift
-from jaxproj.exceptions import ConfigError
+from jaxproj.errors import ConfigError
+from jaxproj.io import datasets
+from jaxproj.projection import landmarks, meanshift
+from jaxproj.robots.nao_h25 import ik
 
 
 def _train_points(subjects, actions=None):

@@ -8,8 +8,9 @@ import jax
 import numpy as np
 import pytest
 
-from jaxproj import datasets, meanshift
-from jaxproj.exceptions import ConfigError
+from jaxproj.errors import ConfigError
+from jaxproj.io import datasets
+from jaxproj.projection import meanshift
 
 # --- helpers --------------------------------------------------------------------------------------
 

@@ -11,9 +11,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxproj import evaluate, ik, metrics, report, robot
-from jaxproj.demo import _where_md
-from jaxproj.exceptions import ConfigError
+from jaxproj.errors import ConfigError
+from jaxproj.eval import evaluate, metrics
+from jaxproj.paper.demo import _where_md
+from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.viz import report
 
 L, R = 0, 1  # side columns of ArmErrors
 FOREARM = robot.LOWER_ARM_LENGTH  # elbow -> wrist site, m

@@ -1,4 +1,4 @@
-"""Robot-motion files (jaxproj.motion_io): NPZ / CSV / NAOqi JSON round trips, atomic writes,
+"""Robot-motion files (jaxproj.io.motion_files): NPZ / CSV / NAOqi JSON round trips, atomic writes,
 and one-line errors naming the file."""
 
 import csv
@@ -9,9 +9,10 @@ import os
 import numpy as np
 import pytest
 
-from jaxproj import motion_io, robot
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.motion_io import UPPER_JOINTS, Motion, load_motion, save_motion
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.io import motion_files as motion_io
+from jaxproj.io.motion_files import UPPER_JOINTS, Motion, load_motion, save_motion
+from jaxproj.robots.nao_h25 import robot
 
 # float32 values whose shortest decimal form is a trap for naive formatting: -0.0, subnormals,
 # the extremes, and neighbours one ulp apart

@@ -1,6 +1,6 @@
 """The notebooks (``notebooks/*.ipynb``): each runs top to bottom in fast mode (``JAXPROJ_FAST=1``)
 and its results hold up; each committed notebook holds the outputs of a full run of the current
-code (see ``jaxproj.notebook`` for the library stamp and ``notebooks/execute.py`` for the run)."""
+code (see ``jaxproj.viz.notebook`` for the library stamp and ``notebooks/execute.py`` for the run)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,10 @@ import nbformat
 import numpy as np
 import pytest
 
-from jaxproj import engine, evaluate, ik, notebook, robot
+from jaxproj.eval import evaluate
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.viz import notebook
 
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOK_DIR = ROOT / "notebooks"

@@ -5,10 +5,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from jaxproj import datasets, engine, ik, robot
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.projection import FullConfig
-from jaxproj.skeleton import descriptor
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection.objectives import FullConfig
+from jaxproj.robots.nao_h25 import ik, robot
 
 CFG = engine.BuildConfig(
     chains="whole", landmarks=None, bandwidth=1.0, k=16, hidden=32, lam=1e-3, input_scale=1.0
@@ -81,7 +83,7 @@ def test_full_objective_is_a_real_optimisation(model):
 def _full_values(model, d, cfg):
     import jax
 
-    from jaxproj.projection import project_full_one
+    from jaxproj.projection.objectives import project_full_one
 
     fn = jax.jit(jax.vmap(lambda h: project_full_one(model.projector.chain(0), h, 10, 10, cfg)))
     r, f, f0 = fn(d)
@@ -209,8 +211,8 @@ def test_bad_neighbour_counts_are_config_errors(model):
 
 
 def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
-    from jaxproj.projection import _cluster, _solve_cluster, _start_value, candidates
-    from jaxproj.search import nearest
+    from jaxproj.projection.objectives import _cluster, _solve_cluster, _start_value, candidates
+    from jaxproj.projection.search import nearest
 
     p = model.projector.chain(0)
     d = _descriptors([2], actions=[1, 5])[:200]
@@ -376,8 +378,9 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model, monk
     import jax
     import jax.numpy as jnp
 
-    from jaxproj import _knn_pallas, projection
-    from jaxproj._jit import jit
+    from jaxproj._internal.jit import jit
+    from jaxproj.projection import objectives as projection
+    from jaxproj.projection.ops import knn_pallas as _knn_pallas
 
     sp = chain_model.projector
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
@@ -411,8 +414,8 @@ def test_two_level_relaxed_batches_give_the_same_answers(chain_model, monkeypatc
     sums differently); a chunk that does not divide the batch is refused."""
     import jax.numpy as jnp
 
-    from jaxproj import projection
-    from jaxproj._jit import jit
+    from jaxproj._internal.jit import jit
+    from jaxproj.projection import objectives as projection
 
     sp = chain_model.projector
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
@@ -455,8 +458,8 @@ def test_fused_back_projection_matches_xla(chain_model, monkeypatch):
     import jax
     import jax.numpy as jnp
 
-    from jaxproj import projection
-    from jaxproj._jit import jit
+    from jaxproj._internal.jit import jit
+    from jaxproj.projection import objectives as projection
 
     sp = chain_model.projector
     st, lay = sp.stack, sp.layout

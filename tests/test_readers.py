@@ -1,4 +1,4 @@
-"""Tests of jaxproj.readers: every format round-trips, bad input raises a one-line InputError."""
+"""Tests of jaxproj.io.readers: every format round-trips, bad input raises a one-line InputError."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from helpers import MSR_ROW, msr_text
 
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.readers import Recording, read_skeleton
-from jaxproj.skeleton import JOINT_NAMES, J
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.human.skeleton import JOINT_NAMES, J
+from jaxproj.io.readers import Recording, read_skeleton
 
 
 def motion(n_frames: int = 7, seed: int = 0) -> np.ndarray:

@@ -31,12 +31,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxproj
-from jaxproj import datasets, engine, ik, report, robot
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.feasible import FeasibleConfig
-from jaxproj.motion_io import load_motion
-from jaxproj.retarget import retarget
-from jaxproj.smoothing import PAPER_SMOOTHING
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.io import datasets
+from jaxproj.io.motion_files import load_motion
+from jaxproj.motion.feasible import FeasibleConfig
+from jaxproj.motion.retarget import retarget
+from jaxproj.motion.smoothing import PAPER_SMOOTHING
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.viz import report
 
 L = M = 3
 

@@ -1,4 +1,4 @@
-"""Rendering (jaxproj.render): frames from both backends, the no-OpenGL fallback, videos, the
+"""Rendering (jaxproj.viz.render): frames from both backends, the no-OpenGL fallback, videos, the
 notebook helper and the `jaxproj render` command. CPU only, small motions and sizes."""
 
 import base64
@@ -16,12 +16,13 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from jaxproj import render, robot
 from jaxproj.cli import main
-from jaxproj.exceptions import ConfigError, InputError
-from jaxproj.motion_io import Motion, save_motion
-from jaxproj.render import RenderError, render_frames, render_motion, save_video, show
-from jaxproj.skeleton import J
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.human.skeleton import J
+from jaxproj.io.motion_files import Motion, save_motion
+from jaxproj.robots.nao_h25 import robot
+from jaxproj.viz import render
+from jaxproj.viz.render import RenderError, render_frames, render_motion, save_video, show
 
 SIZE = (120, 90)  # one panel, (width, height)
 LABEL_ROWS = 20  # the text line at the top of a matplotlib panel
@@ -164,8 +165,9 @@ _EGL_SCRIPT = textwrap.dedent(
     import json, sys
     import numpy as np
     try:
-        from jaxproj import render, robot
-        from jaxproj.motion_io import Motion
+        from jaxproj.viz import render
+        from jaxproj.robots.nao_h25 import robot
+        from jaxproj.io.motion_files import Motion
     except Exception as e:  # mujoco could not load EGL at import
         print(json.dumps({"status": "import", "msg": repr(e)})); sys.exit()
     q = robot.STANDING_POSTURE.copy()

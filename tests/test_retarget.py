@@ -1,13 +1,16 @@
-"""Whole-motion retargeting (jaxproj.retarget): one compiled call per motion, equal to the
+"""Whole-motion retargeting (jaxproj.motion.retarget): one compiled call per motion, equal to the
 stage-by-stage pipeline it replaces."""
 
 import numpy as np
 import pytest
 
-from jaxproj import datasets, engine, ik, robot, smoothing
-from jaxproj.exceptions import ConfigError
-from jaxproj.retarget import retarget
-from jaxproj.skeleton import descriptor
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.motion import smoothing
+from jaxproj.motion.retarget import retarget
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import ik, robot
 
 FUSED_TOL_RAD = 2e-5
 """The descriptor computed inside the compiled whole-motion call differs from the eager one by a

@@ -1,7 +1,7 @@
 """The bundled NAO H25 MJCF against the reference numbers (shared/reference/nao_h25_kinematics.md).
 
 Every expected number below is typed in from the reference document (sections 3, 4, 6, 9), not
-taken from ``jaxproj.robot``, so a wrong constant or a wrong XML value makes a test fail.
+taken from ``jaxproj.robots.nao_h25.robot``, so a wrong constant or a wrong XML value makes a test fail.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
-from jaxproj import robot
-from jaxproj.exceptions import ConfigError
+from jaxproj.errors import ConfigError
+from jaxproj.robots.nao_h25 import robot
 
 # Reference section 3: official limits (rad) and URDF efforts (N m), per joint.
 REF_LIMITS = {

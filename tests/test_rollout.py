@@ -1,4 +1,4 @@
-"""MJX rollouts of retargeted motions (jaxproj.rollout) against CPU MuJoCo and known answers.
+"""MJX rollouts of retargeted motions (jaxproj.eval.rollout) against CPU MuJoCo and known answers.
 
 MJX compiles are slow on CPU (~15 s for one rollout program on 2 cores), so every ``simulate``
 test reads one module-scoped batch of six 10-frame motions, compiled once; ``hand_error_cm`` is
@@ -14,8 +14,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxproj import robot, rollout
-from jaxproj.exceptions import ConfigError
+from jaxproj.errors import ConfigError
+from jaxproj.eval import rollout
+from jaxproj.robots.nao_h25 import robot
 
 T = 10  # frames per motion (15 frames/s: 0.67 s)
 SUBSTEPS = 33  # round((1/15) / 0.002)
@@ -73,7 +74,7 @@ def fixed() -> mujoco.MjModel:
 
 
 def _cpu_rollout(model: mujoco.MjModel, targets: np.ndarray) -> dict[str, np.ndarray]:
-    """The rollout protocol of jaxproj.rollout written out with CPU MuJoCo (float64) mj_step."""
+    """The rollout protocol of jaxproj.eval.rollout written out with CPU MuJoCo (float64) mj_step."""
     qi, di = robot.joint_qpos_index(model), robot.joint_dof_index(model)
     act = robot.actuator_index(model)
     src = np.empty(model.nu, dtype=np.int64)  # joint driven by each actuator

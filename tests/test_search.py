@@ -11,7 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxproj import _knn_pallas, search
+from jaxproj.projection import search
+from jaxproj.projection.ops import knn_pallas as _knn_pallas
 
 
 def _sets(rng, c, k, d, r, valid_k):

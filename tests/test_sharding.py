@@ -16,8 +16,9 @@ from pathlib import Path
 import jax
 import pytest
 
-from jaxproj import distributed, engine
-from jaxproj.exceptions import ConfigError
+from jaxproj.errors import ConfigError
+from jaxproj.projection import api as engine
+from jaxproj.projection import distributed
 
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
 

@@ -1,9 +1,8 @@
 import numpy as np
 import pytest
 
-from jaxproj import datasets
-from jaxproj.exceptions import ConfigError
-from jaxproj.skeleton import (
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import (
     BONE_NAMES,
     BONES,
     FULL_BODY,
@@ -13,6 +12,7 @@ from jaxproj.skeleton import (
     body_frame,
     descriptor,
 )
+from jaxproj.io import datasets
 
 
 @pytest.fixture(scope="module")

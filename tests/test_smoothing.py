@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxproj import smoothing
-from jaxproj.exceptions import ConfigError
-from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth, smooth_batch
+from jaxproj.errors import ConfigError
+from jaxproj.motion import smoothing
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth, smooth_batch
 
 
 def _reference(y: np.ndarray, alpha: float, gamma: float, eta: float) -> np.ndarray:
@@ -99,7 +99,7 @@ def test_bad_gains_are_config_errors():
 
 def test_step_is_one_frame_of_smooth():
     # smooth scans smoothing.step; a Python loop of the same step (one jitted call per frame,
-    # as jaxproj.streaming runs it) gives the same motion. Separately compiled float32 programs
+    # as jaxproj.motion.streaming runs it) gives the same motion. Separately compiled float32 programs
     # may round differently: 1e-6 rad (a few ulp of angles up to ~2 rad; measured 1.2e-7).
     rng = np.random.default_rng(4)
     y = _motion(rng, 120)

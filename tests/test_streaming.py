@@ -1,4 +1,4 @@
-"""Streaming (``jaxproj.streaming``): one pose at a time equals the whole-recording pipeline.
+"""Streaming (``jaxproj.motion.streaming``): one pose at a time equals the whole-recording pipeline.
 
 The model is small and real: 200 distinct descriptors of subjects 1 and 3 with their IK poses
 and both kernel banks (``engine.build_from_landmarks``); recordings are subject 2's.
@@ -9,10 +9,13 @@ import numpy as np
 import pytest
 from helpers import small_projector
 
-from jaxproj import datasets, engine, robot, streaming
-from jaxproj.exceptions import ConfigError
-from jaxproj.skeleton import descriptor
-from jaxproj.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.motion import streaming
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import robot
 
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
 

@@ -4,9 +4,11 @@ import jax
 import numpy as np
 import pytest
 
-from jaxproj import datasets, ik, robot, synthetic
-from jaxproj.exceptions import ConfigError
-from jaxproj.skeleton import BONE_NAMES, BONES, J, descriptor
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import BONE_NAMES, BONES, J, descriptor
+from jaxproj.io import datasets
+from jaxproj.paper import synthetic
+from jaxproj.robots.nao_h25 import ik, robot
 
 DRIVEN = {n: i for i, n in enumerate(robot.DRIVEN_JOINTS)}
 LO = np.degrees(robot.LOWER[robot.DRIVEN_INDEX])

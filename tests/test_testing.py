@@ -1,6 +1,6 @@
 """The test oracle (``jaxproj.testing.Reference``, float64 NumPy + cKDTree) against the engine.
 
-The engine (``jaxproj.engine.project``) runs in float32, the oracle in float64 with its own
+The engine (``jaxproj.projection.api.project``) runs in float32, the oracle in float64 with its own
 nearest-neighbour search and hand-written gradients; both read the same trained landmarks and
 kernel banks. Each tolerance below says why it is what it is. The model is small and real: 200
 distinct descriptors of subjects 1 and 3 with their IK poses and both kernel banks
@@ -17,10 +17,12 @@ import pytest
 from helpers import small_projector
 from optax.projections import projection_simplex
 
-from jaxproj import datasets, engine, projection
-from jaxproj.exceptions import ConfigError
-from jaxproj.projection import FullConfig
-from jaxproj.search import nearest
+from jaxproj.errors import ConfigError
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection import objectives as projection
+from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.search import nearest
 from jaxproj.testing import Reference, simplex_projection
 
 L = M = 10

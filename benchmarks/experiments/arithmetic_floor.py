@@ -43,8 +43,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
 
-from jaxproj import engine  # noqa: E402
-from jaxproj.projection import ChainLayout  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection.objectives import ChainLayout  # noqa: E402
 from jaxproj.timing import time_calls  # noqa: E402
 
 CHAIN = 64

@@ -30,8 +30,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench_projection import TEST_SUBJECTS, descriptors, shuffled  # noqa: E402
 
-from jaxproj import engine, ik  # noqa: E402
-from jaxproj.projection import FullConfig  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection.objectives import FullConfig  # noqa: E402
+from jaxproj.robots.nao_h25 import ik  # noqa: E402
 
 
 def timed(model, h, cfg):

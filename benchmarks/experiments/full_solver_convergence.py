@@ -20,9 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 from optax.projections import projection_simplex
 
-from jaxproj import datasets, engine, projection
-from jaxproj.projection import FullConfig, _cluster, _objective, _start_value, candidates
-from jaxproj.search import nearest
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection import objectives as projection
+from jaxproj.projection.objectives import FullConfig, _cluster, _objective, _start_value, candidates
+from jaxproj.projection.search import nearest
 
 SCALES = jnp.asarray([8.0, 4, 2, 1, 0.5, 0.25, 0.125, 1 / 16, 1 / 32, 1 / 64], jnp.float32)
 RUNS = (("adam", 30), ("adam", 1000), ("pgls", 5), ("pgls", 10), ("pgls", 20), ("pgls", 40),

@@ -1,5 +1,5 @@
 """A/B of the back-projection inside the relaxed projection on a CUDA GPU: the fused Pallas kernel
-(``jaxproj._backproj_pallas``, the default there) against XLA's three passes, in one run, on the
+(``jaxproj.projection.ops.backproj_pallas``, the default there) against XLA's three passes, in one run, on the
 same model and queries; both checked against the float64 reference; then the public
 ``jaxproj.project`` on 1 M host poses.
 
@@ -23,8 +23,9 @@ from selection_ab import (  # this folder
     relaxed_batch,
 )
 
-from jaxproj import projection, testing
-from jaxproj._jit import jit
+from jaxproj import testing
+from jaxproj._internal.jit import jit
+from jaxproj.projection import objectives as projection
 
 
 def main() -> None:

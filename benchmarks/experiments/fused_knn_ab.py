@@ -1,5 +1,5 @@
 """A/B of the robot-landmark search inside the relaxed projection on a CUDA GPU: the fused Pallas
-kernel (``jaxproj._knn_pallas``, the default there) against the XLA search (``search.nearest``),
+kernel (``jaxproj.projection.ops.knn_pallas``, the default there) against the XLA search (``search.nearest``),
 in one run, on the same model and queries; both checked against the float64 reference; then the
 public ``jaxproj.project`` on 1 M host poses.
 
@@ -27,7 +27,8 @@ from selection_ab import (  # this folder
     xla_rows,
 )
 
-from jaxproj import _knn_pallas, projection
+from jaxproj.projection import objectives as projection
+from jaxproj.projection.ops import knn_pallas as _knn_pallas
 
 
 def main() -> None:

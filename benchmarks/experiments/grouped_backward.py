@@ -25,8 +25,10 @@ import numpy as np
 from jax.experimental import pallas as pl
 from jax.experimental.pallas import triton as plgpu
 
-from jaxproj import datasets, engine, projection
-from jaxproj._jit import jit
+from jaxproj._internal.jit import jit
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection import objectives as projection
 
 L = M = 10
 HP, OP, KP = 256, 8, 2048

@@ -29,9 +29,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, shuffled  # noqa: E402
 
-from jaxproj import engine  # noqa: E402
-from jaxproj.projection import candidates  # noqa: E402
-from jaxproj.search import nearest  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection.objectives import candidates  # noqa: E402
+from jaxproj.projection.search import nearest  # noqa: E402
 
 
 def main() -> None:

@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from bench_rollout import motions  # noqa: E402
 
-from jaxproj import rollout  # noqa: E402
+from jaxproj.eval import rollout  # noqa: E402
 
 
 def main() -> None:

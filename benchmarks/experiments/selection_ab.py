@@ -19,8 +19,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj import datasets, engine, projection, search, testing
-from jaxproj._jit import jit
+from jaxproj import testing
+from jaxproj._internal.jit import jit
+from jaxproj.io import datasets
+from jaxproj.projection import api as engine
+from jaxproj.projection import objectives as projection
+from jaxproj.projection import search
 
 BATCH = 65536
 

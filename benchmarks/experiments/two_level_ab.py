@@ -22,8 +22,9 @@ import jax
 import numpy as np
 from selection_ab import held_out_queries, print_reference_errors  # this folder
 
-from jaxproj import engine, testing
-from jaxproj._jit import jit
+from jaxproj import testing
+from jaxproj._internal.jit import jit
+from jaxproj.projection import api as engine
 from jaxproj.timing import compile_timed
 
 

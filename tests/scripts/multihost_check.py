@@ -20,7 +20,10 @@ jax.distributed.initialize(
 
 import numpy as np  # noqa: E402
 
-from jaxproj import datasets, distributed, engine, ik  # noqa: E402
+from jaxproj.io import datasets  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection import distributed  # noqa: E402
+from jaxproj.robots.nao_h25 import ik  # noqa: E402
 
 train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1]))
 uniq = np.unique(train, axis=0)

@@ -15,8 +15,10 @@ os.environ["XLA_FLAGS"] = (
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from jaxproj import datasets, engine, ik  # noqa: E402
-from jaxproj.projection import FullConfig  # noqa: E402
+from jaxproj.io import datasets  # noqa: E402
+from jaxproj.projection import api as engine  # noqa: E402
+from jaxproj.projection.objectives import FullConfig  # noqa: E402
+from jaxproj.robots.nao_h25 import ik  # noqa: E402
 
 
 def _model() -> engine.Model:

@@ -1,0 +1,160 @@
+"""Kinect v1 skeleton: joint order, bone tree and the body-frame bone-direction descriptor.
+
+Joint order everywhere in jaxproj is the Kinect SDK v1 order (``JOINT_NAMES``). A pose is a
+``(20, 3)`` array of positions in metres in any right-handed camera frame; the descriptor does not
+depend on that frame (it is expressed in a body frame built from the skeleton itself).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj.errors import ConfigError
+
+JOINT_NAMES: tuple[str, ...] = (
+    "HipCenter", "Spine", "ShoulderCenter", "Head",
+    "ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft",
+    "ShoulderRight", "ElbowRight", "WristRight", "HandRight",
+    "HipLeft", "KneeLeft", "AnkleLeft", "FootLeft",
+    "HipRight", "KneeRight", "AnkleRight", "FootRight",
+)  # fmt: skip
+"""The 20 Kinect v1 joints in SDK order (the order of every ``(..., 20, 3)`` array)."""
+
+N_JOINTS = len(JOINT_NAMES)
+J = {name: i for i, name in enumerate(JOINT_NAMES)}
+"""Joint name -> index in ``JOINT_NAMES``."""
+
+BONES: tuple[tuple[str, str], ...] = (
+    ("HipCenter", "Spine"), ("Spine", "ShoulderCenter"), ("ShoulderCenter", "Head"),
+    ("ShoulderCenter", "ShoulderLeft"), ("ShoulderLeft", "ElbowLeft"),
+    ("ElbowLeft", "WristLeft"), ("WristLeft", "HandLeft"),
+    ("ShoulderCenter", "ShoulderRight"), ("ShoulderRight", "ElbowRight"),
+    ("ElbowRight", "WristRight"), ("WristRight", "HandRight"),
+    ("HipCenter", "HipLeft"), ("HipLeft", "KneeLeft"), ("KneeLeft", "AnkleLeft"),
+    ("AnkleLeft", "FootLeft"),
+    ("HipCenter", "HipRight"), ("HipRight", "KneeRight"), ("KneeRight", "AnkleRight"),
+    ("AnkleRight", "FootRight"),
+)  # fmt: skip
+"""The 19 bones (parent, child) of the Kinect v1 tree; bone ``i`` is named ``BONE_NAMES[i]``."""
+
+BONE_NAMES: tuple[str, ...] = (
+    "spine_lower", "spine_upper", "neck",
+    "clavicle_left", "upper_arm_left", "forearm_left", "hand_left",
+    "clavicle_right", "upper_arm_right", "forearm_right", "hand_right",
+    "pelvis_left", "thigh_left", "shin_left", "foot_left",
+    "pelvis_right", "thigh_right", "shin_right", "foot_right",
+)  # fmt: skip
+
+UPPER_BODY: tuple[str, ...] = (
+    "neck", "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right",
+)  # fmt: skip
+"""Default bone subset: what the NAO head and arms (up to the elbow) can follow. 15 numbers."""
+
+FULL_BODY: tuple[str, ...] = BONE_NAMES
+"""All 19 bones: 57 numbers."""
+
+BONE_SUBSETS: dict[str, tuple[str, ...]] = {"upper": UPPER_BODY, "full": FULL_BODY}
+
+_MIRROR_NAME = {n: n.replace("_left", "_TMP").replace("_right", "_left").replace("_TMP", "_right")
+                for n in BONE_NAMES}  # fmt: skip
+
+MIN_BONE_LENGTH = 1e-3
+"""Metres. A bone (or body-frame axis) shorter than this makes the frame invalid."""
+
+
+def resolve_bones(bones: str | tuple[str, ...]) -> tuple[str, ...]:
+    """Turn a subset name (``"upper"``, ``"full"``) or a tuple of bone names into bone names."""
+    if isinstance(bones, str):
+        if bones not in BONE_SUBSETS:
+            raise ConfigError(f"unknown bone subset {bones!r}; use one of {sorted(BONE_SUBSETS)}")
+        return BONE_SUBSETS[bones]
+    bones = tuple(bones)
+    unknown = [b for b in bones if b not in BONE_NAMES]
+    if unknown or not bones:
+        raise ConfigError(f"unknown bone names {unknown}; valid names are {BONE_NAMES}")
+    return bones
+
+
+def body_frame(positions: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Body frame of a skeleton, built from the skeleton itself (not the camera axes).
+
+    ``up`` points from HipCenter to ShoulderCenter; ``left`` from ShoulderRight to ShoulderLeft,
+    made orthogonal to ``up``; ``forward = left x up``. In a right-handed camera frame (Kinect)
+    ``forward`` points out of the person's chest. The axes match the NAO torso frame (x forward,
+    y left, z up), so a bone direction in this frame can be compared with the robot's directly.
+
+    Args:
+      positions: ``(..., 20, 3)`` joint positions (Kinect SDK order), any units.
+
+    Returns:
+      ``(rotation, ok)``: ``(..., 3, 3)`` matrix whose rows are forward, left, up (so
+      ``rotation @ v`` expresses a camera-frame vector in the body frame), and ``(...,)`` bool,
+      false where the frame is degenerate or non-finite (the rotation is then the identity).
+    """
+    p = jnp.asarray(positions)
+    up_raw = p[..., J["ShoulderCenter"], :] - p[..., J["HipCenter"], :]
+    left_raw = p[..., J["ShoulderLeft"], :] - p[..., J["ShoulderRight"], :]
+    up, ok_up = _safe_unit(up_raw)
+    left_orth = left_raw - jnp.sum(left_raw * up, axis=-1, keepdims=True) * up
+    left, ok_left = _safe_unit(left_orth)
+    forward = jnp.cross(left, up)
+    rot = jnp.stack([forward, left, up], axis=-2)
+    ok = ok_up & ok_left & jnp.all(jnp.isfinite(p), axis=(-2, -1))
+    rot = jnp.where(
+        ok[..., None, None], rot, jnp.broadcast_to(jnp.eye(3, dtype=rot.dtype), rot.shape)
+    )
+    return rot, ok
+
+
+def _safe_unit(v: jax.Array, min_norm: float = MIN_BONE_LENGTH) -> tuple[jax.Array, jax.Array]:
+    """``v / |v|`` where ``|v| >= min_norm`` and finite, else zeros; plus the ok mask."""
+    n = jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
+    ok = (n >= min_norm) & jnp.isfinite(n)
+    safe = jnp.where(ok, n, 1.0)
+    return jnp.where(ok, v / safe, 0.0), ok[..., 0]
+
+
+def descriptor(
+    positions: jax.Array,
+    bones: str | tuple[str, ...] = "upper",
+    mirror: bool = False,
+) -> tuple[jax.Array, jax.Array]:
+    """The paper's pose descriptor: bone unit vectors expressed in the body frame.
+
+    Invariant to translation, to any rotation of the whole skeleton (the frame is built from the
+    skeleton) and to uniform scaling (unit vectors).
+
+    Args:
+      positions: ``(..., 20, 3)`` joint positions in Kinect SDK order.
+      bones: subset name (``"upper"`` default: neck, upper arms, forearms; ``"full"``: all 19)
+        or a tuple of names from ``BONE_NAMES``.
+      mirror: if true, the human's left limbs drive the robot's right ones (mirror imitation):
+        each left bone is swapped with its right twin and the lateral (y) component negated.
+        Default false: direct imitation (human left arm -> robot left arm).
+
+    Returns:
+      ``(d, valid)``: ``(..., 3 * n_bones)`` float32 descriptor, bone after bone, each a unit
+      ``(x forward, y left, z up)`` vector; and ``(...,)`` bool. A frame is invalid where its body
+      frame is degenerate, a value is non-finite, or a chosen bone is shorter than
+      ``MIN_BONE_LENGTH``; its descriptor is all zeros there (never NaN).
+    """
+    names = resolve_bones(bones)
+    if mirror:
+        names = tuple(_MIRROR_NAME[n] for n in names)
+    idx = [BONE_NAMES.index(n) for n in names]
+    parents = np.array([J[BONES[i][0]] for i in idx])
+    children = np.array([J[BONES[i][1]] for i in idx])
+    p = jnp.asarray(positions, dtype=jnp.float32)
+    finite = jnp.all(jnp.isfinite(p), axis=(-2, -1))
+    p = jnp.where(finite[..., None, None], p, 0.0)
+    rot, ok_frame = body_frame(p)
+    vec = p[..., children, :] - p[..., parents, :]  # (..., B, 3)
+    unit, ok_bone = _safe_unit(vec)
+    local = jnp.einsum("...ij,...bj->...bi", rot, unit)
+    if mirror:
+        local = local.at[..., 1].multiply(-1.0)
+    valid = ok_frame & finite & jnp.all(ok_bone, axis=-1)
+    local = jnp.where(valid[..., None, None], local, 0.0)
+    return local.reshape(*local.shape[:-2], 3 * len(names)), valid

@@ -1,0 +1,227 @@
+"""Whole-motion retargeting: skeleton positions -> NAO joint trajectories, in one jitted call.
+
+``retarget`` takes a recording's ``(T, 20, 3)`` joint positions and a mapping — the analytic IK
+(``model=None``) or a projector ``Model`` with its objective — and runs, inside ONE compiled
+function (``_motion``): descriptor -> per-frame mapping -> fill invalid frames -> smoothing ->
+clip to the joint limits -> the full 26-joint configuration. A recording's length is padded to a
+bucket (``_bucket``) so recordings of similar length share one compilation.
+
+Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
+documented rule, so a motion never dies halfway and never contains NaN:
+
+* an invalid frame holds the last valid frame's angles;
+* leading invalid frames take the first valid frame's angles;
+* a motion with no valid frame at all takes ``robot.STANDING_POSTURE`` throughout.
+
+Smoothing (``jaxproj.motion.smoothing``) then runs over the driven joints of the filled motion, with
+gains for each frame's own time step, and the result is clipped to the joint limits (the
+smoother's trend term can overshoot them). With ``feasible`` (off by default here; on by default
+for what ``jaxproj retarget`` writes for the robot) the motion last goes through
+``jaxproj.motion.feasible``: joint limits, speed limits and an acceleration bound.
+
+Time: ``times`` (seconds per frame, e.g. ``Recording.times``) drive the smoother's gains and the
+feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj._internal.jit import jit
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io.readers import MAX_DURATION_S, MIN_STEP_S
+from jaxproj.motion.feasible import FeasibleConfig, make_feasible
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_motion
+from jaxproj.projection.api import Model, check_neighbours, project_batch
+from jaxproj.projection.objectives import FullConfig, Projector
+from jaxproj.robots.nao_h25 import ik, robot
+
+Method = Literal["ik", "relaxed", "full"]
+METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
+
+
+@dataclass(frozen=True)
+class RetargetResult:
+    """A retargeted motion.
+
+    Attributes:
+      angles: ``(T, 26)`` float32 radians in ``robot.JOINT_NAMES`` order.
+      valid: ``(T,)`` bool, false where the input frame was invalid (its angles were filled).
+      times: ``(T,)`` float64 seconds of the frames (as given, or ``t / smoothing.rate``).
+    """
+
+    angles: np.ndarray
+    valid: np.ndarray
+    times: np.ndarray
+
+
+def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
+    """Fill invalid frames of one motion: hold the last valid frame, back-fill leading ones.
+
+    A plain (traceable) function: call it inside a jitted caller.
+
+    Args:
+      q: ``(T, n)`` per-frame values (anything at invalid frames, NaN included).
+      valid: ``(T,)`` bool.
+
+    Returns:
+      ``(T, n)``: valid frames unchanged; see the module doc for the rest. If no frame is
+      valid the input is returned with non-finite entries zeroed (callers substitute a posture).
+    """
+    t = jnp.arange(q.shape[0])
+    last = jax.lax.cummax(jnp.where(valid, t, -1), axis=0)
+    first = jnp.argmax(valid)
+    src = jnp.where(last >= 0, last, first)
+    out = q[src]
+    return jnp.where(jnp.isfinite(out), out, 0.0)
+
+
+def _bucket(t: int) -> int:
+    """Padded length of a ``t``-frame motion: the next power of two, at least 64 frames."""
+    return max(64, 1 << (int(t) - 1).bit_length())
+
+
+def _motion(
+    p: Projector | None,
+    positions: jax.Array,
+    valid: jax.Array,
+    length: jax.Array,
+    gains: jax.Array,
+    *,
+    method: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+    smooth: bool,
+) -> tuple[jax.Array, jax.Array]:
+    """One padded motion ``(T, 20, 3)`` -> ``((T, 26) angles, (T,) valid)`` (see module doc)."""
+    d, ok = descriptor(positions, bones=bones, mirror=mirror)
+    ok = ok & valid
+    if method == "ik":
+        q = ik.driven_angles(d, ik.bone_index(bones))
+    else:
+        q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
+    q = fill_invalid(q, ok)
+    if smooth:
+        q = smooth_motion(q, length, gains)
+        lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
+        hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
+        q = jnp.clip(q, lo, hi)
+    standing = jnp.asarray(robot.STANDING_POSTURE[robot.DRIVEN_INDEX], q.dtype)
+    q = jnp.where(jnp.any(ok), q, standing)
+    return ik.driven_to_full(q), ok
+
+
+_motion_jit = jit(
+    _motion,
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth"),
+)
+
+
+def retarget(
+    positions: np.ndarray,
+    valid: np.ndarray | None = None,
+    *,
+    model: Model | None = None,
+    method: Method | None = None,
+    n_l: int = 10,
+    n_m: int = 10,
+    full: FullConfig | None = None,
+    bones: str | tuple[str, ...] = "upper",
+    mirror: bool = False,
+    smoothing: SmoothingParams | None = PAPER_SMOOTHING,
+    times: np.ndarray | None = None,
+    feasible: FeasibleConfig | None = None,
+) -> RetargetResult:
+    """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
+    then, with ``feasible``, ``feasible.make_feasible``).
+
+    Args:
+      positions: ``(T, 20, 3)`` joint positions, Kinect SDK order.
+      valid: optional ``(T,)`` bool from the reader; combined with the descriptor's own check.
+      model: a projector ``Model`` for the learned methods; ``None`` for the analytic IK.
+      method: ``"ik"`` (default without a model), ``"relaxed"`` (default with one) or ``"full"``.
+      n_l, n_m: ``L`` and ``M`` of the projection.
+      full: settings of the full objective (default ``FullConfig()``).
+      bones, mirror: descriptor options for the IK; a model fixes its own (its config's).
+      smoothing: smoother gains, or ``None`` for no smoothing.
+      times: ``(T,)`` seconds of the frames, strictly increasing (``Recording.times``);
+        ``None``: frames ``1 / smoothing.rate`` apart (15 fps with the paper's gains).
+      feasible: make the output robot-feasible (``jaxproj.motion.feasible``), or ``None`` (default).
+
+    Returns:
+      ``RetargetResult`` with ``(T, 26)`` angles, ``(T,)`` validity and ``(T,)`` times.
+
+    Raises:
+      ConfigError: bad shapes, a learned method without a model, bad ``L`` / ``M``, times not
+        increasing by at least ``readers.MIN_STEP_S`` per frame or spanning more than
+        ``readers.MAX_DURATION_S``.
+    """
+    positions = np.asarray(positions, dtype=np.float32)
+    if positions.ndim != 3 or positions.shape[1:] != (20, 3) or positions.shape[0] < 1:
+        raise ConfigError(f"positions must be (T >= 1, 20, 3), got {positions.shape}")
+    t = positions.shape[0]
+    ok_in = np.ones(t, bool) if valid is None else np.asarray(valid, dtype=bool)
+    if ok_in.shape != (t,):
+        raise ConfigError(f"valid must be ({t},), got {ok_in.shape}")
+    method = method or ("ik" if model is None else "relaxed")
+    if method not in METHODS:
+        raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
+    p = None
+    if method != "ik":
+        if model is None:
+            raise ConfigError(f"method {method!r} needs a projector model (see `jaxproj build`)")
+        check_neighbours(model, n_l, n_m)
+        p = model.projector
+        bones, mirror = model.config.bones, model.config.mirror
+    else:
+        ik.bone_index(bones)  # ConfigError for a subset the IK cannot use
+    params = smoothing or PAPER_SMOOTHING
+    if times is None:
+        stamps = np.arange(t, dtype=np.float64) / params.rate
+    else:
+        stamps = np.asarray(times, np.float64)
+        if stamps.shape != (t,) or not np.isfinite(stamps).all():
+            raise ConfigError(f"times must be ({t},) finite seconds, got shape {stamps.shape}")
+        if (np.diff(stamps) <= 0).any():
+            i = int(np.argmax(np.diff(stamps) <= 0)) + 1
+            raise ConfigError(f"times must increase strictly (frame {i}: {stamps[i]:g} s after "
+                              f"{stamps[i - 1]:g} s)")  # fmt: skip
+        if (np.diff(stamps) < MIN_STEP_S).any() or stamps[-1] - stamps[0] > MAX_DURATION_S:
+            raise ConfigError(
+                f"times must step by at least {MIN_STEP_S:g} s and span at most "
+                f"{MAX_DURATION_S:g} s (got steps from {np.diff(stamps).min():g} s, span "
+                f"{stamps[-1] - stamps[0]:g} s)"
+            )
+    size = _bucket(t)
+    pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
+    ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
+    dt = np.diff(stamps, prepend=stamps[0])
+    dt = np.concatenate([dt, np.full(size - t, 1.0 / params.rate)])
+    gains = params.gains() if times is None else params.gains(dt)
+    angles, ok_out = _motion_jit(
+        p,
+        pos,
+        ok,
+        np.int32(t),
+        gains,
+        method=method,
+        n_l=n_l,
+        n_m=n_m,
+        full=full or FullConfig(),
+        bones=bones,
+        mirror=mirror,
+        smooth=smoothing is not None,
+    )
+    angles = np.asarray(angles)[:t]
+    if feasible is not None:
+        angles = make_feasible(angles, stamps, config=feasible)
+    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps)

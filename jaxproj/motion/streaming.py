@@ -1,0 +1,196 @@
+"""Streaming: one pose at a time, live from a sensor, with an optax-style ``init`` / ``update``.
+
+Each frame runs the whole pipeline in one jitted call::
+
+    (20, 3) joint positions -> descriptor (skeleton.descriptor)
+      -> relaxed projection (projection.project_relaxed_rows, the batch code of
+         engine.project on a batch of one; L and M nearest landmarks)
+      -> one step of the double exponential smoother (smoothing.step, the same function the
+         whole-motion smoother scans) -> clipped to the joint limits -> (n,) driven angles
+
+Usage::
+
+    state = streaming.init(model)
+    for positions in sensor:                      # (20, 3) metres, Kinect SDK joint order
+        angles, state = streaming.update(model, state, positions)   # (10,) rad, DRIVEN_JOINTS
+
+``update`` is pure: the state (``StreamState``) holds everything carried between frames. A frame
+whose descriptor is invalid (lost tracking, a degenerate bone or body frame, non-finite values)
+leaves the state untouched and repeats the previous output. The first valid frame starts the
+smoother (``s = y``, zero trend), exactly as ``smoothing.smooth`` starts a motion; before it the
+output is the standing posture's driven joints (``robot.STANDING_POSTURE[robot.DRIVEN_INDEX]``).
+The output is never NaN. On a recording whose frames are all valid, streaming it frame by frame
+gives ``clip(smooth(project(descriptors)))`` of the whole recording (``tests/test_streaming.py``
+states the tolerance).
+
+The jitted function compiles once per (model shapes, ``L``, ``M``, descriptor options); new
+smoothing gains or new frames do not recompile (the gains are traced).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj._internal.jit import jit
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import N_JOINTS, descriptor, resolve_bones
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
+from jaxproj.motion.smoothing import step as smoothing_step
+from jaxproj.projection.api import Model, check_neighbours
+from jaxproj.projection.objectives import Projector, StackedProjector, project_relaxed_rows
+from jaxproj.robots.nao_h25 import robot
+
+
+class StreamState(NamedTuple):
+    """What ``update`` carries from one frame to the next (a pytree of device arrays).
+
+    Attributes:
+      level: ``(n,)`` float32, the smoother's value ``s`` (unclipped; the output is its clip).
+        The standing posture's driven joints until the first valid frame.
+      trend: ``(n,)`` float32, the smoother's trend ``b``.
+      started: ``()`` bool, whether a valid frame has been seen.
+    """
+
+    level: jax.Array
+    trend: jax.Array
+    started: jax.Array
+
+
+AnyProjector = Projector | StackedProjector
+
+
+def _widths(p: AnyProjector) -> tuple[int, int]:
+    """``(m, n)``: descriptor width and driven joints of a projector."""
+    if isinstance(p, StackedProjector):
+        return p.layout.m, p.layout.n
+    return p.human.shape[1], p.robot.shape[1]
+
+
+def _projector(model: Model | AnyProjector) -> tuple[AnyProjector, str | tuple[str, ...], bool]:
+    """The projector and the descriptor options it was built for (a bare ``Projector``: the
+    default upper-body bones, direct imitation)."""
+    if isinstance(model, Model):
+        bones = model.config.bones
+        return (
+            model.projector,
+            bones if isinstance(bones, str) else tuple(bones),
+            model.config.mirror,
+        )
+    if isinstance(model, Projector | StackedProjector):
+        return model, "upper", False
+    raise ConfigError(f"model must be an engine.Model or a projection.Projector, got {type(model)}")
+
+
+def init(model: Model | AnyProjector) -> StreamState:
+    """The state before any frame: nothing seen, output at the standing posture.
+
+    Args:
+      model: an ``engine.Model`` or a bare ``projection.Projector``.
+
+    Returns:
+      ``StreamState`` with ``(n,)`` level (the standing posture's driven joints), ``(n,)``
+      zero trend and ``started = False``.
+    """
+    p, _, _ = _projector(model)
+    _, n = _widths(p)
+    if n != len(robot.DRIVEN_JOINTS):
+        raise ConfigError(f"model drives {n} joints, streaming expects {len(robot.DRIVEN_JOINTS)}")
+    standing = robot.STANDING_POSTURE[robot.DRIVEN_INDEX].astype(np.float32)
+    return StreamState(
+        level=jnp.asarray(standing),
+        trend=jnp.zeros((n,), jnp.float32),
+        started=jnp.zeros((), jnp.bool_),
+    )
+
+
+def _update(
+    p: AnyProjector,
+    state: StreamState,
+    positions: jax.Array,
+    gains: jax.Array,
+    *,
+    n_l: int,
+    n_m: int,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+) -> tuple[jax.Array, StreamState]:
+    d, ok = descriptor(positions, bones=bones, mirror=mirror)  # (m,), ()
+    r = project_relaxed_rows(p, d[None], n_l, n_m)[0][0]  # (n,), clipped; engine.project's code
+    s_t, b_t = smoothing_step(state.level, state.trend, r, gains)
+    # the first valid frame starts the smoother, as smoothing.smooth starts a motion
+    s_t = jnp.where(state.started, s_t, r)
+    b_t = jnp.where(state.started, b_t, jnp.zeros_like(b_t))
+    # an invalid frame leaves the state (and so the output) as it was
+    level = jnp.where(ok, s_t, state.level)
+    trend = jnp.where(ok, b_t, state.trend)
+    new = StreamState(level, trend, state.started | ok)
+    lo = jnp.asarray(robot.LOWER[robot.DRIVEN_INDEX])
+    hi = jnp.asarray(robot.UPPER[robot.DRIVEN_INDEX])
+    return jnp.clip(level, lo, hi), new
+
+
+_update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))
+
+
+def update(
+    model: Model | AnyProjector,
+    state: StreamState,
+    positions: np.ndarray | jax.Array,
+    *,
+    n_l: int = 10,
+    n_m: int = 10,
+    smoothing: SmoothingParams = PAPER_SMOOTHING,
+) -> tuple[jax.Array, StreamState]:
+    """One frame: joint positions -> smoothed driven-joint angles, and the next state.
+
+    Options are checked here, in Python, before the jitted step runs (``ConfigError``).
+
+    Args:
+      model: an ``engine.Model`` (its ``config.bones`` / ``config.mirror`` set the descriptor)
+        or a bare ``projection.Projector`` (upper-body bones, direct imitation).
+      state: from ``init`` or the previous ``update``.
+      positions: ``(20, 3)`` joint positions of one frame, Kinect SDK order (any finite
+        values; NaN / lost joints make the frame invalid).
+      n_l, n_m: ``L`` human and ``M`` robot neighbours of the relaxed projection (static:
+        each new pair compiles once).
+      smoothing: smoother gains (traced: new gains do not recompile).
+
+    Returns:
+      ``(angles, state)``: ``(n,)`` float32 driven-joint angles (rad, ``robot.DRIVEN_JOINTS``
+      order, within the joint limits, never NaN) and the next ``StreamState``.
+    """
+    p, bones, mirror = _projector(model)
+    if isinstance(n_l, bool) or isinstance(n_m, bool):
+        raise ConfigError("n_l and n_m must be integers")
+    if not isinstance(n_l, int | np.integer) or not isinstance(n_m, int | np.integer):
+        raise ConfigError(f"n_l and n_m must be integers, got {n_l!r}, {n_m!r}")
+    check_neighbours(p, int(n_l), int(n_m))
+    if not isinstance(smoothing, SmoothingParams):
+        raise ConfigError(f"smoothing must be a SmoothingParams, got {type(smoothing).__name__}")
+    if not isinstance(state, StreamState):
+        raise ConfigError(f"state must be a StreamState from streaming.init, got {type(state)}")
+    m, n = _widths(p)
+    if state.level.shape != (n,) or state.trend.shape != (n,) or state.started.shape != ():
+        raise ConfigError(
+            f"state does not fit this model: level {state.level.shape}, trend "
+            f"{state.trend.shape}, started {state.started.shape} (expected ({n},), ({n},), ())"
+        )
+    if len(resolve_bones(bones)) * 3 != m:
+        raise ConfigError(
+            f"descriptor bones {bones!r} do not match the model's {m}-wide "
+            "landmarks; pass the engine.Model it was built with"
+        )
+    if not isinstance(positions, jax.Array):
+        positions = np.asarray(positions, np.float32)  # host array: the jitted call copies it
+    elif positions.dtype != jnp.float32:
+        positions = positions.astype(jnp.float32)
+    if positions.shape != (N_JOINTS, 3):
+        raise ConfigError(f"positions must be one frame ({N_JOINTS}, 3), got {positions.shape}")
+    gains = np.asarray((smoothing.alpha, smoothing.gamma, smoothing.eta), np.float32)
+    return _update_jit(
+        p, state, positions, gains, n_l=int(n_l), n_m=int(n_m), bones=bones, mirror=mirror
+    )

@@ -1,0 +1,161 @@
+"""Fused back-projection of the relaxed objective on CUDA GPUs: one Pallas (Triton) kernel.
+
+For every candidate row ``r`` (a robot point, with its query ``h`` and its ``M`` nearest robot
+landmarks ``k_1..k_M``) the relaxed projection needs ``min_k ||kappa^r_k(r) - h||^2`` over the
+row's backward kernels (``projection.back_deviation``, then a minimum). In XLA that is three
+passes: the hidden layer ``sigmoid(W r / rho_k + beta_k)`` of every (row, kernel) pair is
+written to memory as a ``(rows, M, hidden)`` tensor (one fusion), read back and contracted with
+the gathered output weights (a second), then squared and reduced (a third). This kernel does it
+per program of ``ROWS`` rows without the intermediate: ``W r`` once per row, then per slot
+``k``: the slot's kernel weights gathered (``1 / rho``, ``beta``, ``B^T``, offset), the sigmoid,
+the contraction over ``hidden`` (in chunks of ``CHUNK`` and powers of two, so any ``hidden``
+works), the squared deviation and a running minimum. Only the ``(rows,)`` minimum is written.
+
+The arithmetic is XLA's (``exp`` is libdevice's ``expf``), summed in another order: a deviation
+differs from XLA's by float32 round-off, so where two candidates' deviations tie to round-off
+(the head chain's deviations are ~1e-8, and XLA's own error against float64 is ~1e-3 of that)
+the two may pick different candidates. Both are checked against the float64 reference in
+``benchmarks/experiments/fused_backproj_ab.py``.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+from jax.experimental import pallas as pl
+
+from jaxproj.projection.elm import ELMBank
+
+ROWS = 16
+"""Candidate rows per program."""
+
+WARPS = 4
+
+CHUNK = 32
+"""Hidden units per step of the contraction. Swept on an H200 (per-chain model, batch 65,536;
+chunks of 16 / 32 / 64 or 128 + 64, 8-32 rows, 2-16 warps, the slot loop rolled or unrolled):
+32-wide chunks, 16 rows, 4 warps, rolled: 103 ns per pose, against 148 for 128 + 64 chunks."""
+
+
+def _pow2(v: int) -> int:
+    p = 1
+    while p < v:
+        p *= 2
+    return p
+
+
+def _chunks(hidden: int) -> tuple[tuple[int, int], ...]:
+    """``hidden`` as ``(start, width)`` chunks: ``CHUNK`` wide, then the rest in powers of two
+    (192 = 3 x 64; 100 = 64 + 32 + 4)."""
+    out = [(start, CHUNK) for start in range(0, hidden - hidden % CHUNK, CHUNK)]
+    start = len(out) * CHUNK
+    for bit in reversed(range(CHUNK.bit_length())):
+        width = 1 << bit
+        if hidden - start >= width:
+            out.append((start, width))
+            start += width
+    return tuple(out)
+
+
+def _kernel(r_ref, h_ref, idx_ref, w_ref, inv_ref, bias_ref, out_ref, off_ref, best_ref, *,
+            d_in: int, d_out: int, m: int, chunks: tuple[tuple[int, int], ...]):
+    rs = [r_ref[:, j] for j in range(d_in)]  # (ROWS,) per coordinate
+    hs = [h_ref[:, o] for o in range(d_out)]
+    wx = []  # W r, per chunk of hidden units: (ROWS, width)
+    for start, width in chunks:
+        acc = jnp.zeros((ROWS, width), jnp.float32)
+        for j in range(d_in):
+            acc = acc + rs[j][:, None] * w_ref[j, pl.ds(start, width)][None, :]
+        wx.append(acc)
+
+    def slot(k: jax.Array, best: jax.Array) -> jax.Array:
+        idx = idx_ref[:, k]  # (ROWS,) this slot's kernel of every row
+        inv = inv_ref[idx]
+        y = [off_ref[idx, o] for o in range(d_out)]
+        rows = idx[:, None]
+        for c, (start, width) in enumerate(chunks):
+            cols = start + jax.lax.broadcasted_iota(jnp.int32, (ROWS, width), 1)
+            q = jax.nn.sigmoid(wx[c] * inv[:, None] + bias_ref[rows, cols])
+            for o in range(d_out):
+                y[o] = y[o] + jnp.sum(q * out_ref[rows, o, cols], axis=1)
+        dev = (y[0] - hs[0]) ** 2
+        for o in range(1, d_out):
+            dev = dev + (y[o] - hs[o]) ** 2
+        return jnp.minimum(best, dev)
+
+    best_ref[...] = jax.lax.fori_loop(0, m, slot, jnp.full((ROWS,), jnp.inf, jnp.float32))
+
+
+def back_min(
+    bank: ELMBank,
+    r: jax.Array,
+    h: jax.Array,
+    idx: jax.Array,
+    d_in: int,
+    d_out: int,
+    hidden: int,
+    interpret: bool = False,
+) -> jax.Array:
+    """``min_k ||kappa^r_{idx[i, k]}(r_i) - h_i||^2`` of every row, fused (traceable).
+
+    Args:
+      bank: one landmark set's backward kernels (may be padded beyond the sizes below; the
+        padding is never read).
+      r: ``(R, >= d_in)`` candidate robot points (only the first ``d_in`` columns are read).
+      h: ``(R, >= d_out)`` each row's query (first ``d_out`` columns).
+      idx: ``(R, M)`` int kernel indices of each row; clamped into the bank (a NaN candidate's
+        indices are meaningless, and nothing is read out of bounds).
+      d_in, d_out, hidden: the kernels' real sizes (static).
+      interpret: run the kernel in Pallas' interpreter (any platform; for tests).
+
+    Returns:
+      ``(R,)`` float32: the least squared back-projected deviation of each row.
+    """
+    n_rows, m = idx.shape
+    kp, hp = _pow2(bank.inv_scale.shape[0]), _pow2(hidden)
+    ip, op, mp = _pow2(d_in), _pow2(d_out), _pow2(m)
+
+    def fit(a: jax.Array, shape: tuple[int, ...]) -> jax.Array:
+        """Cut ``a`` to at most ``shape`` and zero-pad it to exactly ``shape``."""
+        a = a[tuple(slice(0, min(s, t)) for s, t in zip(a.shape, shape, strict=True))]
+        return jnp.pad(a, [(0, t - s) for s, t in zip(a.shape, shape, strict=True)])
+
+    rp = -(-n_rows // ROWS) * ROWS
+    k_max = bank.inv_scale.shape[0] - 1
+    args = (
+        fit(r.astype(jnp.float32), (rp, ip)),
+        fit(h.astype(jnp.float32), (rp, op)),
+        fit(jnp.clip(idx.astype(jnp.int32), 0, k_max), (rp, mp)),
+        fit(bank.w[:hidden, :d_in].T, (ip, hp)),
+        fit(bank.inv_scale, (kp,)),
+        fit(bank.bias, (kp, hp)),
+        fit(bank.out, (kp, op, hp)),
+        fit(bank.offset, (kp, op)),
+    )
+    kern = functools.partial(_kernel, d_in=d_in, d_out=d_out, m=m, chunks=_chunks(hidden))
+    params = {}
+    if not interpret:
+        from jax.experimental.pallas import triton as plgpu
+
+        params = dict(compiler_params=plgpu.CompilerParams(num_warps=WARPS))
+    best = pl.pallas_call(
+        kern,
+        grid=(rp // ROWS,),
+        in_specs=[
+            pl.BlockSpec((ROWS, ip), lambda b: (b, 0)),
+            pl.BlockSpec((ROWS, op), lambda b: (b, 0)),
+            pl.BlockSpec((ROWS, mp), lambda b: (b, 0)),
+            pl.BlockSpec((ip, hp), lambda b: (0, 0)),
+            pl.BlockSpec((kp,), lambda b: (0,)),
+            pl.BlockSpec((kp, hp), lambda b: (0, 0)),
+            pl.BlockSpec((kp, op, hp), lambda b: (0, 0, 0)),
+            pl.BlockSpec((kp, op), lambda b: (0, 0)),
+        ],
+        out_specs=pl.BlockSpec((ROWS,), lambda b: (b,)),
+        out_shape=jax.ShapeDtypeStruct((rp,), jnp.float32),
+        interpret=interpret,
+        **params,
+    )(*args)
+    return best[:n_rows]

@@ -1,0 +1,1 @@
+"""jaxproj.robots.nao_h25."""

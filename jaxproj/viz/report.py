@@ -1,0 +1,418 @@
+"""Reports: ``report.json``, ``report.md`` with tables, and PNG plots (matplotlib, Agg backend).
+
+Plots written by ``write_report``:
+
+* ``motion_<name>.png`` — a sample motion: the human skeleton and the NAO (projected and IK
+  poses, from MuJoCo forward kinematics of our MJCF) side by side at a few frames, front and side
+  views in the body / torso frame, and M_max / M_avg over time per method;
+* ``error_distributions.png`` — cumulative distributions of M_avg and M_max per method;
+* ``landmark_size.png`` — median M_avg and p95 M_max against the landmark count;
+* ``efficiency.png`` — time per projection and accuracy against L = M (when measured);
+* ``per_joint_error.png`` — p50 / p95 error per driven joint of the projection methods.
+
+Tables: ``summary_table`` (the headline M_avg / M_max), ``where_error_table`` (M_max with and
+without ElbowYaw, task-space errors per arm) and ``per_joint_table`` (p50 / p95 per driven
+joint), all from the per-method blocks of ``jaxproj.eval.metrics.summarize_errors``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from jaxproj._internal.atomic import atomic_write
+from jaxproj.human.skeleton import BONES, J, body_frame
+from jaxproj.robots.nao_h25 import robot
+
+_NAO_SITES = (
+    "torso", "neck", "l_shoulder", "l_elbow", "l_wrist", "l_hand",
+    "r_shoulder", "r_elbow", "r_wrist", "r_hand",
+    "l_hip", "l_knee", "l_ankle", "l_sole", "r_hip", "r_knee", "r_ankle", "r_sole",
+)  # fmt: skip
+_NAO_LINKS = (
+    ("neck", "l_shoulder"), ("l_shoulder", "l_elbow"), ("l_elbow", "l_wrist"),
+    ("l_wrist", "l_hand"), ("neck", "r_shoulder"), ("r_shoulder", "r_elbow"),
+    ("r_elbow", "r_wrist"), ("r_wrist", "r_hand"), ("neck", "torso"),
+    ("torso", "l_hip"), ("l_hip", "l_knee"), ("l_knee", "l_ankle"), ("l_ankle", "l_sole"),
+    ("torso", "r_hip"), ("r_hip", "r_knee"), ("r_knee", "r_ankle"), ("r_ankle", "r_sole"),
+)  # fmt: skip
+_COLORS = {
+    "relaxed": "tab:blue",
+    "full": "tab:orange",
+    "nearest_landmark": "tab:gray",
+    "knn_average": "tab:green",
+    "global_elm": "tab:purple",
+}
+
+
+PROJECTION_METHODS: tuple[str, ...] = ("relaxed", "full")
+"""The paper's projection objectives (``plot_per_joint`` shows these by default)."""
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(plt, fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Drop private keys (leading ``_``) and turn numpy values into plain Python."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items() if not str(k).startswith("_")}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def human_points(positions: np.ndarray) -> np.ndarray:
+    """``(20, 3)`` camera-frame joints -> body frame (x fwd, y left, z up), hips at 0."""
+    rot, _ = body_frame(positions[None])
+    rot = np.asarray(rot)[0]
+    return (positions - positions[J["HipCenter"]]) @ rot.T
+
+
+def nao_points(model, angles: np.ndarray) -> dict[str, np.ndarray]:
+    """Site positions (torso frame) of a ``(26,)`` configuration, plus a head point."""
+    pts = robot.site_positions(model, angles, _NAO_SITES)
+    out = dict(zip(_NAO_SITES, pts, strict=True))
+    yaw = float(angles[robot.IDX["HeadYaw"]])
+    pitch = float(angles[robot.IDX["HeadPitch"]])
+    up = np.array([math.cos(yaw) * math.sin(pitch), math.sin(yaw) * math.sin(pitch),
+                   math.cos(pitch)])  # fmt: skip
+    out["head"] = out["neck"] + 0.09 * up
+    return out
+
+
+def _draw_human(ax, pts: np.ndarray, axes: tuple[int, int]) -> None:
+    a, b = axes
+    for p, c in BONES:
+        i, j = J[p], J[c]
+        left = "Left" in c
+        ax.plot([pts[i, a], pts[j, a]], [pts[i, b], pts[j, b]], "-",
+                color="tab:red" if left else "k", lw=2)  # fmt: skip
+    ax.plot(pts[J["Head"], a], pts[J["Head"], b], "o", color="k", ms=8)
+
+
+def _draw_nao(ax, pts: dict[str, np.ndarray], axes: tuple[int, int], color: str) -> None:
+    a, b = axes
+    for p, c in _NAO_LINKS:
+        left = c.startswith("l_")
+        ax.plot([pts[p][a], pts[c][a]], [pts[p][b], pts[c][b]], "-",
+                color="tab:red" if left else color, lw=2)  # fmt: skip
+    ax.plot([pts["neck"][a], pts["head"][a]], [pts["neck"][b], pts["head"][b]], "-", color=color)
+    ax.plot(pts["head"][a], pts["head"][b], "o", color=color, ms=8)
+
+
+def plot_motion(
+    path: Path,
+    title: str,
+    positions: np.ndarray,
+    valid: np.ndarray,
+    truth: np.ndarray,
+    predictions: dict[str, np.ndarray],
+    key_frames: int = 3,
+) -> None:
+    """One motion: skeleton vs NAO at a few frames, and the errors over time.
+
+    Args:
+      positions: ``(T, 20, 3)`` human joints; ``valid`` ``(T,)``.
+      truth: ``(T, 10)`` IK angles (driven joints); ``predictions``: method -> ``(T, 10)``.
+    """
+    plt = _plt()
+    from jaxproj.robots.nao_h25.ik import driven_to_full
+
+    model = robot.load_model("fixed")
+    frames = np.flatnonzero(valid)
+    picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
+    fig = plt.figure(figsize=(4.0 * key_frames, 9.5))
+    grid = fig.add_gridspec(3, key_frames, height_ratios=[1.0, 1.0, 0.9])
+    method = "relaxed" if "relaxed" in predictions else next(iter(predictions))
+    for col, t in enumerate(picks):
+        hp = human_points(positions[t])
+        proj = nao_points(model, np.asarray(driven_to_full(predictions[method][t])))
+        ik_p = nao_points(model, np.asarray(driven_to_full(truth[t])))
+        for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
+            sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
+            ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
+            # front view: seen from in front, so the person's left (+y, red) is on the right;
+            # side view: seen from the person's right, forward (+x) to the right
+            _draw_human(ax_h, hp, axes)
+            _draw_nao(ax_r, ik_p, axes, "tab:green")
+            _draw_nao(ax_r, proj, axes, "tab:blue")
+            for ax in (ax_h, ax_r):
+                ax.set_aspect("equal")
+                ax.set_xticks([])
+                ax.set_yticks([])
+            ax_h.set_title(f"human, frame {t} ({view})", fontsize=8)
+            ax_r.set_title(f"NAO: {method} (blue) / IK (green)", fontsize=8)
+    ax = fig.add_subplot(grid[2, :])
+    for name, pred in predictions.items():
+        err = np.degrees(np.abs(pred - truth))
+        e_max = np.where(valid, err.max(axis=1), np.nan)
+        e_avg = np.where(valid, err.mean(axis=1), np.nan)
+        c = _COLORS.get(name, None)
+        ax.plot(e_max, "--", color=c, lw=1, label=f"{name} M_max")
+        ax.plot(e_avg, "-", color=c, lw=2, label=f"{name} M_avg")
+    for t in picks:
+        ax.axvline(t, color="k", lw=0.5, alpha=0.4)
+    ax.set_xlabel("frame (15 fps)")
+    ax.set_ylabel("error vs IK (deg)")
+    ax.legend(fontsize=7, ncol=3)
+    ax.grid(alpha=0.3)
+    fig.suptitle(title)
+    _save(plt, fig, path)
+
+
+def plot_retarget(
+    path: Path,
+    title: str,
+    positions: np.ndarray,
+    valid: np.ndarray,
+    times: np.ndarray,
+    angles: np.ndarray,
+    ik_angles: np.ndarray,
+    label: str = "output",
+    key_frames: int = 4,
+) -> None:
+    """One retargeted recording (``jaxproj retarget --plot``): the figure of ``plot_motion`` with
+    the joint angles over time instead of the errors.
+
+    Top rows: the human (body frame, front and side view; left limbs red) and the NAO playing
+    ``angles`` (blue) and the per-frame IK (green) at ``key_frames`` frames spread over the
+    valid ones. Bottom: the driven joints over time, head / left arm / right arm, ``angles``
+    solid and the IK dashed.
+
+    Args:
+      positions: ``(T, 20, 3)`` human joints, Kinect order; ``valid`` ``(T,)``; ``times``
+        ``(T,)`` seconds.
+      angles, ik_angles: ``(T, 10)`` radians, ``robot.DRIVEN_JOINTS`` order.
+    """
+    plt = _plt()
+    from jaxproj.robots.nao_h25.ik import driven_to_full
+
+    model = robot.load_model("fixed")
+    frames = np.flatnonzero(valid)
+    if frames.size == 0:
+        frames = np.arange(len(valid))
+    picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
+    fig = plt.figure(figsize=(3.6 * key_frames, 14.0))
+    grid = fig.add_gridspec(5, key_frames, height_ratios=[1.0, 1.0, 0.7, 0.7, 0.7])
+    for col, t in enumerate(picks):
+        hp = human_points(positions[t])
+        out = nao_points(model, np.asarray(driven_to_full(angles[t])))
+        ik_p = nao_points(model, np.asarray(driven_to_full(ik_angles[t])))
+        for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
+            sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
+            ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
+            _draw_human(ax_h, hp, axes)
+            _draw_nao(ax_r, ik_p, axes, "tab:green")
+            _draw_nao(ax_r, out, axes, "tab:blue")
+            for ax in (ax_h, ax_r):
+                ax.set_aspect("equal")
+                ax.set_xticks([])
+                ax.set_yticks([])
+            ax_h.set_title(f"human, {times[t]:.2f} s ({view})", fontsize=8)
+            ax_r.set_title(f"NAO: {label} (blue) / IK (green)", fontsize=8)
+    groups = (("head", ("Head",)), ("left arm", ("LShoulder", "LElbow")),
+              ("right arm", ("RShoulder", "RElbow")))  # fmt: skip
+    for row, (name, prefixes) in enumerate(groups, start=2):
+        ax = fig.add_subplot(grid[row, :])
+        joints = [i for i, n in enumerate(robot.DRIVEN_JOINTS) if n.startswith(prefixes)]
+        for k, i in enumerate(joints):
+            c = f"C{k}"
+            ax.plot(times, np.degrees(angles[:, i]), "-", color=c, lw=1.5,
+                    label=robot.DRIVEN_JOINTS[i])  # fmt: skip
+            ax.plot(times, np.degrees(ik_angles[:, i]), "--", color=c, lw=0.8, alpha=0.7)
+        for t in picks:
+            ax.axvline(times[t], color="k", lw=0.5, alpha=0.4)
+        ax.set_ylabel(f"{name} (deg)")
+        ax.legend(fontsize=7, ncol=4, loc="upper right")
+        ax.grid(alpha=0.3)
+    ax.set_xlabel(f"time (s); solid: {label}, dashed: per-frame IK")
+    fig.suptitle(title)
+    _save(plt, fig, path)
+
+
+def plot_distributions(path: Path, predictions: dict[str, np.ndarray], truth: np.ndarray) -> None:
+    """CDFs of M_avg and M_max per method; ``predictions[m]`` and ``truth``: ``(F, 10)``."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for name, pred in predictions.items():
+        err = np.degrees(np.abs(pred - truth))
+        for ax, vals in zip(axes, (err.mean(axis=1), err.max(axis=1)), strict=True):
+            v = np.sort(vals)
+            ax.plot(v, np.arange(1, len(v) + 1) / len(v), color=_COLORS.get(name), label=name)
+    for ax, label in zip(axes, ("M_avg (deg)", "M_max (deg)"), strict=True):
+        ax.set_xlabel(label)
+        ax.set_ylabel("fraction of frames")
+        ax.set_xscale("symlog", linthresh=1.0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("Error distributions on held-out subjects (valid frames)")
+    _save(plt, fig, path)
+
+
+def plot_landmark_size(path: Path, study: dict) -> None:
+    """``study``: ``{"sizes": [{"landmarks": K, "M_avg_median": .., "M_max_p95": ..}, ...]}``."""
+    plt = _plt()
+    rows = sorted(study["sizes"], key=lambda r: r["landmarks"])
+    k = [r["landmarks"] for r in rows]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(k, [r["M_avg_median"] for r in rows], "o-", label="median M_avg")
+    ax.plot(k, [r["M_max_p95"] for r in rows], "s--", label="p95 M_max")
+    if "pose8_M_max" in rows[0]:
+        ax.plot(k, [r["pose8_M_max"] for r in rows], "^:", label="POSE_8 motion, max M_max")
+    ax.set_xscale("log")
+    ax.set_xlabel("landmarks")
+    ax.set_ylabel("error vs IK (deg)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title("Landmark-set size (relaxed, held-out subjects)")
+    _save(plt, fig, path)
+
+
+def plot_efficiency(path: Path, study: dict) -> None:
+    """``study``: ``{"rows": [{"L": .., "us_per_projection": .., "M_avg_median": ..}, ...]}``."""
+    plt = _plt()
+    rows = study["rows"]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ls = [r["L"] for r in rows]
+    ax.plot(ls, [r["us_per_projection"] for r in rows], "o-", color="tab:blue")
+    ax.set_xlabel("L = M")
+    ax.set_ylabel("us per projection", color="tab:blue")
+    ax2 = ax.twinx()
+    ax2.plot(ls, [r["M_avg_median"] for r in rows], "s--", color="tab:orange")
+    ax2.set_ylabel("median M_avg (deg)", color="tab:orange")
+    ax.grid(alpha=0.3)
+    ax.set_title(f"Efficiency vs neighbourhood size ({study.get('device', '')})")
+    _save(plt, fig, path)
+
+
+def summary_table(summary: dict, methods: list[str] | None = None) -> str:
+    """Markdown table of ``summary.<method>.<M_avg|M_max>.<stat>``."""
+    methods = methods or list(summary)
+    lines = [
+        "| method | M_avg median | M_avg mean | M_avg p95 | M_max median | M_max p95 | M_max max |",
+        "|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for m in methods:
+        a, x = summary[m]["M_avg"], summary[m]["M_max"]
+        lines.append(
+            f"| {m} | {a['median']:.2f} | {a['mean']:.2f} | {a['p95']:.2f} | "
+            f"{x['median']:.2f} | {x['p95']:.2f} | {x['max']:.1f} |"
+        )
+    return "\n".join(lines)
+
+
+def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) -> None:
+    """Bars of the p50 (solid) and p95 (light) error per driven joint, one group per joint.
+
+    Args:
+      summary: ``{method: block}`` with ``block["per_joint"][joint]["p50" | "p95"]`` in degrees
+        (``jaxproj.eval.metrics.summarize_errors``), e.g. ``evaluate``'s ``summary``.
+      methods: which methods; default the projection methods present (``PROJECTION_METHODS``),
+        else every method of ``summary``.
+    """
+    methods = methods or [m for m in PROJECTION_METHODS if m in summary] or list(summary)
+    plt = _plt()
+    joints = list(robot.DRIVEN_JOINTS)
+    x = np.arange(len(joints), dtype=np.float64)
+    width = 0.8 / len(methods)
+    fig, ax = plt.subplots(figsize=(11, 4))
+    for i, m in enumerate(methods):
+        pj = summary[m]["per_joint"]
+        pos = x - 0.4 + (i + 0.5) * width
+        c = _COLORS.get(m)
+        ax.bar(pos, [pj[j]["p95"] for j in joints], width, color=c, alpha=0.35,
+               label=f"{m} p95")  # fmt: skip
+        ax.bar(pos, [pj[j]["p50"] for j in joints], width * 0.6, color=c, label=f"{m} p50")
+    ax.set_xticks(x)
+    ax.set_xticklabels(joints, rotation=30, ha="right")
+    ax.set_ylabel("|error| vs IK (deg)")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8, ncol=len(methods))
+    ax.set_title("Error per driven joint (valid frames): median and 95th percentile")
+    _save(plt, fig, path)
+
+
+def _mp(d: dict, digits: int = 1) -> str:
+    """``"median / p95"`` of a ``describe`` dict."""
+    return f"{d['median']:.{digits}f} / {d['p95']:.{digits}f}"
+
+
+def where_error_table(summary: dict, methods: list[str] | None = None) -> str:
+    """Markdown table: where each method's error is.
+
+    Per method: p95 of M_max with and without the two ElbowYaw joints (deg), then per arm
+    (L / R) the hand (wrist point) and elbow position errors (cm) and the upper-arm and forearm
+    direction errors (deg) as ``median / p95``; from ``summary.<method>`` blocks of
+    ``jaxproj.eval.metrics.summarize_errors``.
+    """
+    methods = methods or list(summary)
+    lines = [
+        "| method | M_max p95 | M_max p95 without ElbowYaw | hand L (cm) | hand R (cm) "
+        "| elbow L (cm) | elbow R (cm) | upper arm L (deg) | upper arm R (deg) "
+        "| forearm L (deg) | forearm R (deg) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for m in methods:
+        b = summary[m]
+        ts = b["task_space"]
+        cells = [f"{b['M_max']['p95']:.1f}", f"{b['M_max_no_elbow_yaw']['p95']:.1f}"]
+        for key, digits in (("hand_cm", 2), ("elbow_cm", 2), ("upper_arm_deg", 1),
+                            ("forearm_deg", 1)):  # fmt: skip
+            cells += [_mp(ts["left"][key], digits), _mp(ts["right"][key], digits)]
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def per_joint_table(summary: dict, methods: list[str] | None = None) -> str:
+    """Markdown table: ``p50 / p95`` error (deg) per driven joint (rows) and method (columns)."""
+    methods = methods or list(summary)
+    lines = [
+        "| joint | " + " | ".join(methods) + " |",
+        "|---|" + "---:|" * len(methods),
+    ]
+    for j in robot.DRIVEN_JOINTS:
+        cells = [
+            f"{summary[m]['per_joint'][j]['p50']:.1f} / {summary[m]['per_joint'][j]['p95']:.1f}"
+            for m in methods
+        ]
+        lines.append(f"| {j} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_json(path: Path, report: dict) -> None:
+    """Write ``report`` (private keys dropped) as indented JSON, atomically (``write_text``)."""
+    write_text(path, json.dumps(to_jsonable(report), indent=2) + "\n")
+
+
+def write_text(path: Path, text: str) -> None:
+    """Write a report file atomically: a temporary file beside ``path``, then renamed, so a
+    failed or interrupted write never leaves a half-written report (``InputError`` when the
+    file cannot be written)."""
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    atomic_write(path, write)
