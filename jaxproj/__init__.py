@@ -1,23 +1,30 @@
 """jaxproj: human-to-humanoid motion projection from sparsely sampled correspondence, in JAX.
 
-Pipeline (one module per stage): ``readers`` / ``datasets`` / ``skeleton`` (data and the body-frame
-bone descriptor) -> ``robot`` / ``ik`` (NAO H25 model and the analytic IK ground truth) ->
-``meanshift`` (generic mean shift, bandwidth search) -> ``landmarks`` (mean-shift modes of the
-training descriptors + their IK) -> ``kernels`` (ELM bank) -> ``search`` (kNN) -> ``projection``
-(relaxed / full objectives; one projector per kinematic chain, stacked) -> ``smoothing`` /
-``streaming`` -> ``retarget`` (whole motions, one compiled call) -> ``feasible`` (joint, speed
-and acceleration limits) -> ``motion_io`` (NPZ / CSV / NAOqi JSON) and ``render`` (videos);
-``engine`` holds the public build / project / save / load API (several devices: ``shard_map``)
-and ``distributed`` spreads projection over hosts; ``metrics`` / ``evaluate`` score against the
-IK. ``synthetic`` (the paper's basic poses and motions) and ``experiments`` (the paper's studies
-on them) reproduce the paper's section IV.
+The package is layered; each layer imports only the ones before it (``tests/test_layers.py``):
 
-Jit, precision, configs, errors and progress follow one policy each, stated in the README's
-Development section (jit: ``jaxproj._internal.jit``).
+1. ``errors``, ``_internal`` (jit policy, the one atomic NPZ writer, progress bars);
+2. ``human`` (Kinect skeleton, body frame, bone descriptor), ``io`` (recording formats, the
+   bundled datasets, motion files), ``robots`` (the ``Robot`` spec; the NAO H25 as its instance);
+3. ``projection`` (mean shift, landmarks, the ELM bank, k-NN search, relaxed and full objectives,
+   build / project / save / load; GPU kernels under ``projection.ops``);
+4. ``motion`` (the one pipeline from a recording to playable angles: descriptor -> project ->
+   fill invalid frames -> smooth -> clip -> feasible; ``retarget`` and ``streaming``);
+5. ``eval`` (metrics, forward kinematics, baselines, evaluate, MJX rollout), ``viz`` (render,
+   report, notebook helpers), ``paper`` (the paper's section IV and the demo), ``cli``;
+   ``testing`` (the float64 reference) and ``timing`` are tools beside them.
+
+This module is the public surface: read a recording, build or load a model, project poses,
+retarget motions, save and load motion files.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
+from jaxproj import errors, robots
+from jaxproj.io.motion_files import Motion, load_motion, save_motion
+from jaxproj.io.readers import Recording
+from jaxproj.io.readers import read_skeleton as read
+from jaxproj.motion import streaming
+from jaxproj.motion.retarget import RetargetResult, retarget
 from jaxproj.motion.smoothing import SmoothingParams, smooth, smooth_batch
 from jaxproj.projection.api import BuildConfig, Model, build, load, project, save
 from jaxproj.projection.objectives import FullConfig
@@ -26,12 +33,22 @@ __all__ = [
     "BuildConfig",
     "FullConfig",
     "Model",
+    "Motion",
+    "Recording",
+    "RetargetResult",
     "SmoothingParams",
     "__version__",
     "build",
+    "errors",
     "load",
+    "load_motion",
     "project",
+    "read",
+    "retarget",
+    "robots",
     "save",
+    "save_motion",
     "smooth",
     "smooth_batch",
+    "streaming",
 ]

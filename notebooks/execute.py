@@ -9,9 +9,10 @@ a new temporary folder) and the notebooks themselves are left as they are. ``NAM
 notebooks by file name or prefix (``01``, ``02_paper_experiments``); default: all of them.
 
 Each executed notebook records in its metadata (``metadata.jaxproj``) the run mode, the wall
-time and a hash of its code cells (``source_sha256``); ``tests/test_notebooks.py`` uses the hash
-to tell whether the code was edited after the run, and the library stamp the first cell printed
-(``jaxproj.viz.notebook.library_stamp``) to tell whether the library was.
+time, the ``jaxproj`` version it ran and a hash of its code cells (``source_sha256``);
+``tests/test_notebooks.py`` uses the hash to tell whether the code was edited after the run and
+the version to tell whether the outputs belong to the current release. Running this script in
+full mode is part of cutting a release (``docs/development.md``), not of every commit.
 """
 
 from __future__ import annotations
@@ -77,8 +78,11 @@ def execute(path: Path, *, fast: bool, timeout: int = 1200, env: dict[str, str] 
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+    import jaxproj
+
     nb.metadata["jaxproj"] = {
         "mode": "fast" if fast else "full",
+        "version": jaxproj.__version__,
         "wall_s": round(time.perf_counter() - t0, 1),
         "source_sha256": source_sha256(nb),
     }

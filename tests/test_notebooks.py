@@ -1,6 +1,7 @@
 """The notebooks (``notebooks/*.ipynb``): each runs top to bottom in fast mode (``JAXPROJ_FAST=1``)
-and its results hold up; each committed notebook holds the outputs of a full run of the current
-code (see ``jaxproj.viz.notebook`` for the library stamp and ``notebooks/execute.py`` for the run)."""
+and its results hold up; each committed notebook holds the outputs of a full run of its current
+code cells under the current release (``jaxproj.__version__``; see ``jaxproj.viz.notebook`` and
+``notebooks/execute.py``)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import nbformat
 import numpy as np
 import pytest
 
+import jaxproj
 from jaxproj.eval import evaluate
 from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import ik, robot
@@ -27,7 +29,7 @@ NAMES = ("01_quickstart", "02_paper_experiments", "03_generalisation", "04_mjx_r
 MAX_BYTES = 1_500_000
 """Largest committed notebook (outputs included)."""
 
-HEADER = re.compile(r"library stamp (?P<stamp>[0-9a-f]+) \| mode: (?P<mode>full|fast)\b")
+HEADER = re.compile(r"jaxproj (?P<version>\S+) \| mode: (?P<mode>full|fast)\b")
 """What ``notebook.header`` prints in each notebook's first code cell."""
 
 LO, HI = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
@@ -58,7 +60,7 @@ def _text(output: Any) -> str:
 
 def _check_outputs(nb: Any, name: str, mode: str) -> str:
     """Every code cell ran once, in order, without an error or a warning, and shows something;
-    the first one printed the header of ``mode``. Returns the stamp the header holds."""
+    the first one printed the header of ``mode``. Returns the version the header holds."""
     code = [c for c in nb.cells if c.cell_type == "code"]
     assert code, name
     for i, cell in enumerate(code, start=1):
@@ -73,7 +75,7 @@ def _check_outputs(nb: Any, name: str, mode: str) -> str:
     match = HEADER.search("".join(_text(o) for o in code[0].outputs))
     assert match, f"{name}: the first cell does not print notebook.header()"
     assert match["mode"] == mode, f"{name}: ran in {match['mode']} mode, expected {mode}"
-    return match["stamp"]
+    return match["version"]
 
 
 def _images(nb: Any) -> int:
@@ -98,32 +100,13 @@ def test_committed_notebook_holds_a_full_run_of_the_current_code(name: str) -> N
     assert meta.get("source_sha256") == _executor().source_sha256(nb), (
         f"{path.name}: code cells edited after the run; {rerun}"
     )
-    stamp = _check_outputs(nb, name, "full")
-    now = notebook.library_stamp(ROOT / "jaxproj")
-    assert stamp == now, (
-        f"{path.name}: outputs computed by other library code (stamp {stamp}, the code here is "
-        f"{now}); {rerun}"
+    assert meta.get("version") == jaxproj.__version__, (
+        f"{path.name}: executed under jaxproj {meta.get('version')}, this is "
+        f"{jaxproj.__version__} (a release re-runs the notebooks); {rerun}"
     )
+    version = _check_outputs(nb, name, "full")
+    assert version == jaxproj.__version__, f"{path.name}: header says jaxproj {version}; {rerun}"
     assert _images(nb) >= MIN_FIGURES[name]
-
-
-def test_library_stamp_follows_the_code(tmp_path: Path) -> None:
-    pkg = tmp_path / "jaxproj"
-    for p in notebook.stamp_files(ROOT / "jaxproj"):
-        dest = pkg / p.relative_to(ROOT / "jaxproj")
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        dest.write_bytes(p.read_bytes())
-    stamp = notebook.library_stamp(pkg)
-    assert stamp == notebook.library_stamp(ROOT / "jaxproj")  # by content, not by place
-    (pkg / "__pycache__").mkdir(exist_ok=True)
-    (pkg / "__pycache__" / "x.cpython-311.pyc").write_bytes(b"\0")
-    (pkg / "notes.tmp").write_text("not installed")
-    assert notebook.library_stamp(pkg) == stamp  # files pip does not install do not count
-    src = pkg / "smoothing.py"
-    src.write_text(src.read_text() + "\n# a comment\n")
-    assert notebook.library_stamp(pkg) != stamp
-    src.rename(pkg / "smoothing2.py")
-    assert notebook.library_stamp(pkg) != stamp
 
 
 # ------------------------------------------------------------------- results, fast mode

@@ -1,16 +1,14 @@
-"""What the notebooks in ``notebooks/`` share: the run mode, the library stamp, the results file.
+"""What the notebooks in ``notebooks/`` share: the run mode, the header line, the results file.
 
 * ``fast_mode()``: ``JAXPROJ_FAST=1`` in the environment selects each notebook's smaller settings
   (the tests run them so); anything else runs the full settings that the committed outputs come
   from.
-* ``library_stamp()``: a hash of the library's code and data, i.e. of every file of the
-  ``jaxproj`` package that ``pip install`` installs (``*.py`` sources, ``py.typed``, the MJCF in
-  ``assets/``, the bundled data and their notes in ``data/``), path and content. A notebook prints
-  it in its first cell (``header``); ``tests/test_notebooks.py`` compares the stamp a committed
-  notebook printed with the stamp of the code it sits beside, so outputs computed by other code
-  fail the tests until the notebooks are executed again (``python notebooks/execute.py``). It
-  changes with any change to those files, comments included: stale means "not computed by this
-  code", not "known to be different".
+* ``header()``: the first line a notebook prints: the ``jaxproj`` version, the run mode and the
+  machine. Committed outputs are tied to a release: ``notebooks/execute.py`` records the version
+  and a hash of the notebook's code cells in its metadata, and ``tests/test_notebooks.py`` checks
+  that the hash matches the cells and the version is the current one. A library edit between
+  releases does not stale the notebooks (the tests still execute all four in fast mode and check
+  their results); cutting a release includes ``python notebooks/execute.py``.
 * ``save_results(name, results, **arrays)``: with ``JAXPROJ_NOTEBOOK_RESULTS`` set to a folder,
   a notebook writes its key results there (``name.json`` and, given arrays, ``name.npz``) for the
   tests to check; without it, nothing is written.
@@ -19,7 +17,6 @@
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 import platform
 from pathlib import Path
@@ -33,44 +30,15 @@ FAST_ENV = "JAXPROJ_FAST"
 RESULTS_ENV = "JAXPROJ_NOTEBOOK_RESULTS"
 """Environment variable: a folder the notebooks write their key results to (tests)."""
 
-STAMP_PATTERNS: tuple[str, ...] = ("**/*.py", "py.typed", "assets/*.xml", "data/*.npz",
-                                   "data/*.md", "data/*.txt")  # fmt: skip
-"""The package files the stamp covers, relative to the package folder: what ``pip install``
-installs (``pyproject.toml``: the packages' modules plus ``package-data``)."""
-
-STAMP_LENGTH = 16
-"""Hex digits of the stamp (64 bits of the SHA-256)."""
-
 
 def fast_mode() -> bool:
     """Whether ``JAXPROJ_FAST`` asks for the fast settings (``1``, ``true`` or ``yes``)."""
     return os.environ.get(FAST_ENV, "").strip().lower() in ("1", "true", "yes")
 
 
-def stamp_files(root: str | os.PathLike[str] | None = None) -> list[Path]:
-    """The files ``library_stamp`` hashes, sorted by path (``root``: the package folder, by
-    default that of the imported ``jaxproj``)."""
-    base = Path(__file__).parents[1] if root is None else Path(root)
-    files = {p for pattern in STAMP_PATTERNS for p in base.glob(pattern) if p.is_file()}
-    return sorted((p for p in files if "__pycache__" not in p.parts),
-                  key=lambda p: p.relative_to(base).as_posix())  # fmt: skip
-
-
-def library_stamp(root: str | os.PathLike[str] | None = None) -> str:
-    """Hash (``STAMP_LENGTH`` hex digits of a SHA-256) of the package's code and data: each file
-    of ``stamp_files(root)`` contributes its path relative to ``root`` and its bytes."""
-    base = Path(__file__).parents[1] if root is None else Path(root)
-    h = hashlib.sha256()
-    for p in stamp_files(base):
-        data = p.read_bytes()
-        h.update(p.relative_to(base).as_posix().encode() + b"\0")
-        h.update(len(data).to_bytes(8, "little") + data)
-    return h.hexdigest()[:STAMP_LENGTH]
-
-
 def header(fast: bool | None = None) -> str:
-    """The first line a notebook prints: library version and stamp, run mode, JAX and MuJoCo
-    versions and the device. ``tests/test_notebooks.py`` reads the stamp and the mode from it."""
+    """The first line a notebook prints: library version, run mode, JAX and MuJoCo versions and
+    the device. ``tests/test_notebooks.py`` reads the version and the mode from it."""
     import jax
     import mujoco
 
@@ -80,7 +48,7 @@ def header(fast: bool | None = None) -> str:
     mode = f"fast ({FAST_ENV}=1)" if fast else "full"
     dev = jax.devices()[0]
     return (
-        f"jaxproj {jaxproj.__version__} | library stamp {library_stamp()} | mode: {mode} | "
+        f"jaxproj {jaxproj.__version__} | mode: {mode} | "
         f"jax {jax.__version__} on {dev.platform} ({os.cpu_count()} CPU cores) | mujoco "
         f"{mujoco.__version__} | Python {platform.python_version()}"
     )
@@ -120,5 +88,4 @@ def save_results(name: str, results: dict[str, Any], **arrays: Any) -> Path | No
     return out / f"{name}.json"
 
 
-__all__ = ["FAST_ENV", "RESULTS_ENV", "fast_mode", "header", "library_stamp", "render_backend",
-           "save_results", "stamp_files"]  # fmt: skip
+__all__ = ["FAST_ENV", "RESULTS_ENV", "fast_mode", "header", "render_backend", "save_results"]
