@@ -3,15 +3,23 @@
 A write that fails half-way (full disk, an exception in the encoder, Ctrl-C) never leaves a
 half-written target, nor its temporary file: the target keeps its previous content (or stays
 absent).
+
+``write_npz`` is the package's one NPZ writer (model files, motion files, the bundled datasets):
+atomic, and deterministic — the same arrays give the same bytes (fixed zip timestamps and
+permissions, no pickles).
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import secrets
-from collections.abc import Callable
+import zipfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
+
+import numpy as np
 
 from jaxproj.errors import InputError
 
@@ -65,3 +73,49 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
             raise InputError(path, f"cannot write: {e.strerror or e}") from None
         raise
     return path
+
+
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+"""Timestamp of every member of an NPZ written by ``write_npz`` (the zip format's earliest)."""
+
+
+def _npz_member(key: str) -> zipfile.ZipInfo:
+    info = zipfile.ZipInfo(f"{key}.npy", date_time=ZIP_DATE)
+    info.external_attr = 0o644 << 16
+    return info
+
+
+def _write_npz_file(path: Path, arrays: Mapping[str, np.ndarray], compress: bool) -> None:
+    if not compress:
+        with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+            for key, value in arrays.items():
+                with zf.open(_npz_member(key), "w", force_zip64=True) as fh:
+                    np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+        return
+    with zipfile.ZipFile(path, "w") as zf:
+        for key, value in arrays.items():
+            buf = io.BytesIO()
+            np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
+            info = _npz_member(key)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            zf.writestr(info, buf.getvalue(), compresslevel=9)
+
+
+def write_npz(
+    path: str | os.PathLike[str], arrays: Mapping[str, np.ndarray], *, compress: bool = False
+) -> Path:
+    """Write ``arrays`` as an NPZ archive (``np.load`` reads it), atomically and deterministically.
+
+    Args:
+      path: the target file (``atomic_write``: its folder is created if missing).
+      arrays: member name (without ``.npy``) -> array, written in this order; no object arrays.
+      compress: deflate each member (level 9) like ``np.savez_compressed``; default stored, like
+        ``np.savez``.
+
+    Returns:
+      ``path`` as a ``Path``.
+
+    Raises:
+      InputError: the file cannot be written (``atomic_write``).
+    """
+    return atomic_write(path, lambda tmp: _write_npz_file(tmp, arrays, compress))
