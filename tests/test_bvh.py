@@ -20,7 +20,8 @@ from scipy.spatial.transform import Rotation
 from jaxproj.cli import main
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import BONE_NAMES, JOINT_NAMES, descriptor
-from jaxproj.io import bvh, datasets
+from jaxproj.io import datasets
+from jaxproj.io.formats import bvh
 from jaxproj.io.readers import read_skeleton, recording_format
 from jaxproj.motion.retarget import retarget
 from jaxproj.projection import api as engine
@@ -492,7 +493,7 @@ def test_a_folder_of_bvh_files_is_what_build_and_evaluate_read(tmp_path, capsys)
     """``--data FOLDER`` (build, evaluate) reads through ``cli._load`` -> ``load_folder``; what
     follows is format-blind (tested on Kinect folders in test_cli; evaluated on the full CMU clips
     by hand, see the README)."""
-    from jaxproj.cli import _load
+    from jaxproj.cli.main import _load
 
     contents = datasets.load_folder(DATA)
     assert [s.name for s in contents.sequences] == [Path(c).stem for c in CLIPS]

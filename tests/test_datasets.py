@@ -228,7 +228,7 @@ def test_bundle_round_trip(tmp_path: Path, raw_dir: tuple[Path, dict[str, np.nda
     src, data = raw_dir
     out = tmp_path / "bundle.npz"
     bundle_msr_action3d(src, out)
-    loaded = datasets._load(out)
+    loaded = datasets.load_msr_archive(out)
     names = [s.name for s in loaded.sequences]
     assert names == ["a01_s10_e03", "a02_s05_e01", "a20_s01_e02"]
     assert loaded.cvpr12 == (False, True, True)
@@ -277,7 +277,7 @@ def test_bundle_errors(tmp_path: Path, raw_dir: tuple[Path, dict[str, np.ndarray
         bundle_msr_action3d(src, tmp_path / "x.npz")
     assert not (tmp_path / "x.npz").exists()
     with pytest.raises(InputError, match="not found"):
-        datasets._load(tmp_path / "x.npz")
+        datasets.load_msr_archive(tmp_path / "x.npz")
 
 
 # --- UTKinect-Action3D ----------------------------------------------------------------------------
@@ -417,9 +417,9 @@ def test_utk_bundled_archive_layout() -> None:
         assert (z["segments"] >= 0).all()  # no NaN segment among the ten recordings
     assert datasets.UTK_DATA_PATH.stat().st_size < 1_500_000
     with pytest.raises(InputError, match="unsupported"):
-        datasets._load(datasets.UTK_DATA_PATH)
+        datasets.load_msr_archive(datasets.UTK_DATA_PATH)
     with pytest.raises(InputError, match="not a UTKinect"):
-        datasets._load_utkinect(datasets.DATA_PATH)
+        datasets.load_utkinect_archive(datasets.DATA_PATH)
 
 
 def _write_utk(path: Path, frames: list[int], xyz: np.ndarray) -> None:
@@ -476,7 +476,7 @@ def test_utk_bundle_round_trip(tmp_path: Path, utk_raw: tuple[Path, np.ndarray])
     src, xyz = utk_raw
     out = tmp_path / "utk.npz"
     datasets.bundle_utkinect_action3d(src, out)
-    utk = datasets._load_utkinect(out)
+    utk = datasets.load_utkinect_archive(out)
     (rec,) = utk.recordings
     kept = [0, 1, 3, 4, 6, 7]  # the second line of frames 12 and 18 is dropped
     assert (rec.name, rec.subject, rec.take, rec.action) == ("s01_e01", 1, 1, 0)

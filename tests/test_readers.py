@@ -332,3 +332,65 @@ def test_npz_with_bad_member_is_wrapped(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="corrupt or unreadable npz") as info:
         read_skeleton(path)
     assert str(path) in str(info.value)
+
+
+# --- the format registry and detection ------------------------------------------------------------
+
+
+def test_registry_lists_every_format_once_and_the_cli_offers_them() -> None:
+    import argparse
+
+    from jaxproj import io as jio
+    from jaxproj.cli.main import build_parser
+
+    assert jio.format_names() == ("msr", "utkinect", "npz", "csv", "bvh")
+    for fmt in jio.FORMATS:
+        assert jio.get_format(fmt.name) is fmt and fmt.description and callable(fmt.read)
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    retarget = sub.choices["retarget"]
+    choices = next(a.choices for a in retarget._actions if a.dest == "format")
+    assert tuple(choices) == ("auto", *jio.format_names())
+
+
+def test_file_and_folder_detection_agree_on_every_recording(tmp_path: Path) -> None:
+    from jaxproj.io.readers import recording_format
+
+    sdk = motion(3)
+    paths = all_formats(tmp_path, sdk)
+    paths["csv-as-txt"] = write(tmp_path / "table.txt", csv_text(sdk))
+    paths["short-header"] = write(tmp_path / "short.dat", "x,y,z\n" + csv_text(sdk, header=False))
+    paths["msr-named-csv"] = write(tmp_path / "really_msr.csv", msr_text(sdk))
+    for name, path in paths.items():
+        rec = read_skeleton(path)
+        assert recording_format(path) == (rec.format, ""), name
+        np.testing.assert_array_equal(rec.positions, sdk.astype(np.float32), err_msg=name)
+
+
+@pytest.mark.parametrize(
+    ("name", "content"),
+    [
+        ("notes.txt", "Hello, this is a note about the recordings.\n"),  # one line of prose
+        ("LICENSE", "MIT License\n\nCopyright (c) 2026 someone\n\nPermission is granted.\n"),
+        ("README.md", "# Recordings\n\nTaken on Tuesday.\n"),
+    ],
+)
+def test_a_file_of_no_known_format_says_so_and_lists_the_formats(
+    tmp_path: Path, name: str, content: str
+) -> None:
+    from jaxproj.io import format_names
+    from jaxproj.io.readers import recording_format
+
+    path = write(tmp_path / name, content)
+    with pytest.raises(InputError) as info:
+        read_skeleton(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: cannot detect the format: "), message
+    assert "no recording of any known format" in message
+    assert all(f"{fmt}: " in message for fmt in format_names()), message
+    assert "--format" not in message and "format=" not in message  # forcing cannot help
+    assert "but no data rows" not in message and "\n" not in message
+    fmt, why = recording_format(path)
+    assert fmt is None and why and why in message
+    for forced in format_names():  # indeed: no reader takes it
+        with pytest.raises(InputError):
+            read_skeleton(path, format=forced)

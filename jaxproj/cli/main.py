@@ -17,6 +17,7 @@ from pathlib import Path
 
 from jaxproj import __version__
 from jaxproj.errors import ConfigError, JaxprojError
+from jaxproj.io.formats import format_names
 from jaxproj.projection.api import HEAD_BANDWIDTH
 
 METHODS = ("ik", "relaxed", "full")
@@ -411,7 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument(
         "--format",
         default="auto",
-        choices=("auto", "msr", "utkinect", "npz", "csv", "bvh"),
+        choices=("auto", *format_names()),
         help="input format (auto: by extension and content)",
     )
     _bvh_options(pr, scale=True)

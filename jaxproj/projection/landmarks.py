@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.io.datasets import valid_descriptors
+from jaxproj.human.descriptors import valid_descriptors
 from jaxproj.projection.meanshift import (
     MAX_ITER,
     MERGE_FRACTION,

@@ -1,0 +1,65 @@
+"""Descriptors of many recordings at once: the training data of a projector.
+
+``valid_descriptors`` turns sequences (anything with ``positions (T, 20, 3)`` and ``valid (T,)``:
+the bundled datasets' ``MotionSequence``s, ``Recording``s), a position array or a descriptor array
+into the ``(N, 3 * n_bones)`` descriptors of their valid frames. It belongs to the human layer
+(the descriptor of a skeleton, ``jaxproj.human.skeleton.descriptor``, applied to sequences), so
+algorithm modules take training data from here, never from the bundled data
+(``jaxproj.io.datasets`` re-exports it).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import numpy as np
+
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import N_JOINTS, descriptor
+
+
+def valid_descriptors(
+    sequences_or_points: Any,
+    *,
+    bones: str | tuple[str, ...] = "upper",
+    mirror: bool = False,
+) -> np.ndarray:
+    """Descriptors of the valid frames of some recordings (e.g. a training set).
+
+    Args:
+      sequences_or_points: an iterable of sequences (objects with ``positions (T, 20, 3)`` and
+        ``valid (T,)``, e.g. ``msr_action3d()``), or a ``(T, 20, 3)`` position array, or an
+        ``(N, 3 * n_bones)`` array of descriptors (taken as they are, checked finite).
+      bones, mirror: descriptor options (``skeleton.descriptor``); ignored for descriptors.
+
+    Returns:
+      ``(N, 3 * n_bones)`` float32 descriptors of the frames that are valid both in the sequence
+      (``valid``) and for the descriptor (frame and bones not degenerate).
+
+    Raises:
+      ConfigError: no valid frame, or an array of the wrong shape or with non-finite values.
+    """
+    if isinstance(sequences_or_points, (np.ndarray, jax.Array)):
+        a = np.asarray(sequences_or_points, dtype=np.float32)
+        if a.ndim == 2:
+            if len(a) == 0 or a.shape[1] == 0 or not np.isfinite(a).all():
+                raise ConfigError(f"descriptors must be finite (N >= 1, m >= 1), got {a.shape}")
+            return a
+        if a.ndim == 3 and a.shape[1:] == (N_JOINTS, 3):
+            positions, valid = a, np.ones(a.shape[0], bool)
+        else:
+            raise ConfigError(
+                f"expected (N, 3 * n_bones) descriptors or (T, 20, 3) positions, got {a.shape}"
+            )
+    else:
+        seqs = list(sequences_or_points)
+        if not seqs:
+            raise ConfigError("no sequences given")
+        positions = np.concatenate([np.asarray(s.positions, np.float32) for s in seqs])
+        valid = np.concatenate([np.asarray(s.valid, bool) for s in seqs])
+    d, ok = descriptor(positions, bones=bones, mirror=mirror)
+    keep = valid & np.asarray(ok)
+    if not keep.any():
+        raise ConfigError("no valid frame")
+    return np.asarray(d)[keep].astype(np.float32)

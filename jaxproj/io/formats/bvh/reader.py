@@ -1,0 +1,158 @@
+"""Reading a BVH file: units (``scale=``) and ``read_bvh``, the ``"bvh"`` format's reader.
+
+``read_bvh`` chains the steps of ``jaxproj.io.formats.bvh`` (parse, joint map, scale, forward
+kinematics, Kinect joints) into a ``Recording``; ``FORMAT`` registers it (``.bvh``, or a first line
+``HIERARCHY``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.io.formats.base import Format
+from jaxproj.io.formats.bvh.joint_maps import resolve_joint_map
+from jaxproj.io.formats.bvh.kinematics import kinect_positions
+from jaxproj.io.formats.bvh.parser import BvhClip, parse_bvh
+from jaxproj.io.recording import MAX_DURATION_S, Recording, check_fps, make_recording, resample
+from jaxproj.io.text import Head
+
+CMU_SCALE = (1.0 / 0.45) * 2.54 / 100.0
+"""Metres per CMU skeleton unit (the ASF files' ``length 0.45``: 1 unit = 1 / 0.45 inch)."""
+
+UNITS: dict[str, float] = {"cmu": CMU_SCALE, "m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+"""Unit names accepted by ``scale=`` (metres per file unit)."""
+
+REFERENCE_HEIGHT_M = 1.5
+"""Head-to-ankle height (m) that ``scale="auto"`` aims at when it guesses the unit of a
+skeleton without a preset (an adult's ~1.7 m stature less the head top and the feet)."""
+
+
+_PRESET_SCALE = {"cmu": CMU_SCALE, "cmu-mb": CMU_SCALE}
+
+
+def auto_scale(clip: BvhClip, map_name: str, table: Mapping[str, str]) -> tuple[float, str]:
+    """``(metres per file unit, how it was chosen)`` for ``scale="auto"`` (module docstring)."""
+    if map_name in _PRESET_SCALE:
+        return _PRESET_SCALE[map_name], f"cmu units ({CMU_SCALE:.6g} m)"
+    lengths = np.linalg.norm(clip.offsets, axis=1)
+
+    def chain(j: int) -> float:
+        total = 0.0
+        while j >= 0:
+            total += float(lengths[j]) if clip.parents[j] >= 0 else 0.0
+            j = int(clip.parents[j])
+        return total
+
+    height = chain(clip.index(table["Head"])) + chain(clip.index(table["AnkleLeft"]))
+    if not (height > 0 and math.isfinite(height)):
+        return 1.0, "m (rest pose has no height)"
+    unit = min(
+        (u for u in UNITS if u != "cmu"),
+        key=lambda u: abs(math.log(height * UNITS[u] / REFERENCE_HEIGHT_M)),
+    )
+    return UNITS[unit], f"{unit} (guessed: rest pose {height:g} units head to ankle)"
+
+
+def _scale(clip: BvhClip, scale: float | str, map_name: str, table: Mapping[str, str]):
+    if isinstance(scale, str):
+        if scale == "auto":
+            return auto_scale(clip, map_name, table)
+        if scale in UNITS:
+            return UNITS[scale], f"{scale} (given)"
+        try:
+            scale = float(scale)
+        except ValueError:
+            raise ConfigError(
+                f"bvh scale must be 'auto', a unit ({', '.join(UNITS)}) or a positive number, "
+                f"got {scale!r}"
+            ) from None
+    value = float(scale)
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"bvh scale must be a positive finite number, got {scale!r}")
+    return value, f"x {value:g} (given)"
+
+
+def read_bvh(
+    path: str | os.PathLike[str],
+    bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
+    scale: float | str = "auto",
+    fps: float | None = None,
+    *,
+    data: bytes | None = None,
+) -> Recording:
+    """Read a BVH file into a ``Recording`` (``(T, 20, 3)`` float32 metres, Kinect order).
+
+    Args:
+      path: the ``.bvh`` file.
+      bvh_map: ``"auto"`` (detect a preset), ``"cmu"``, ``"cmu-mb"``, a JSON / TOML map file or
+        a dict of Kinect joint -> BVH joint (``jaxproj.io.formats.bvh``).
+      scale: ``"auto"``, a unit name of ``UNITS`` or metres per file unit.
+      fps: ``None`` keeps the clip's frames (``Frame Time``); a rate resamples the clip to it.
+      data: the file's bytes, if already read.
+
+    Returns:
+      ``Recording`` with ``format="bvh"``, ``times`` from ``Frame Time`` (or the resampled grid)
+      and ``time_source`` saying which map, scale and rate were used.
+
+    Raises:
+      InputError: a malformed file or a map that does not fit it (one line, file and line).
+      ConfigError: a bad ``scale``, ``fps`` or map dict.
+    """
+    if fps is not None:
+        check_fps(fps)
+    clip = parse_bvh(path, data)
+    map_name, table = resolve_joint_map(clip, bvh_map)
+    metres, scale_note = _scale(clip, scale, map_name, table)
+    positions = kinect_positions(clip, table, metres)
+    times = np.arange(clip.n_frames, dtype=np.float64) * clip.frame_time
+    if times[-1] > MAX_DURATION_S:
+        raise InputError(
+            path,
+            f"the clip spans {times[-1]:g} s (more than {MAX_DURATION_S:g} s): corrupt "
+            "Frame Time or Frames",
+        )
+    rec = make_recording(positions, None, str(path), "bvh")
+    note = (f"BVH Frame Time {clip.frame_time:g} s ({clip.fps:.6g} fps); map {map_name}; "
+            f"scale {scale_note}")  # fmt: skip
+    rec = dataclasses.replace(rec, times=times, time_source=note, nominal_fps=clip.fps)
+    if fps is not None:
+        rec = resample(rec, fps)
+    return rec
+
+
+def sniff(head: Head) -> tuple[bool, str]:
+    """A text file named ``.bvh`` or whose first line is ``HIERARCHY``."""
+    line = head.first_line
+    if line is None:
+        return False, ""
+    return head.suffix == ".bvh" or line.split()[:1] == ["HIERARCHY"], ""
+
+
+def read(
+    path: str | os.PathLike[str],
+    data: bytes,
+    fps: float | None,
+    *,
+    bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
+    scale: float | str = "auto",
+    **options: Any,
+) -> Recording:
+    """``read_bvh`` as a format's reader (``Format.read``)."""
+    return read_bvh(path, bvh_map, scale, fps, data=data)
+
+
+FORMAT = Format(
+    name="bvh",
+    description="BVH motion capture: CMU, LAFAN1, Xsens..., mapped to the 20 Kinect joints",
+    suffixes=(".bvh",),
+    sniff=sniff,
+    read=read,
+    first_line=("HIERARCHY (BVH)", ""),
+)
