@@ -12,16 +12,15 @@ the same sources give byte-identical files. The converter command line (``main``
 from __future__ import annotations
 
 import argparse
-import io
 import os
 import re
 import sys
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from jaxproj._internal.atomic import write_npz
 from jaxproj.errors import InputError
 from jaxproj.human.skeleton import JOINT_NAMES
 from jaxproj.io.bundled import (
@@ -37,7 +36,6 @@ from jaxproj.io.formats.utkinect import read_utkinect_rows
 
 _FILE_RE = re.compile(r"^a(\d{2})_s(\d{2})_e(\d{2})_skeleton3D\.txt$")
 _CVPR12_LIST = "files_used_in_cvpr12_paper.txt"
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 _UTK_FILE_RE = re.compile(r"^joints_s(\d{2})_e(\d{2})\.txt$")
 _UTK_LABELS = "actionLabel.txt"
 _UTK_BLOCK_RE = re.compile(r"^s(\d{2})_e(\d{2})$")
@@ -85,7 +83,7 @@ def bundle_msr_action3d(src_dir: str | os.PathLike[str], out_path: str | os.Path
         "confidence_values": conf_values.astype(np.float64),
         "confidence_index": conf_index.reshape(pos.shape[:2]).astype(index_dtype),
     }
-    _write_npz(Path(out_path), arrays)
+    write_npz(out_path, arrays, compress=True)
 
 
 def micrometres(path: Path, xyz: np.ndarray) -> np.ndarray:
@@ -168,7 +166,7 @@ def bundle_utkinect_action3d(
         "positions_um_planes": byte_planes(np.concatenate(positions)),
         "segments": np.stack(segments).astype(np.int32),
     }
-    _write_npz(Path(out_path), arrays)
+    write_npz(out_path, arrays, compress=True)
 
 
 def _read_utk_labels(path: Path) -> dict[str, np.ndarray]:
@@ -224,20 +222,6 @@ def _read_utk_labels(path: Path) -> dict[str, np.ndarray]:
         if missing:
             raise InputError(path, f"block {name} lacks actions {missing}")
     return blocks
-
-
-def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Like ``np.savez_compressed`` but deterministic (fixed timestamps, level 9), atomic."""
-    tmp = path.with_name(path.name + ".tmp")
-    with zipfile.ZipFile(tmp, "w") as zf:
-        for key, array in arrays.items():
-            buf = io.BytesIO()
-            np.lib.format.write_array(buf, np.asanyarray(array), allow_pickle=False)
-            info = zipfile.ZipInfo(key + ".npy", date_time=_ZIP_DATE)
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = 0o644 << 16
-            zf.writestr(info, buf.getvalue(), compresslevel=9)
-    os.replace(tmp, path)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
