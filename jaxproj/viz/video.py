@@ -30,7 +30,6 @@ def check_video_path(out: str | os.PathLike[str]) -> str:
     return ext
 
 
-
 def _require_ffmpeg() -> None:
     try:
         import imageio_ffmpeg
@@ -157,6 +156,7 @@ def save_video(
     if ext == ".mp4":
         _require_ffmpeg()
         return atomic_write(out, lambda tmp: _write_mp4(tmp, frames, fps))
+
     def write_gif(tmp: Path) -> None:
         tmp.write_bytes(_gif_bytes(frames, fps))
 
