@@ -10,15 +10,16 @@ Landmarks and kernels from MSR Action3D subjects 1,3,5,7,9 (all actions, valid f
   capture program): cross-dataset.
 
 Unsmoothed, L = M = 10, degrees over ``robot.DRIVEN_JOINTS`` against the analytic IK. Each
-method's block is ``jaxproj.eval.metrics.summarize_errors``: the paper's M_max / M_avg, per-joint p50 /
-p95, M_max without the two ElbowYaw joints, and task-space errors from forward kinematics of the
-MJCF (wrist and elbow position in cm, upper-arm / forearm direction in degrees). The baselines
+method's block is ``jaxproj.eval.metrics.summarize_errors``: the paper's M_max / M_avg,
+per-joint p50 / p95, M_max without the two ElbowYaw joints, and task-space errors from forward
+kinematics of the MJCF (wrist and elbow position in cm, upper-arm / forearm direction in degrees).
+The baselines
 (nearest landmark, kNN average, global ELM) run on the same landmarks, per chain for a per-chain
 model. Identity: each chain's landmarks projected through its own kernels.
 
-    python benchmarks/accuracy_cross_subject.py [--chains upper,whole] [--datasets msr,utkinect]
+    python -m benchmarks.accuracy_cross_subject [--chains upper,whole] [--datasets msr,utkinect]
         [--landmarks 1644] [--seed 0] [--json OUT]
-    python benchmarks/accuracy_cross_subject.py --quick    # smoke run (see --help)
+    python -m benchmarks.accuracy_cross_subject --quick    # smoke run (see --help)
 """
 
 from __future__ import annotations

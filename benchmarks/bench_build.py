@@ -16,7 +16,7 @@ Timed with the shared helpers of ``jaxproj.timing``:
 ``K`` is the count reached (within 5 % of the target), ``singletons`` the landmarks that hold a
 single training frame. The IK of the landmarks (``landmarks.build_landmarks``) is not included.
 
-    python benchmarks/bench_build.py [--quick] [--repeats N] [--json OUT]
+    python -m benchmarks.bench_build [--quick] [--repeats N] [--json OUT]
 
 ``--quick``: one timed call per figure (default 3). Earlier figures: ``benchmarks/RESULTS.md``,
 section "Mean shift / landmark build times".

@@ -1,6 +1,6 @@
 """Scale-out: the same public calls on one device and sharded over several, in one run.
 
-    python benchmarks/bench_multi_device.py [--devices all] [--queries 4194304]
+    python -m benchmarks.bench_multi_device [--devices all] [--queries 4194304]
         [--full-queries 262144] [--rollout-batch 32768] [--landmarks 1644] [--json OUT]
 
 For 1 device and for the N given (``engine.resolve_devices``): ``jaxproj.project`` on a host
@@ -24,17 +24,18 @@ from pathlib import Path
 import jax
 import numpy as np
 
-_HERE = str(Path(__file__).resolve().parent)
-if _HERE not in sys.path:
-    sys.path.insert(0, _HERE)
-
-import bench_rollout  # noqa: E402
-from bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, queries, shuffled  # noqa: E402
-from harness import header  # noqa: E402
-
-from jaxproj.projection import api as engine  # noqa: E402
-from jaxproj.projection.objectives import FullConfig  # noqa: E402
-from jaxproj.robots.nao_h25 import robot  # noqa: E402
+from benchmarks import bench_rollout
+from benchmarks.bench_projection import (
+    TEST_SUBJECTS,
+    TRAIN_SUBJECTS,
+    descriptors,
+    queries,
+    shuffled,
+)
+from benchmarks.harness import header
+from jaxproj.projection import api as engine
+from jaxproj.projection.objectives import FullConfig
+from jaxproj.robots.nao_h25 import robot
 
 COLLECTIVES = ("all-gather", "all-reduce", "all-to-all", "collective-permute", "reduce-scatter")
 

@@ -1,6 +1,6 @@
 """Speed benchmark of the projection engine.
 
-    python benchmarks/bench_projection.py [--quick] [--device cpu|gpu] [--json OUT]
+    python -m benchmarks.bench_projection [--quick] [--device cpu|gpu] [--json OUT]
         [--landmarks 86,1644] [--batches 1,256,4096] [--configs relaxed:10:10,full:10:10]
         [--repeats N] [--ref-queries N]
         [--no-streaming] [--no-rollout] [--full-clusters C] [--full-iterations I]
@@ -31,13 +31,14 @@ timed apart; timing primitives from ``jaxproj.timing``):
   bandwidth search) -> both ELM kernel banks, timed on a second build so that compilation is
   excluded (``compile_s`` = first build minus second); ``banks_s`` times the two kernel banks
   alone (``engine.build_from_landmarks``).
-* the **streaming** record: latency of one frame through the public ``jaxproj.motion.streaming.update``
+* the **streaming** record: latency of one frame through the public
+  ``jaxproj.motion.streaming.update``
   (a ``(20, 3)`` host array of joint positions -> descriptor -> relaxed projection -> one
   smoothing step -> clip -> a host array of 10 angles; one jitted call, host <-> device transfers
   included), after 50 warm-up frames; median and p99. ``compile_s`` is the first call's time
   minus the median (trace + compile).
 * **rollout** records: MJX rollout (``jaxproj.eval.rollout.simulate``) NAO physics steps per second
-  per batch size, through ``bench`` of ``bench_rollout.py`` (next to this script), with motion 0
+  per batch size, through ``bench`` of ``benchmarks.bench_rollout``, with motion 0
   checked against CPU MuJoCo; marked ``skipped`` when MuJoCo MJX is not available.
 
 Landmark sets: N = 86, 961, 1644 are real models, ``engine.build(train, BuildConfig(landmarks=N))``
@@ -65,20 +66,13 @@ import dataclasses
 import sys
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 import jax
 import numpy as np
 
-# the sibling modules (harness, bench_rollout) are imported as top-level modules: this folder
-# is on sys.path when run as a script; this line also covers `python -m benchmarks...`
-_HERE = str(Path(__file__).resolve().parent)
-if _HERE not in sys.path:
-    sys.path.insert(0, _HERE)
-
-import harness  # noqa: E402
-from harness import (  # noqa: E402
+from benchmarks import harness
+from benchmarks.harness import (
     FULL_TOL_DEG,
     RELAXED_TOL_DEG,
     SYNTHETIC_N,
@@ -94,17 +88,16 @@ from harness import (  # noqa: E402
     target_checks,
     time_plan,
 )
-
-from jaxproj.errors import ConfigError, JaxprojError  # noqa: E402
-from jaxproj.human.skeleton import descriptor  # noqa: E402
-from jaxproj.io import datasets  # noqa: E402
-from jaxproj.motion import streaming as jaxproj_streaming  # noqa: E402
-from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams  # noqa: E402
-from jaxproj.projection import api as engine  # noqa: E402
-from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector  # noqa: E402
-from jaxproj.robots.nao_h25 import ik  # noqa: E402
-from jaxproj.testing import Reference, StackedReference  # noqa: E402
-from jaxproj.timing import compile_timed  # noqa: E402
+from jaxproj.errors import ConfigError, JaxprojError
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.motion import streaming as jaxproj_streaming
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
+from jaxproj.projection import api as engine
+from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
+from jaxproj.robots.nao_h25 import ik
+from jaxproj.testing import Reference, StackedReference
+from jaxproj.timing import compile_timed
 
 TRAIN_SUBJECTS = (1, 3, 5, 7, 9)
 TEST_SUBJECTS = (2, 4, 6, 8, 10)
@@ -237,8 +230,8 @@ def bench_streaming(
     params: SmoothingParams = PAPER_SMOOTHING,
     warmup: int = 50,
 ) -> dict:
-    """Per-frame latency of ``jaxproj.motion.streaming.update`` over ``positions (T, 20, 3)`` (cycled):
-    a host array in, a host array of angles out, the state carried from frame to frame."""
+    """Per-frame latency of ``jaxproj.motion.streaming.update`` over ``positions (T, 20, 3)``
+    (cycled): a host array in, a host array of angles out, the state carried from frame to frame."""
     frames = np.asarray(positions, np.float32)
     state = jax.device_put(jaxproj_streaming.init(model), device)
     angles = np.zeros(0, np.float32)
@@ -415,13 +408,13 @@ def bench_public(
 def bench_rollout(
     quick: bool, device: jax.Device, frames: int = 30, devices: list | None = None
 ) -> list[dict]:
-    """MJX rollout steps/s (``benchmarks/bench_rollout.py``'s ``bench``: synthetic arm motions,
+    """MJX rollout steps/s (``benchmarks.bench_rollout.bench``: synthetic arm motions,
     15 frames/s, 33 physics steps per frame), one record per batch size; motion 0 is checked
     against CPU MuJoCo ``mj_step`` (``mjx_vs_cpu_max_dq_rad``); a ``skipped`` record when MuJoCo
     MJX cannot be imported."""
     rec = record("rollout", objective="rollout", device=device.platform)
     try:
-        import bench_rollout as mod  # the sibling script (imports jaxproj.eval.rollout, MJX)
+        from benchmarks import bench_rollout as mod  # imports jaxproj.eval.rollout, MJX
     except ImportError as e:
         return [rec | {"skipped": f"rollout module not available ({e})"}]
     if device.platform == "cpu":
@@ -577,13 +570,11 @@ def run(
         records.append(rec)
         log(f"streaming N={n_stream}: median {rec['median_us']:.0f} us, p99 {rec['p99_us']:.0f} us")
     if rollout:
-        for rec in bench_rollout(quick, dev, devices=devices):
+        for rec in bench_rollout(quick, dev, frames=plan.rollout_frames, devices=devices):
             records.append(rec)
             if rec.get("steps_per_s"):
                 log(f"rollout batch {rec['batch']}: {rec['steps_per_s']:.4g} steps/s")
     records += target_checks(records, device)
-    return records
-
     return records
 
 
@@ -593,17 +584,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.add_arguments(ap)
     args = ap.parse_args(argv)
+    plan = make_plan(
+        args.quick,
+        args.device,
+        landmarks=args.landmarks,
+        batches=args.batches,
+        configs=args.configs,
+        repeats=args.repeats,
+        ref_queries=args.ref_queries,
+    )
     try:
         records = run(
             args.quick,
             args.device,
+            plan=harness.smoke_plan(plan) if args.smoke else plan,
             streaming=not args.no_streaming,
             rollout=not args.no_rollout,
-            landmarks=args.landmarks,
-            batches=args.batches,
-            configs=args.configs,
-            repeats=args.repeats,
-            ref_queries=args.ref_queries,
             full=harness.full_config(args.full_clusters, args.full_iterations),
             chains=args.chains,
             devices=engine.resolve_devices(args.devices),

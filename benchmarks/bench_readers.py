@@ -9,7 +9,7 @@ baseline is ``np.loadtxt`` of the same file, which only parses the numbers (no j
 no validity mask, no error reporting). Each figure is the median of ``--repeat`` calls after one
 warm-up call (``jaxproj.timing.time_calls``).
 
-    python benchmarks/bench_readers.py [--repeat 20] [--json OUT]
+    python -m benchmarks.bench_readers [--repeat 20] [--json OUT]
 """
 
 from __future__ import annotations
@@ -24,13 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-try:
-    from jaxproj import timing
-    from jaxproj.io import datasets, readers
-except ImportError:  # run from a checkout without installing
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from jaxproj import timing
-    from jaxproj.io import datasets, readers
+from jaxproj import timing
+from jaxproj.io import datasets, readers
 
 MOTIONS = {"median": "a06_s01_e01", "longest": "a13_s09_e03"}
 """The bundled motions the files are made of: the median length (39 frames) and the longest."""

@@ -1,4 +1,5 @@
-"""Throughput of the MJX rollout (``jaxproj.eval.rollout.simulate``) in NAO physics steps per second.
+"""Throughput of the MJX rollout (``jaxproj.eval.rollout.simulate``) in NAO physics steps per
+second.
 
 Synthetic arm/head motions (sinusoids around the standing posture, inside the joint limits) are
 played on the fixed-torso NAO at 15 frames/s (33 physics steps of 2 ms per frame). Before timing,
@@ -9,7 +10,7 @@ the best of ``--repeat`` further calls (``block_until_ready``), and reports
 ``batch * frames * substeps / run time``; the CPU MuJoCo ``mj_step`` loop on motion 0 is the
 same-run baseline (one core, one motion).
 
-    python benchmarks/bench_rollout.py [--batch 1,64,1024] [--frames 30] [--device cpu|gpu]
+    python -m benchmarks.bench_rollout [--batch 1,64,1024] [--frames 30] [--device cpu|gpu]
                                        [--repeat 3] [--json OUT]
 
 ``--device`` sets ``JAX_PLATFORMS`` before JAX is imported (MJX puts the model on
@@ -88,13 +89,8 @@ import jax  # noqa: E402  (after JAX_PLATFORMS)
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-try:
-    from jaxproj.eval import rollout
-    from jaxproj.robots.nao_h25 import robot
-except ImportError:  # run from a checkout without installing
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from jaxproj.eval import rollout
-    from jaxproj.robots.nao_h25 import robot
+from jaxproj.eval import rollout  # noqa: E402
+from jaxproj.robots.nao_h25 import robot  # noqa: E402
 
 
 def motions(batch: int, frames: int, seed: int) -> np.ndarray:

@@ -2,11 +2,12 @@
 
 For each split (held-out MSR Action3D subjects 2,4,6,8,10, arm actions, 15 fps assumed; the
 UTKinect-Action3D upper-body segments, times from their frame numbers) the relaxed projection is
-smoothed (the default) and run through ``jaxproj.motion.feasible`` with its defaults; the IK trajectory
-too. Printed and written as JSON: speed-limit violations, largest step and acceleration before ->
-after, errors against the IK before -> after, and the change against the unfiltered motion.
+smoothed (the default) and run through ``jaxproj.motion.feasible`` with its defaults; the IK
+trajectory too. Printed and written as JSON: speed-limit violations, largest step and
+acceleration before -> after, errors against the IK before -> after, and the change
+against the unfiltered motion.
 
-    python benchmarks/feasibility.py [--model P.npz] [--json OUT]
+    python -m benchmarks.feasibility [--model P.npz] [--json OUT]
 
 Without ``--model`` the default per-chain projector is built from subjects 1,3,5,7,9 (~1 min on
 2 CPU cores).

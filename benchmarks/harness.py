@@ -2,7 +2,8 @@
 records, the machine header, memory checks, the issue's speed targets, the table and the options.
 
 Not part of the ``jaxproj`` package (a wheel does not ship ``benchmarks/``): the scripts next to
-this file import it as a sibling module (their folder is on ``sys.path`` when they run).
+import it as ``benchmarks.harness``: run them from the repository root as modules,
+``python -m benchmarks.bench_projection``.
 Timing itself uses ``jaxproj.timing`` (``compile_timed``, ``time_calls``).
 """
 
@@ -60,6 +61,23 @@ class Plan:
     public_queries: dict[str, int] = dataclasses.field(default_factory=dict)
     """Queries of the ``public`` records per objective (``jaxproj.project`` on a host array with
     its default arguments); none for an objective left out."""
+    rollout_frames: int = 30
+    """Frames per motion of the MJX rollout records (15 frames/s)."""
+
+
+def smoke_plan(plan: Plan) -> Plan:
+    """``--smoke``: ``plan`` cut to a check that every record is produced (the tests run this):
+    landmark sets subsampled (no mean shift), no minimum timing, at most 2 timed calls, small
+    public-API calls, 40 streaming frames, 2-frame rollouts. Its speeds mean nothing."""
+    return dataclasses.replace(
+        plan,
+        subsample_all=True,
+        min_time_s=0.0,
+        max_repeats=2,
+        public_queries={"relaxed": 256, "full": 64},
+        stream_frames=40,
+        rollout_frames=2,
+    )
 
 
 def make_plan(
@@ -507,8 +525,13 @@ def _ints(text: str) -> list[int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``benchmarks/bench_projection.py``."""
+    """The options of ``python -m benchmarks.bench_projection``."""
     parser.add_argument("--quick", action="store_true", help="a subset that runs in minutes")
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="a seconds-long check that every record is produced, speeds meaningless (the tests)",
+    )
     parser.add_argument("--device", default="cpu", choices=("cpu", "gpu"))
     parser.add_argument(
         "--chains",

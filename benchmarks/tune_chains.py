@@ -48,7 +48,7 @@ Caching (``--cache``, default ``/tmp/tune-cache``): landmarks per (fold, chain, 
 own sub-folder (folds 1 and 3, every 4th training and every 5th validation frame, two
 bandwidths per chain, a reduced grid).
 
-    python benchmarks/tune_chains.py [--json OUT] [--test] [--cache DIR] [--quick]
+    python -m benchmarks.tune_chains [--json OUT] [--test] [--cache DIR] [--quick]
 """
 
 from __future__ import annotations

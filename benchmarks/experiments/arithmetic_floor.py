@@ -21,7 +21,7 @@ its floor cannot be met by JAX / XLA (or NumPy) code of this algorithm on this m
 CPU, hand-vectorised native code might exceed the NumPy rate of the hidden units (see
 ``benchmarks/RESULTS.md`` for that margin).
 
-    python benchmarks/experiments/arithmetic_floor.py [--model MODEL.npz | --landmarks 1644]
+    python -m benchmarks.experiments.arithmetic_floor [--model MODEL.npz | --landmarks 1644]
         [--device cpu|gpu] [--json OUT]
 """
 
@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,10 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
-
+from benchmarks.bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
 from jaxproj.projection.objectives import ChainLayout  # noqa: E402
 from jaxproj.timing import time_calls  # noqa: E402

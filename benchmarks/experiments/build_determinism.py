@@ -5,25 +5,20 @@ Builds the default per-chain model at ``--landmarks`` from the benchmark's train
 chain's human landmarks. Run it several times, each in a fresh process, and compare the lines;
 on a GPU try it with and without ``XLA_FLAGS=--xla_gpu_deterministic_ops=true``:
 
-    for i in 1 2; do python benchmarks/experiments/build_determinism.py; done
+    for i in 1 2; do python -m benchmarks.experiments.build_determinism; done
     for i in 1 2; do XLA_FLAGS=--xla_gpu_deterministic_ops=true \\
-        python benchmarks/experiments/build_determinism.py; done
+        python -m benchmarks.experiments.build_determinism; done
 """
 
 from __future__ import annotations
 
 import argparse
 import hashlib
-import sys
-from pathlib import Path
 
 import jax
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
-
+from benchmarks.bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
 
 

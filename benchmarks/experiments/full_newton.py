@@ -1,6 +1,6 @@
 """The full objective's solvers: convergence, accuracy against the IK, and speed (experiment).
 
-    python benchmarks/experiments/full_newton.py MODEL.npz [--queries 1000] [--long 1000]
+    python -m benchmarks.experiments.full_newton MODEL.npz [--queries 1000] [--long 1000]
         [--iterations 10,20,30] [--json OUT.json]
 
 Held-out MSR people (subjects 2, 4, 6, 8, 10; valid frames in a fixed random order, the first
@@ -20,16 +20,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench_projection import TEST_SUBJECTS, descriptors, shuffled  # noqa: E402
-
+from benchmarks.bench_projection import TEST_SUBJECTS, descriptors, shuffled  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
 from jaxproj.projection.objectives import FullConfig  # noqa: E402
 from jaxproj.robots.nao_h25 import ik  # noqa: E402

@@ -1,6 +1,6 @@
 """The full objective's solvers against long solves (experiment; CPU, ~6 min on 2 cores).
 
-    python benchmarks/experiments/full_solver_convergence.py MODEL.npz
+    python -m benchmarks.experiments.full_solver_convergence MODEL.npz
 
 256 descriptors of the TRAINING subjects; per-chain model; L = M = 10; every cluster solved by
 projected Adam (the library's, step 0.05) for 30 / 1,000 steps, and by a projected gradient

@@ -3,7 +3,7 @@
 same model and queries; both checked against the float64 reference; then the public
 ``jaxproj.project`` on 1 M host poses.
 
-    python3 benchmarks/experiments/fused_backproj_ab.py MODEL.npz [--ref-queries 1000]
+    python -m benchmarks.experiments.fused_backproj_ab MODEL.npz [--ref-queries 1000]
 
 Prints, for relaxed L = M = 10 at batch 65,536: ns per pose of one jitted ``engine.project_batch``
 with each back-projection; the back-projection alone on the batch's real candidate rows; how

@@ -3,7 +3,7 @@ kernel (``jaxproj.projection.ops.knn_pallas``, the default there) against the XL
 in one run, on the same model and queries; both checked against the float64 reference; then the
 public ``jaxproj.project`` on 1 M host poses.
 
-    python3 benchmarks/experiments/fused_knn_ab.py MODEL.npz [--ref-queries 500]
+    python -m benchmarks.experiments.fused_knn_ab MODEL.npz [--ref-queries 500]
 
 Prints, for relaxed L = M = 10 at batch 65,536 in one jitted ``engine.project_batch``: ns per pose
 of both; the search alone on the batch's real candidate rows (ns per pose, neighbour sets equal,

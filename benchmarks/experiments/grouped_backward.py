@@ -1,6 +1,6 @@
 """Experiment (negative result, 2026-11-23): grouped back-projection as a Pallas Triton kernel.
 
-    python3 benchmarks/experiments/grouped_backward.py MODEL.npz      # needs a CUDA GPU
+    python -m benchmarks.experiments.grouped_backward MODEL.npz      # needs a CUDA GPU
 
 The relaxed projection evaluates 100 backward kernels per query and chain (L candidates x M robot
 landmarks), but the candidates of one query lie close together and share most robot landmarks

@@ -11,7 +11,7 @@ certificate proves (the rest would take the brute-force path), and checks that e
 set equals the brute-force set. Held-out MSR subjects 2, 4, 6, 8, 10, the default per-chain
 model at ``--landmarks``, L = M = 10.
 
-    python benchmarks/experiments/pool_certificate.py [--landmarks 1644] [--queries 4096]
+    python -m benchmarks.experiments.pool_certificate [--landmarks 1644] [--queries 4096]
         [--pools 16,32,64,128,256] [--json OUT]
 """
 
@@ -19,16 +19,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import jax
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, shuffled  # noqa: E402
-
+from benchmarks.bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, shuffled  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
 from jaxproj.projection.objectives import candidates  # noqa: E402
 from jaxproj.projection.search import nearest  # noqa: E402

@@ -6,7 +6,7 @@ each with the library's solver caps (8 / 4) and with MuJoCo's own (100 / 50), an
 |qpos difference| of every pair, split by motions with and without self-contact (per the whole
 model at 100 / 50), plus whether the contact frames agree.
 
-    python benchmarks/experiments/rollout_split_check.py [--motions 64] [--frames 15]
+    python -m benchmarks.experiments.rollout_split_check [--motions 64] [--frames 15]
                                                          [--device cpu|gpu] [--json OUT]
 """
 
@@ -16,7 +16,6 @@ import argparse
 import dataclasses
 import json
 import os
-import sys
 from pathlib import Path
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -31,10 +30,7 @@ os.environ["JAX_PLATFORMS"] = {"cpu": "cpu", "gpu": "cuda"}[ARGS.device]
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from bench_rollout import motions  # noqa: E402
-
+from benchmarks.bench_rollout import motions  # noqa: E402
 from jaxproj.eval import rollout  # noqa: E402
 
 

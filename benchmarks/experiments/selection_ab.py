@@ -2,7 +2,7 @@
 against repeated minima (``search.smallest``'s accelerator path), in one run, on the same model
 and queries; then the public ``jaxproj.project`` on 1 M host poses.
 
-    python3 benchmarks/experiments/selection_ab.py MODEL.npz
+    python -m benchmarks.experiments.selection_ab MODEL.npz
 
 Prints ns per pose of one jitted ``engine.project_batch`` (relaxed, L = M = 10, batch 65,536)
 for both selections and whether their answers are bit-identical. Needs a GPU (on a CPU both

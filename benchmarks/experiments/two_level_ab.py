@@ -4,7 +4,7 @@ back-projection sub-batch (``engine.sub_batch``, 8 queries at N = 1644; the engi
 back-projection looped 8 at a time inside (``project_relaxed_rows``' ``chunk``), in one process,
 interleaved, on the same model and queries; both checked against the float64 reference first.
 
-    python benchmarks/experiments/two_level_ab.py MODEL.npz [--batch 4096] [--rounds 5]
+    python -m benchmarks.experiments.two_level_ab MODEL.npz [--batch 4096] [--rounds 5]
         [--ref-queries 64]
 
 Prints us per pose of one jitted ``engine.project_batch`` (relaxed, L = M = 10) for each

@@ -1,5 +1,5 @@
 """The ``jaxproj`` command line: thin subcommands over the public API (``jaxproj.cli.main``)."""
 
-from jaxproj.cli.main import main
+from jaxproj.cli.main import build_parser, main
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]

@@ -4,9 +4,9 @@ Each frame holds two panels side by side, each ``size = (width, height)`` pixels
 skeleton (when ``motion.positions`` is given; a matplotlib 3-D stick figure) on the left and the
 NAO playing ``motion.angles`` on the right. Both are seen from the same ``Camera`` direction in
 their own body frame (x forward, y left, z up): the human in the body frame built from the
-skeleton itself (``jaxproj.human.skeleton.body_frame``, hips at the origin; the frame the descriptor and
-the IK use), the robot in its torso frame. Left limbs are orange, right limbs blue (the MJCF's
-colours).
+skeleton itself (``jaxproj.human.skeleton.body_frame``, hips at the origin; the frame the
+descriptor and the IK use), the robot in its torso frame. Left limbs are orange, right limbs
+blue (the MJCF's colours).
 
 Backends of the robot panel (``render_frames(..., backend=)``):
 
@@ -25,6 +25,9 @@ Videos (``save_video``): ``.mp4`` (H.264 through imageio's ffmpeg plugin, needs 
 plugin; GIF delays are whole centiseconds, and Pillow merges identical consecutive frames, adding
 their delays). Writes are atomic. The default playback rate is the motion's frame rate divided by
 the stride.
+
+The panels live in ``jaxproj.viz.panels`` (matplotlib) and here (MuJoCo), the video writers in
+``jaxproj.viz.video``; this module re-exports their public names.
 """
 
 from __future__ import annotations
@@ -35,79 +38,43 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Literal, NamedTuple
+from typing import Any, Literal, NamedTuple, TypedDict, Unpack
 
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import BONES, J
 from jaxproj.io.motion_files import Motion, load_motion
 from jaxproj.robots.nao_h25 import robot
+from jaxproj.viz.panels import (
+    CENTRE_COLOR,
+    LEFT_COLOR,
+    RIGHT_COLOR,
+    Camera,
+    _HumanPanel,
+    _StickRobotPanel,
+)
+from jaxproj.viz.video import (
+    VIDEO_FORMATS,
+    _gif_bytes,
+    _require_ffmpeg,
+    check_video_path,
+    save_video,
+)
 
 Backend = Literal["auto", "mujoco", "matplotlib"]
 BACKENDS: tuple[str, ...] = ("auto", "mujoco", "matplotlib")
 """Accepted values of ``backend=``."""
 
-VIDEO_FORMATS: tuple[str, ...] = (".mp4", ".gif")
-"""Extensions ``save_video`` writes."""
-
 DEFAULT_SIZE: tuple[int, int] = (480, 360)
 """(width, height) of one panel, pixels."""
 
-LEFT_COLOR = (0.95, 0.6, 0.2)
-RIGHT_COLOR = (0.2, 0.6, 0.95)
-CENTRE_COLOR = (0.25, 0.25, 0.3)
-
-_DPI = 100
 _MIN_SIDE, _MAX_SIDE = 32, 4096
-
-# the robot panel's fixed box (torso frame, m): the NAO spans z -0.333 (soles, standing
-# straight) .. +0.33 (hands up), |x|, |y| < 0.33 with the arms out
-_ROBOT_CENTRE = np.array([0.0, 0.0, -0.02])
-_ROBOT_HALF = 0.34
 
 
 class RenderError(ConfigError):
     """MuJoCo's OpenGL renderer cannot be created here; the message says what to set instead."""
-
-
-@dataclass(frozen=True)
-class Camera:
-    """Where both panels are seen from, in the body / torso frame (x forward, y left, z up).
-
-    Attributes:
-      azimuth: degrees; direction of the viewer around the vertical axis, from straight in front
-        (0, on +x) towards the figure's left (+90, on +y). The default, 30, sees the figure from
-        the front, a little from its left side (its left arm appears on the viewer's right).
-      elevation: degrees above the horizontal (-90 < elevation < 90).
-      distance: m, camera to ``lookat`` (MuJoCo panel; the matplotlib panels fit a fixed box).
-      lookat: the point looked at, torso frame, m (MuJoCo panel).
-    """
-
-    azimuth: float = 30.0
-    elevation: float = 12.0
-    distance: float = 1.1
-    lookat: tuple[float, float, float] = (0.0, 0.0, -0.02)
-
-    def __post_init__(self) -> None:
-        try:
-            lookat = tuple(float(v) for v in self.lookat)
-            values = (float(self.azimuth), float(self.elevation), float(self.distance), *lookat)
-        except (TypeError, ValueError):
-            values, lookat = (math.nan,), ()
-        if len(lookat) != 3 or not all(math.isfinite(v) for v in values):
-            raise ConfigError(f"camera values must be finite numbers, lookat 3 of them: {self}")
-        object.__setattr__(self, "lookat", lookat)
-        if not -90.0 < self.elevation < 90.0:
-            raise ConfigError(
-                f"camera elevation must lie in (-90, 90) degrees, got {self.elevation}"
-            )
-        if self.distance <= 0:
-            raise ConfigError(f"camera distance must be > 0 m, got {self.distance}")
 
 
 # --- checks ---------------------------------------------------------------------------------
@@ -117,7 +84,7 @@ def _check_options(backend: str, size: object, stride: object, camera: object) -
     if backend not in BACKENDS:
         raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
     try:
-        width, height = (int(v) for v in size)  # type: ignore[union-attr]
+        width, height = (int(v) for v in size)  # type: ignore[attr-defined]
         ok = tuple(size) == (width, height)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         ok = False
@@ -129,172 +96,16 @@ def _check_options(backend: str, size: object, stride: object, camera: object) -
         raise ConfigError(f"stride must be a whole number >= 1, got {stride!r}")
     camera = Camera() if camera is None else camera
     if not isinstance(camera, Camera):
-        raise ConfigError(f"camera must be a jaxproj.viz.render.Camera, got {type(camera).__name__}")
+        kind = type(camera).__name__
+        raise ConfigError(f"camera must be a jaxproj.viz.render.Camera, got {kind}")
     return (width, height), int(stride), camera
 
 
 def _check_motion(motion: object) -> Motion:
     if not isinstance(motion, Motion):
-        raise ConfigError(f"motion must be a jaxproj.io.motion_files.Motion, got {type(motion).__name__}")
+        kind = type(motion).__name__
+        raise ConfigError(f"motion must be a jaxproj.io.motion_files.Motion, got {kind}")
     return motion
-
-
-def check_video_path(out: str | os.PathLike[str]) -> str:
-    """The lower-case extension of ``out`` if ``save_video`` writes it, else ConfigError."""
-    out = Path(out)
-    ext = out.suffix.lower()
-    if ext not in VIDEO_FORMATS:
-        raise ConfigError(
-            f"{out}: unsupported video extension {out.suffix!r}; use one of "
-            f"{', '.join(VIDEO_FORMATS)}"
-        )
-    return ext
-
-
-# --- matplotlib panels ----------------------------------------------------------------------
-
-
-class _Canvas:
-    """One matplotlib 3-D axes on an Agg canvas of exactly ``size`` pixels (no pyplot)."""
-
-    def __init__(self, size: tuple[int, int], camera: Camera, centre: np.ndarray, half: float):
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-        from mpl_toolkits.mplot3d.art3d import Line3DCollection
-
-        self.size = size
-        self.fig = Figure(figsize=(size[0] / _DPI, size[1] / _DPI), dpi=_DPI)
-        self.canvas = FigureCanvasAgg(self.fig)
-        ax = self.fig.add_axes((0.0, 0.0, 1.0, 0.93), projection="3d")
-        ax.set_axis_off()
-        ax.view_init(elev=camera.elevation, azim=camera.azimuth)
-        for i, set_lim in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
-            set_lim(centre[i] - half, centre[i] + half)
-        ax.set_box_aspect((1.0, 1.0, 1.0), zoom=1.25)
-        self.ax = ax
-        self.lines = Line3DCollection([], linewidths=3.0, capstyle="round")
-        ax.add_collection3d(self.lines, autolim=False)
-        (self.head,) = ax.plot([], [], [], "o", color=CENTRE_COLOR, ms=10)
-        font = float(np.clip(size[1] / 32.0, 6.0, 14.0))
-        self.text = self.fig.text(0.02, 0.985, "", fontsize=font, va="top", family="monospace")
-
-    def floor(self, z: float, centre: np.ndarray, half: float) -> None:
-        """A faint square on the floor at height ``z``, for depth."""
-        x0, x1 = centre[0] - 0.8 * half, centre[0] + 0.8 * half
-        y0, y1 = centre[1] - 0.8 * half, centre[1] + 0.8 * half
-        xs, ys = [x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0]
-        self.ax.plot(xs, ys, [z] * 5, "-", color=(0.75, 0.75, 0.75), lw=1.0)
-
-    def draw(self, segments: list, colors: list, head: np.ndarray | None, label: str) -> np.ndarray:
-        """Render one frame: ``segments`` ``[(2, 3) arrays]``, one colour each, a head point."""
-        self.lines.set_segments(segments)
-        self.lines.set_color(colors if colors else "none")
-        if head is None:
-            self.head.set_data_3d([], [], [])
-        else:
-            self.head.set_data_3d([head[0]], [head[1]], [head[2]])
-        self.text.set_text(label)
-        self.canvas.draw()
-        rgb = np.asarray(self.canvas.buffer_rgba())[..., :3]
-        w, h = self.size
-        if rgb.shape[:2] != (h, w):  # never expected with an integral inch size at 100 dpi
-            raise RuntimeError(f"matplotlib drew {rgb.shape[:2]} pixels, expected {(h, w)}")
-        return np.ascontiguousarray(rgb)
-
-    def close(self) -> None:
-        self.fig.clear()
-
-
-def _side_color(name: str) -> tuple[float, float, float]:
-    if "Left" in name or name.startswith(("L", "l_")):
-        return LEFT_COLOR
-    if "Right" in name or name.startswith(("R", "r_")):
-        return RIGHT_COLOR
-    return CENTRE_COLOR
-
-
-class _HumanPanel:
-    """The Kinect skeleton in its own body frame (hips at 0), matplotlib."""
-
-    def __init__(self, positions: np.ndarray, size: tuple[int, int], camera: Camera):
-        import jax.numpy as jnp
-
-        from jaxproj.human.skeleton import body_frame
-
-        raw = np.asarray(positions, dtype=np.float32)
-        p = np.where(np.isfinite(raw), raw, 0.0)  # non-finite frames: not ok, drawn empty
-        rot, ok = body_frame(jnp.asarray(p))
-        rot, ok = np.asarray(rot), np.asarray(ok) & np.isfinite(raw).all(axis=(1, 2))
-        centred = np.where(ok[:, None, None], p - p[:, J["HipCenter"] : J["HipCenter"] + 1], 0.0)
-        self.points = np.einsum("tij,tkj->tki", rot, centred)  # (T, 20, 3) body frame
-        self.ok = ok & np.isfinite(self.points).all(axis=(1, 2))
-        if self.ok.any():
-            pts = self.points[self.ok]
-            lo, hi = pts.min(axis=(0, 1)), pts.max(axis=(0, 1))
-            centre, half = (lo + hi) / 2.0, float((hi - lo).max()) / 2.0 * 1.1
-            floor = float(pts[:, [J["FootLeft"], J["FootRight"]], 2].min())
-        else:
-            centre, half, floor = np.zeros(3), 1.0, -1.0
-        half = max(half, 0.3)
-        self.canvas = _Canvas(size, camera, centre, half)
-        self.canvas.floor(floor, centre, half)
-        self.pairs = [(J[a], J[b]) for a, b in BONES]
-        self.colors = [_side_color(b) for _, b in BONES]
-
-    def draw(self, t: int, label: str) -> np.ndarray:
-        if not self.ok[t]:
-            return self.canvas.draw([], [], None, label + "\n(no skeleton)")
-        pts = self.points[t]
-        segments = [pts[[i, j]] for i, j in self.pairs]
-        return self.canvas.draw(segments, self.colors, pts[J["Head"]], label)
-
-    def close(self) -> None:
-        self.canvas.close()
-
-
-class _StickRobotPanel:
-    """The NAO as a stick figure from MuJoCo CPU kinematics (no OpenGL), matplotlib."""
-
-    name = "matplotlib"
-
-    def __init__(self, size: tuple[int, int], camera: Camera):
-        import mujoco
-
-        self._mj = mujoco
-        self.model = robot.load_model("fixed")
-        self.data = mujoco.MjData(self.model)
-        m = self.model
-        body = {m.body(b).name: b for b in range(m.nbody)}
-        site = {m.site(s).name: s for s in range(m.nsite)}
-        self.data.qpos[:] = robot.config_to_qpos(m, robot.STANDING_POSTURE)
-        mujoco.mj_kinematics(m, self.data)
-        # parent -> child body origins; bodies at their parent's origin draw nothing
-        # (the shoulders hang from the neck, as the skeleton's from ShoulderCenter)
-        parent = {b: int(m.body_parentid[b]) for b in range(1, m.nbody)}
-        parent[body["LShoulder"]] = parent[body["RShoulder"]] = body["Neck"]
-        self.body_pairs = [
-            (parent[b], b)
-            for b in range(1, m.nbody)
-            if parent[b] != 0 and np.linalg.norm(m.body_pos[b]) > 1e-9
-        ]
-        self.site_pairs = [(body["l_ankle"], site["l_sole"]), (body["r_ankle"], site["r_sole"])]
-        self.colors = [_side_color(m.body(b).name) for _, b in self.body_pairs]
-        self.colors += [LEFT_COLOR, RIGHT_COLOR]
-        self.head_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head_geom")
-        floor = float(self.data.site_xpos[[site["l_sole"], site["r_sole"]], 2].min())
-        self.canvas = _Canvas(size, camera, _ROBOT_CENTRE, _ROBOT_HALF)
-        self.canvas.floor(floor, _ROBOT_CENTRE, _ROBOT_HALF)
-
-    def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
-        d = self.data
-        d.qpos[:] = robot.config_to_qpos(self.model, angles)
-        self._mj.mj_kinematics(self.model, d)
-        segments = [d.xpos[[a, b]].copy() for a, b in self.body_pairs]
-        segments += [np.stack([d.xpos[b], d.site_xpos[s]]) for b, s in self.site_pairs]
-        return self.canvas.draw(segments, self.colors, d.geom_xpos[self.head_geom].copy(), label)
-
-    def close(self) -> None:
-        self.canvas.close()
 
 
 # --- MuJoCo panel ---------------------------------------------------------------------------
@@ -435,8 +246,8 @@ class _Frames:
     def __iter__(self) -> Iterator[np.ndarray]:
         m = self.motion
         try:
-            for t in self.index:
-                t = int(t)
+            for i in self.index:
+                t = int(i)
                 held = "" if m.valid[t] else "\ninvalid input: pose held"
                 clock = f"t={m.times[t] - m.times[0]:.2f}s #{t}"
                 robot_img = self.robot.draw(m.angles[t], f"NAO {clock}{held}")
@@ -484,137 +295,6 @@ def render_frames(
     return np.stack(list(_Frames(motion, backend, size, stride, camera)))
 
 
-# --- videos ---------------------------------------------------------------------------------
-
-
-def _require_ffmpeg() -> None:
-    try:
-        import imageio_ffmpeg
-    except ImportError:
-        raise ConfigError(
-            "writing .mp4 needs the imageio-ffmpeg package: pip install imageio-ffmpeg (or "
-            '"jaxproj[video]"), or write a .gif'
-        ) from None
-    try:
-        imageio_ffmpeg.get_ffmpeg_exe()
-    except RuntimeError as e:
-        raise ConfigError(
-            f"imageio-ffmpeg finds no ffmpeg executable ({e}); write a .gif"
-        ) from None
-
-
-def _checked(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
-    """The frames, each checked to be ``(H, W, 3)`` uint8 of one shape; at least one."""
-    shape = None
-    for i, frame in enumerate(frames):
-        f = np.asarray(frame)
-        if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
-            raise ConfigError(f"frame {i} must be (H, W, 3) uint8, got {f.dtype} {f.shape}")
-        if shape is None:
-            shape = f.shape
-        elif f.shape != shape:
-            raise ConfigError(f"frame {i} has shape {f.shape}, frame 0 {shape}")
-        yield f
-    if shape is None:
-        raise ConfigError("no frames to write")
-
-
-def _even(frame: np.ndarray) -> np.ndarray:
-    """H.264 (yuv420p) needs even sides: repeat the last row / column where one is odd."""
-    h, w = frame.shape[:2]
-    if h % 2 == 0 and w % 2 == 0:
-        return frame
-    return np.pad(frame, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
-
-
-def _write_mp4(tmp: Path, frames: Iterable[np.ndarray], fps: float) -> None:
-    """H.264 MP4 through the ffmpeg binary of imageio-ffmpeg, raw RGB frames on its stdin.
-
-    The pipe is opened here rather than by imageio's writer, which starts ffmpeg with a
-    ``preexec_fn``: that forks the interpreter, and a fork after JAX has started warns (JAX is
-    multithreaded). A plain ``Popen`` does not fork the interpreter.
-    """
-    import subprocess
-
-    import imageio_ffmpeg
-
-    it = _checked(frames)
-    first = _even(next(it))
-    h, w = first.shape[:2]
-    cmd = [
-        imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
-        "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}", "-framerate", repr(fps),
-        "-i", "-", "-an", "-c:v", "libx264", "-pix_fmt", "yuv420p", "-crf", "20",
-        "-movflags", "+faststart", str(tmp),
-    ]  # fmt: skip
-    proc = subprocess.Popen(
-        cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
-    )
-    assert proc.stdin is not None and proc.stderr is not None
-    try:
-        try:
-            proc.stdin.write(first.tobytes())
-            for frame in it:
-                proc.stdin.write(_even(frame).tobytes())
-            proc.stdin.close()
-        except BrokenPipeError:
-            pass  # ffmpeg stopped early: its exit status and message tell why
-        err = proc.stderr.read().decode(errors="replace").strip()
-        code = proc.wait()
-    except BaseException:
-        proc.kill()
-        proc.wait()
-        raise
-    finally:
-        for pipe in (proc.stdin, proc.stderr):
-            if not pipe.closed:
-                pipe.close()
-    if code != 0:
-        last = err.splitlines()[-1] if err else "no message"
-        raise OSError(f"ffmpeg failed with exit status {code}: {last}")
-
-
-def _gif_bytes(frames: Iterable[np.ndarray], fps: float) -> bytes:
-    import imageio.v3 as iio
-
-    stack = np.stack(list(_checked(frames)))
-    delay_ms = 10 * max(1, round(100.0 / fps))  # GIF delays are whole centiseconds
-    return iio.imwrite(
-        "<bytes>", stack, extension=".gif", plugin="pillow", duration=delay_ms, loop=0
-    )
-
-
-def save_video(
-    frames: np.ndarray | Iterable[np.ndarray], out: str | os.PathLike[str], fps: float
-) -> Path:
-    """Write frames as a video, atomically (a failed write leaves nothing behind).
-
-    Args:
-      frames: ``(N, H, W, 3)`` uint8, or an iterable of ``(H, W, 3)`` uint8 frames (streamed to
-        MP4, gathered for GIF).
-      out: ``.mp4`` (H.264, yuv420p; an odd height or width is padded by one repeated row /
-        column; needs ``imageio-ffmpeg``) or ``.gif`` (Pillow, looping; the delay is rounded to
-        whole centiseconds).
-      fps: playback frames per second (> 0).
-
-    Returns:
-      ``out`` as a ``Path``.
-
-    Raises:
-      ConfigError: an unsupported extension, a bad ``fps``, bad frames, or ``.mp4`` without
-        ``imageio-ffmpeg``.
-      InputError: the file cannot be written.
-    """
-    out = Path(out)
-    ext = check_video_path(out)
-    fps = float(fps)
-    if not (math.isfinite(fps) and fps > 0):
-        raise ConfigError(f"fps must be a finite number > 0, got {fps}")
-    if ext == ".mp4":
-        _require_ffmpeg()
-        return atomic_write(out, lambda tmp: _write_mp4(tmp, frames, fps))
-    return atomic_write(out, lambda tmp: tmp.write_bytes(_gif_bytes(frames, fps)))
-
 
 class Rendered(NamedTuple):
     """What ``render_to_file`` wrote."""
@@ -627,6 +307,16 @@ class Rendered(NamedTuple):
     """Robot panel backend used: ``"mujoco"`` or ``"matplotlib"``."""
     fps: float
     """Playback rate, frames per second."""
+
+
+class RenderOptions(TypedDict, total=False):
+    """The keyword options of ``render_to_file`` / ``render_motion`` (see ``render_frames``)."""
+
+    fps: float | None
+    backend: Backend
+    size: tuple[int, int]
+    stride: int
+    camera: Camera | None
 
 
 def render_to_file(
@@ -663,21 +353,17 @@ def render_to_file(
 def render_motion(
     motion: Motion | str | os.PathLike[str],
     out: str | os.PathLike[str],
-    *,
-    fps: float | None = None,
-    backend: Backend = "auto",
-    size: tuple[int, int] = DEFAULT_SIZE,
-    stride: int = 1,
-    camera: Camera | None = None,
+    **options: Unpack[RenderOptions],
 ) -> Path:
     """Render a motion (or a motion file, read with ``load_motion``) to an MP4 / GIF video.
 
     Args:
       motion: a ``Motion`` or a ``.npz`` / ``.csv`` / ``.json`` motion file.
       out: ``.mp4`` or ``.gif`` (see ``save_video``).
-      fps: playback rate; default the motion's frame rate (``Motion.fps``) divided by ``stride``,
-        so the video plays in real time.
-      backend, size, stride, camera: as in ``render_frames``.
+      **options: ``RenderOptions``, as in ``render_to_file``: ``fps``, the playback rate,
+        default the motion's frame rate (``Motion.fps``) divided by ``stride``, so the video
+        plays in real time; ``backend``, ``size``, ``stride``, ``camera`` as in
+        ``render_frames``.
 
     Returns:
       ``out`` as a ``Path``. Frames are streamed to MP4 (constant memory), gathered for GIF.
@@ -689,8 +375,7 @@ def render_motion(
     """
     check_video_path(out)
     m = motion if isinstance(motion, Motion) else load_motion(motion)
-    kw = {"fps": fps, "backend": backend, "size": size, "stride": stride, "camera": camera}
-    return render_to_file(m, out, **kw).path
+    return render_to_file(m, out, **options).path
 
 
 def show(motion: Motion, *, fps: float | None = None, **kwargs: Any) -> Any:
@@ -713,3 +398,24 @@ def show(motion: Motion, *, fps: float | None = None, **kwargs: Any) -> Any:
     rate = motion.fps / int(kwargs.get("stride", 1)) if fps is None else float(fps)
     data = base64.b64encode(_gif_bytes(frames, rate)).decode("ascii")
     return HTML(f'<img src="data:image/gif;base64,{data}" alt="jaxproj motion"/>')
+
+
+__all__ = [
+    "BACKENDS",
+    "CENTRE_COLOR",
+    "DEFAULT_SIZE",
+    "LEFT_COLOR",
+    "RIGHT_COLOR",
+    "VIDEO_FORMATS",
+    "Backend",
+    "Camera",
+    "RenderError",
+    "RenderOptions",
+    "Rendered",
+    "check_video_path",
+    "render_frames",
+    "render_motion",
+    "render_to_file",
+    "save_video",
+    "show",
+]

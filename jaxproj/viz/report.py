@@ -85,9 +85,9 @@ def to_jsonable(obj: Any) -> Any:
 
 def human_points(positions: np.ndarray) -> np.ndarray:
     """``(20, 3)`` camera-frame joints -> body frame (x fwd, y left, z up), hips at 0."""
-    rot, _ = body_frame(positions[None])
-    rot = np.asarray(rot)[0]
-    return (positions - positions[J["HipCenter"]]) @ rot.T
+    rot, _ = body_frame(positions[None])  # type: ignore[arg-type]  # a NumPy array is fine
+    r = np.asarray(rot)[0]
+    return (positions - positions[J["HipCenter"]]) @ r.T
 
 
 def nao_points(model, angles: np.ndarray) -> dict[str, np.ndarray]:
@@ -122,6 +122,47 @@ def _draw_nao(ax, pts: dict[str, np.ndarray], axes: tuple[int, int], color: str)
     ax.plot(pts["head"][a], pts["head"][b], "o", color=color, ms=8)
 
 
+def _key_frames(
+    fig: Any,
+    grid: Any,
+    picks: np.ndarray,
+    when: list[str],
+    positions: np.ndarray,
+    angles: np.ndarray,
+    ik_angles: np.ndarray,
+    label: str,
+) -> None:
+    """The top two rows of ``plot_motion`` / ``plot_retarget``: at each key frame ``picks[col]``
+    (titled by ``when[col]``) the human (front and side view) and the NAO playing ``angles``
+    (blue, ``label``) over the per-frame IK ``ik_angles`` (green).
+
+    Args:
+      positions: ``(T, 20, 3)`` human joints, Kinect order.
+      angles, ik_angles: ``(T, 10)`` radians, ``robot.DRIVEN_JOINTS`` order.
+    """
+    from jaxproj.robots.nao_h25.ik import driven_to_full
+
+    model = robot.load_model("fixed")
+    for col, t in enumerate(picks):
+        hp = human_points(positions[t])
+        out = nao_points(model, np.asarray(driven_to_full(angles[t])))
+        ik_p = nao_points(model, np.asarray(driven_to_full(ik_angles[t])))
+        for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
+            sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
+            ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
+            # front view: seen from in front, so the person's left (+y, red) is on the right;
+            # side view: seen from the person's right, forward (+x) to the right
+            _draw_human(ax_h, hp, axes)
+            _draw_nao(ax_r, ik_p, axes, "tab:green")
+            _draw_nao(ax_r, out, axes, "tab:blue")
+            for ax in (ax_h, ax_r):
+                ax.set_aspect("equal")
+                ax.set_xticks([])
+                ax.set_yticks([])
+            ax_h.set_title(f"human, {when[col]} ({view})", fontsize=8)
+            ax_r.set_title(f"NAO: {label} (blue) / IK (green)", fontsize=8)
+
+
 def plot_motion(
     path: Path,
     title: str,
@@ -138,32 +179,13 @@ def plot_motion(
       truth: ``(T, 10)`` IK angles (driven joints); ``predictions``: method -> ``(T, 10)``.
     """
     plt = _plt()
-    from jaxproj.robots.nao_h25.ik import driven_to_full
-
-    model = robot.load_model("fixed")
     frames = np.flatnonzero(valid)
     picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
     fig = plt.figure(figsize=(4.0 * key_frames, 9.5))
     grid = fig.add_gridspec(3, key_frames, height_ratios=[1.0, 1.0, 0.9])
     method = "relaxed" if "relaxed" in predictions else next(iter(predictions))
-    for col, t in enumerate(picks):
-        hp = human_points(positions[t])
-        proj = nao_points(model, np.asarray(driven_to_full(predictions[method][t])))
-        ik_p = nao_points(model, np.asarray(driven_to_full(truth[t])))
-        for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
-            sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
-            ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
-            # front view: seen from in front, so the person's left (+y, red) is on the right;
-            # side view: seen from the person's right, forward (+x) to the right
-            _draw_human(ax_h, hp, axes)
-            _draw_nao(ax_r, ik_p, axes, "tab:green")
-            _draw_nao(ax_r, proj, axes, "tab:blue")
-            for ax in (ax_h, ax_r):
-                ax.set_aspect("equal")
-                ax.set_xticks([])
-                ax.set_yticks([])
-            ax_h.set_title(f"human, frame {t} ({view})", fontsize=8)
-            ax_r.set_title(f"NAO: {method} (blue) / IK (green)", fontsize=8)
+    when = [f"frame {t}" for t in picks]
+    _key_frames(fig, grid, picks, when, positions, predictions[method], truth, method)
     ax = fig.add_subplot(grid[2, :])
     for name, pred in predictions.items():
         err = np.degrees(np.abs(pred - truth))
@@ -207,31 +229,14 @@ def plot_retarget(
       angles, ik_angles: ``(T, 10)`` radians, ``robot.DRIVEN_JOINTS`` order.
     """
     plt = _plt()
-    from jaxproj.robots.nao_h25.ik import driven_to_full
-
-    model = robot.load_model("fixed")
     frames = np.flatnonzero(valid)
     if frames.size == 0:
         frames = np.arange(len(valid))
     picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
     fig = plt.figure(figsize=(3.6 * key_frames, 14.0))
     grid = fig.add_gridspec(5, key_frames, height_ratios=[1.0, 1.0, 0.7, 0.7, 0.7])
-    for col, t in enumerate(picks):
-        hp = human_points(positions[t])
-        out = nao_points(model, np.asarray(driven_to_full(angles[t])))
-        ik_p = nao_points(model, np.asarray(driven_to_full(ik_angles[t])))
-        for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
-            sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
-            ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
-            _draw_human(ax_h, hp, axes)
-            _draw_nao(ax_r, ik_p, axes, "tab:green")
-            _draw_nao(ax_r, out, axes, "tab:blue")
-            for ax in (ax_h, ax_r):
-                ax.set_aspect("equal")
-                ax.set_xticks([])
-                ax.set_yticks([])
-            ax_h.set_title(f"human, {times[t]:.2f} s ({view})", fontsize=8)
-            ax_r.set_title(f"NAO: {label} (blue) / IK (green)", fontsize=8)
+    when = [f"{times[t]:.2f} s" for t in picks]
+    _key_frames(fig, grid, picks, when, positions, angles, ik_angles, label)
     groups = (("head", ("Head",)), ("left arm", ("LShoulder", "LElbow")),
               ("right arm", ("RShoulder", "RElbow")))  # fmt: skip
     for row, (name, prefixes) in enumerate(groups, start=2):

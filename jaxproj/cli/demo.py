@@ -1,0 +1,43 @@
+"""``jaxproj demo``: the main job (build, evaluate, roll out, report; ``jaxproj.paper.demo``)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from jaxproj.cli import options
+from jaxproj.errors import ConfigError
+
+
+def add_parsers(sub: Any) -> None:
+    p = options.add_parser(sub, "demo", "the main job: build, evaluate, roll out, report")
+    p.add_argument(
+        "--out",
+        default="jaxproj-report",
+        help="report folder, created if missing (its parent folder must exist)",
+    )
+    p.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
+    options.add_devices_option(p, "for the evaluation and the MJX rollout")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from jaxproj._internal.mjx import import_mjx
+
+    import_mjx()  # before jaxproj.eval imports it: without Warp's notice
+    from jaxproj.paper.demo import run_demo
+    from jaxproj.viz import report
+
+    out_dir = Path(args.out)
+    if not out_dir.parent.is_dir():
+        raise ConfigError(
+            f"--out {out_dir}: folder {out_dir.parent} does not exist (the report folder is "
+            "created, its parent is not: create it first)"
+        )
+    devices = options.devices(args.devices)
+    out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices)
+    print(report.summary_table(out["summary"]))
+    t = out["timings"]
+    print(f"report: {out_dir / 'report.md'} ({t['total_s']:.0f} s)")
+    return 0

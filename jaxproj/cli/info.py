@@ -1,0 +1,69 @@
+"""``jaxproj info``: versions, devices, the robot model and the bundled datasets."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from jaxproj import __version__
+from jaxproj.cli import options
+
+
+def add_parsers(sub: Any) -> None:
+    p = options.add_parser(sub, "info", "versions, devices, robot model and bundled data")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=run)
+
+
+def collect() -> dict:
+    """What ``jaxproj info`` reports, as JSON-ready data."""
+    import jax
+    import mujoco
+
+    from jaxproj.io import datasets
+    from jaxproj.robots.nao_h25 import robot
+
+    msr = datasets.dataset_summary("msr")
+    utk = datasets.dataset_summary("utkinect")
+    return {
+        "jaxproj": __version__,
+        "jax": jax.__version__,
+        "mujoco": mujoco.__version__,
+        "devices": [str(d) for d in jax.devices()],
+        "robot": {
+            "name": robot.NAME,
+            "mjcf": str(robot.mjcf_path().resolve()),
+            "joints": list(robot.JOINT_NAMES),
+            "driven_joints": list(robot.DRIVEN_JOINTS),
+        },
+        "datasets": {
+            "msr_action3d": {k: msr[k] for k in ("sequences", "frames", "subjects")},
+            "utkinect_action3d": {
+                k: utk[k] for k in ("recordings", "frames", "subjects", "segments")
+            },
+        },
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    info = collect()
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"jaxproj {info['jaxproj']}  (jax {info['jax']}, mujoco {info['mujoco']})")
+    print(f"devices: {', '.join(info['devices'])}")
+    r = info["robot"]
+    print(f"robot: {r['name']}, {len(r['joints'])} joints, mjcf {r['mjcf']}")
+    print(f"driven joints ({len(r['driven_joints'])}): {', '.join(r['driven_joints'])}")
+    m = info["datasets"]["msr_action3d"]
+    print(
+        f"dataset msr_action3d (--data msr): {m['sequences']} sequences, {m['frames']} frames, "
+        f"{m['subjects']} subjects"
+    )
+    u = info["datasets"]["utkinect_action3d"]
+    print(
+        f"dataset utkinect_action3d (--data utkinect): {u['recordings']} recordings, "
+        f"{u['frames']} frames, {u['subjects']} subjects, {u['segments']} action segments"
+    )
+    return 0

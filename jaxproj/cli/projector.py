@@ -1,0 +1,177 @@
+"""``jaxproj build`` (a projector from recordings) and ``jaxproj evaluate`` (its batch
+evaluation against the IK, with baselines)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from jaxproj._internal.progress import bar
+from jaxproj.cli import options
+from jaxproj.projection.api import HEAD_BANDWIDTH
+
+BUILD_STAGES = ("descriptors", "landmarks and kernels", "save")
+"""The steps of ``jaxproj build`` its progress bar counts (on a terminal only)."""
+
+
+def add_parsers(sub: Any) -> None:
+    _add_build(sub)
+    _add_evaluate(sub)
+
+
+def _add_build(sub: Any) -> None:
+    pb = options.add_parser(sub, "build", "build a projector (landmarks + ELM kernels)")
+    options.add_data_options(pb, "training", "1,3,5,7,9", " and use the others")
+    pb.add_argument(
+        "--chains",
+        default="upper",
+        choices=("upper", "whole"),
+        help="upper: one projector per chain (head, left arm, right arm); whole: the paper's "
+        "whole-body projector",
+    )
+    size = pb.add_mutually_exclusive_group()
+    size.add_argument(
+        "--landmarks",
+        type=options.parse_ints,
+        help="target landmark count, bisected: one number for each arm (head: bandwidth "
+        f"{HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644 (neither this nor --bandwidth: "
+        "engine.DEFAULTS, the tuned bandwidths)",
+    )
+    size.add_argument(
+        "--bandwidth", type=options.parse_floats, help="mean-shift bandwidth: one, or one per chain"
+    )
+    tuned = "None: engine.DEFAULTS of the chain set"
+    pb.add_argument("--k", type=int, default=None, help=f"training neighbours per kernel ({tuned})")
+    pb.add_argument(
+        "--hidden", type=int, default=None, help=f"hidden units ({tuned}; with --k: max(k, 192))"
+    )
+    pb.add_argument("--lam", type=float, default=None, help=f"ELM ridge regulariser ({tuned})")
+    pb.add_argument("--input-scale", type=float, default=None, help=f"hidden-weight std ({tuned})")
+    pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
+    pb.add_argument("--mirror", action="store_true", help="mirror imitation")
+    pb.add_argument(
+        "--out", required=True, help=f"output projector .npz; {options.OUTPUT_FOLDER_RULE}"
+    )
+    pb.set_defaults(func=build)
+
+
+def _add_evaluate(sub: Any) -> None:
+    pe = options.add_parser(sub, "evaluate", "batch evaluation against the IK, with baselines")
+    pe.add_argument("--model", required=True, help="projector file from `jaxproj build`")
+    options.add_data_options(
+        pe, "evaluated", "2,4,6,8,10", " and in the JSON's data_files, and evaluate the others"
+    )
+    pe.add_argument(
+        "--objective",
+        default="all",
+        choices=("relaxed", "full", "all"),
+        help="projection objective(s); the baselines always run",
+    )
+    options.add_neighbour_options(pe)
+    pe.add_argument(
+        "--smooth",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="score the smoothed motions (unsmoothed figures are reported too)",
+    )
+    options.add_devices_option(
+        pe, "to shard the queries over (shard_map, one device program per shard)"
+    )
+    pe.add_argument(
+        "--json", required=True, help=f"output report JSON; {options.OUTPUT_FOLDER_RULE}"
+    )
+    pe.set_defaults(func=evaluate)
+
+
+def build(args: argparse.Namespace) -> int:
+    from jaxproj.io import datasets
+    from jaxproj.projection import api as engine
+
+    out = options.output_path(args.out, "--out", (".npz",))
+    cfg = engine.BuildConfig(
+        chains=args.chains,
+        landmarks=options.one_or_tuple(args.landmarks),
+        bandwidth=options.one_or_tuple(args.bandwidth),
+        k=args.k,
+        hidden=args.hidden if args.hidden is not None or args.k is None else max(args.k, 192),
+        lam=args.lam,
+        input_scale=args.input_scale,
+        seed=args.seed,
+        mirror=args.mirror,
+    )
+    t0 = time.perf_counter()
+    seqs, contents = options.load_data(args.data, args.subjects, "train", args.strict, args.bvh_map)
+    stages = bar(BUILD_STAGES, "build")
+    next(stages)  # descriptors
+    d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
+    n_frames = sum(len(s.valid) for s in seqs)
+    engine.check_training_data(d, cfg)  # a landmark count the data cannot reach: before the log
+    options.log(f"mean shift over {len(d)} descriptors, then the ELM kernel banks ...")
+    next(stages)  # landmarks and kernels
+    model = engine.build(d, cfg)
+    next(stages)  # save
+    engine.save(model, out)
+    for _ in stages:  # the bar completes and closes
+        pass
+    dt = time.perf_counter() - t0
+    lay = model.projector.layout
+    parts = []
+    for c, name in enumerate(lay.names):
+        target = cfg.chain_config(c).landmarks
+        aim = f"target {target}, " if target else ""
+        parts.append(
+            f"{name} {lay.landmarks[c]} ({aim}bandwidth {model.bandwidth[c]:.4f}, k={lay.k[c]}, "
+            f"hidden={lay.hidden[c]})"
+        )
+    per_chain = ", ".join(parts)
+    print(
+        f"built {cfg.chains} chains: {per_chain} from {model.n_train} valid frames "
+        f"(of {n_frames}), seed={cfg.seed} in {dt:.1f} s -> {out}"
+        + options.unreadable_note(contents)
+    )
+    return 0
+
+
+def evaluate(args: argparse.Namespace) -> int:
+    from jaxproj._internal.mjx import import_mjx
+
+    import_mjx()  # before jaxproj.eval imports it: without Warp's notice
+    from jaxproj.eval import evaluate
+    from jaxproj.motion.smoothing import PAPER_SMOOTHING
+    from jaxproj.projection import api as engine
+    from jaxproj.viz import report
+
+    json_out = options.output_path(args.json, "--json")
+    devices = options.devices(args.devices)
+    model = engine.load(args.model)
+    engine.check_neighbours(model, args.L, args.M)
+    objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
+    methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
+    t0 = time.perf_counter()
+    seqs, contents = options.load_data(args.data, args.subjects, "test", args.strict, args.bvh_map)
+    data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
+    out = evaluate.evaluate(
+        model,
+        data,
+        methods,
+        n_l=args.L,
+        n_m=args.M,
+        smoothing=PAPER_SMOOTHING if args.smooth else None,
+        devices=devices,
+        progress=True,
+    )
+    out["wall_s"]["total"] = time.perf_counter() - t0
+    out["subjects"] = sorted({int(s.subject) for s in seqs})
+    out["data"] = args.data
+    out["model"] = str(args.model)
+    if contents is not None:
+        out["data_files"] = contents.to_json()
+    report.write_json(Path(json_out), out)
+    print(report.summary_table(out["summary"], methods))
+    print(
+        f"{out['valid_frames']} valid frames of {out['sequences']} sequences -> {args.json}"
+        + options.unreadable_note(contents)
+    )
+    return 0

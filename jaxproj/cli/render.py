@@ -1,0 +1,52 @@
+"""``jaxproj render``: a robot motion file -> an MP4 / GIF video (``jaxproj.viz.render``)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from jaxproj.cli import options
+
+
+def add_parsers(sub: Any) -> None:
+    p = options.add_parser(sub, "render", "render a robot motion file to an MP4 / GIF video")
+    p.add_argument(
+        "motion", help="motion file: .npz, .csv or NAOqi .json (jaxproj.io.motion_files)"
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        help=f"output video: .mp4 (needs imageio-ffmpeg) or .gif; {options.OUTPUT_FOLDER_RULE}",
+    )
+    p.add_argument(
+        "--backend",
+        default="auto",
+        choices=("auto", "mujoco", "matplotlib"),
+        help="robot panel: MuJoCo OpenGL (needs MUJOCO_GL=egl / osmesa or a display), matplotlib "
+        "stick figure, or auto (MuJoCo, else matplotlib)",
+    )
+    p.add_argument("--stride", type=int, default=1, help="render every N-th frame")
+    p.add_argument(
+        "--size",
+        type=options.parse_size,
+        default="480x360",
+        help="one panel's WIDTHxHEIGHT, pixels",
+    )
+    p.add_argument(
+        "--fps", type=float, default=None, help="playback rate (None: the motion's rate / stride)"
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from jaxproj.io.motion_files import load_motion
+    from jaxproj.viz import render
+
+    out = options.output_path(args.out, "--out")
+    render.check_video_path(out)  # before the (slow) rendering
+    motion = load_motion(args.motion)
+    path, n, backend, fps = render.render_to_file(
+        motion, out, fps=args.fps, backend=args.backend, size=args.size, stride=args.stride
+    )
+    print(f"{args.motion}: {n} frames -> {path} [backend={backend}, {fps:g} fps]")
+    return 0

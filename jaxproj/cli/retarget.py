@@ -1,0 +1,195 @@
+"""``jaxproj retarget``: a skeleton recording or BVH clip -> a robot-feasible NAO joint
+trajectory as NPZ, CSV or NAOqi JSON (``jaxproj.motion.retarget``), optionally with a plot."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from jaxproj.cli import options
+from jaxproj.errors import ConfigError
+from jaxproj.io.formats import format_names
+
+METHODS = ("ik", "relaxed", "full")
+
+
+def add_parsers(sub: Any) -> None:
+    pr = options.add_parser(sub, "retarget", "retarget a skeleton recording to NAO joint angles")
+    pr.add_argument("input", help=f"recording, one of the formats {', '.join(format_names())}")
+    pr.add_argument(
+        "--out",
+        required=True,
+        help="output: .npz (angles, times, valid, joint_names, positions, meta), .csv (time + 26 "
+        "joints, rad) or .json (NAOqi ALMotion.angleInterpolation arguments); "
+        f"{options.OUTPUT_FOLDER_RULE}",
+    )
+    pr.add_argument(
+        "--format",
+        default="auto",
+        choices=("auto", *format_names()),
+        help="input format (auto: by extension and content)",
+    )
+    options.add_bvh_options(pr, scale=True)
+    pr.add_argument(
+        "--method",
+        default="ik",
+        choices=METHODS,
+        help="ik: the analytic IK; relaxed / full: the projector of --model",
+    )
+    pr.add_argument("--model", help="projector file from `jaxproj build` (relaxed / full)")
+    options.add_neighbour_options(pr)
+    pr.add_argument(
+        "--bones",
+        default=None,
+        choices=("upper", "full"),
+        help="descriptor bones (None: upper; a model fixes its own, a different value is refused)",
+    )
+    pr.add_argument(
+        "--mirror",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="mirror imitation: human left drives robot right (None: off, or the model's)",
+    )
+    pr.add_argument(
+        "--smooth",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="double exponential smoothing (alpha 0.75, gamma 0.3, eta 0.15 per frame at 15 fps; "
+        "scaled to each frame's time step)",
+    )
+    pr.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate of the input (None: the file's own timing: UTKinect frame numbers at "
+        "30 fps, MSR Action3D 15 fps, CSV / NPZ 30 fps unless the NPZ has times or fps). A BVH "
+        "states its own rate (Frame Time): there --fps F resamples the clip to F frames/s "
+        "(linear interpolation of joint positions), e.g. 30; None keeps the clip's rate",
+    )
+    pr.add_argument(
+        "--feasible",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="make the output robot-feasible: joint limits, 90%% of the NAO's speed limits, "
+        "80 rad/s^2 (jaxproj.motion.feasible)",
+    )
+    pr.add_argument(
+        "--joints",
+        default="upper",
+        choices=("upper", "body"),
+        help="joints in a .json output: upper = NAOqi's Head, LArm, RArm chains (the legs stay "
+        "with the robot's own balance); body = all 26",
+    )
+    pr.add_argument(
+        "--plot",
+        default=None,
+        help="also write a PNG: human and NAO at key frames, the 10 driven joints over time "
+        "against the per-frame IK (the demo report's motion figure)",
+    )
+    pr.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from jaxproj.io.motion_files import Motion, save_motion
+    from jaxproj.io.readers import read_skeleton
+    from jaxproj.motion import feasible
+    from jaxproj.motion.retarget import retarget
+    from jaxproj.motion.smoothing import PAPER_SMOOTHING
+    from jaxproj.projection import api as engine
+
+    model = None
+    bones = "upper" if args.bones is None else args.bones
+    mirror = bool(args.mirror)
+    if args.method != "ik":
+        if args.model is None:
+            raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
+        model = engine.load(args.model)
+        fixed: dict[str, tuple[Any, Any]] = {"--bones": (args.bones, model.config.bones)}
+        fixed["--mirror"] = (args.mirror, model.config.mirror)
+        for flag, (given, own) in fixed.items():
+            if given is not None and given != own:
+                raise ConfigError(
+                    f"{flag} {given} conflicts with the model {args.model}, built with "
+                    f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
+                )
+        bones, mirror = model.config.bones, model.config.mirror
+    out = options.output_path(args.out, "--out", (".npz", ".csv", ".json"))
+    plot = None if args.plot is None else options.output_path(args.plot, "--plot", (".png",))
+    rec = read_skeleton(
+        args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale
+    )
+    result = retarget(
+        rec.positions,
+        rec.valid,
+        model=model,
+        method=args.method,
+        n_l=args.L,
+        n_m=args.M,
+        bones=bones,
+        mirror=mirror,
+        smoothing=PAPER_SMOOTHING if args.smooth else None,
+        times=rec.times,
+    )
+    angles = result.angles
+    before = feasible.feasibility_report(angles, result.times)
+    if args.feasible:
+        angles = feasible.make_feasible(angles, result.times)
+    after = feasible.feasibility_report(angles, result.times)
+    meta = {
+        "method": args.method,
+        "smoothed": bool(args.smooth),
+        "feasible": bool(args.feasible),
+        "source": str(args.input),
+        "time_source": rec.time_source,
+        "fps": round(rec.fps, 6),
+        "format": rec.format,
+    }
+    motion = Motion(angles, result.times, result.valid, rec.positions, meta)
+    save_motion(out, motion, joints=args.joints)
+    n, nv = len(result.valid), int(result.valid.sum())
+    print(
+        f"{args.input}: {n} frames ({nv} valid, {result.times[-1]:.2f} s, {rec.time_source}) -> "
+        f"{out} [method={args.method}]"
+    )
+    label = "feasible" if args.feasible else "not filtered (--no-feasible)"
+    print(
+        f"  speed-limit frames {before['speed_violation_frames']} -> "
+        f"{after['speed_violation_frames']}, max step {before['max_step_deg']:.1f} -> "
+        f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
+        f"{after['max_accel']:.0f} rad/s^2 [{label}]"
+    )
+    if plot is not None:
+        _plot(plot, args, rec, angles, result, bones, mirror)
+    return 0
+
+
+def _plot(
+    plot: Path,
+    args: argparse.Namespace,
+    rec: Any,
+    angles: Any,
+    result: Any,
+    bones: str,
+    mirror: bool,
+) -> None:
+    """``retarget --plot``: the demo's motion figure for this recording (``report.plot_retarget``):
+    human and NAO at key frames, the driven joints over time against the per-frame IK."""
+    import numpy as np
+
+    from jaxproj.motion.retarget import retarget
+    from jaxproj.robots.nao_h25 import robot
+    from jaxproj.viz import report
+
+    truth = retarget(
+        rec.positions, rec.valid, method="ik", bones=bones, mirror=mirror, smoothing=None,
+        times=rec.times,
+    )  # fmt: skip
+    out = angles[:, robot.DRIVEN_INDEX]
+    ik_q = truth.angles[:, robot.DRIVEN_INDEX]
+    ranges = np.degrees(out.max(axis=0) - out.min(axis=0))
+    widest = ", ".join(f"{robot.DRIVEN_JOINTS[i]} {ranges[i]:.0f}" for i in np.argsort(-ranges)[:4])
+    title = f"{Path(args.input).name}: {args.method}, {len(out)} frames at {rec.fps:.3g} fps"
+    report.plot_retarget(plot, title, rec.positions, result.valid, result.times, out, ik_q,
+                         label=args.method)  # fmt: skip
+    print(f"  plot -> {plot} (widest joint ranges, deg: {widest})")

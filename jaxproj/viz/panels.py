@@ -1,0 +1,207 @@
+"""The matplotlib panels of ``jaxproj.viz.render``: the human skeleton and the NAO stick figure
+(MuJoCo CPU kinematics, no OpenGL), each a 3-D axes on an Agg canvas of exact pixel size, and
+the ``Camera`` both panels (and the MuJoCo one) are seen from."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import BONES, J
+from jaxproj.robots.nao_h25 import robot
+
+LEFT_COLOR = (0.95, 0.6, 0.2)
+RIGHT_COLOR = (0.2, 0.6, 0.95)
+CENTRE_COLOR = (0.25, 0.25, 0.3)
+
+_DPI = 100
+
+# the robot panel's fixed box (torso frame, m): the NAO spans z -0.333 (soles, standing
+# straight) .. +0.33 (hands up), |x|, |y| < 0.33 with the arms out
+_ROBOT_CENTRE = np.array([0.0, 0.0, -0.02])
+_ROBOT_HALF = 0.34
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Where both panels are seen from, in the body / torso frame (x forward, y left, z up).
+
+    Attributes:
+      azimuth: degrees; direction of the viewer around the vertical axis, from straight in front
+        (0, on +x) towards the figure's left (+90, on +y). The default, 30, sees the figure from
+        the front, a little from its left side (its left arm appears on the viewer's right).
+      elevation: degrees above the horizontal (-90 < elevation < 90).
+      distance: m, camera to ``lookat`` (MuJoCo panel; the matplotlib panels fit a fixed box).
+      lookat: the point looked at, torso frame, m (MuJoCo panel).
+    """
+
+    azimuth: float = 30.0
+    elevation: float = 12.0
+    distance: float = 1.1
+    lookat: tuple[float, float, float] = (0.0, 0.0, -0.02)
+
+    def __post_init__(self) -> None:
+        try:
+            lookat = tuple(float(v) for v in self.lookat)
+            values = (float(self.azimuth), float(self.elevation), float(self.distance), *lookat)
+        except (TypeError, ValueError):
+            values, lookat = (math.nan,), ()
+        if len(lookat) != 3 or not all(math.isfinite(v) for v in values):
+            raise ConfigError(f"camera values must be finite numbers, lookat 3 of them: {self}")
+        object.__setattr__(self, "lookat", lookat)
+        if not -90.0 < self.elevation < 90.0:
+            raise ConfigError(
+                f"camera elevation must lie in (-90, 90) degrees, got {self.elevation}"
+            )
+        if self.distance <= 0:
+            raise ConfigError(f"camera distance must be > 0 m, got {self.distance}")
+
+
+# --- matplotlib panels ----------------------------------------------------------------------
+
+
+class _Canvas:
+    """One matplotlib 3-D axes on an Agg canvas of exactly ``size`` pixels (no pyplot)."""
+
+    def __init__(self, size: tuple[int, int], camera: Camera, centre: np.ndarray, half: float):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        self.size = size
+        self.fig = Figure(figsize=(size[0] / _DPI, size[1] / _DPI), dpi=_DPI)
+        self.canvas = FigureCanvasAgg(self.fig)
+        ax: Any = self.fig.add_axes((0.0, 0.0, 1.0, 0.93), projection="3d")  # an Axes3D
+        ax.set_axis_off()
+        ax.view_init(elev=camera.elevation, azim=camera.azimuth)
+        for i, set_lim in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
+            set_lim(centre[i] - half, centre[i] + half)
+        ax.set_box_aspect((1.0, 1.0, 1.0), zoom=1.25)
+        self.ax = ax
+        self.lines = Line3DCollection([], linewidths=3.0, capstyle="round")
+        ax.add_collection3d(self.lines, autolim=False)
+        (self.head,) = ax.plot([], [], [], "o", color=CENTRE_COLOR, ms=10)
+        font = float(np.clip(size[1] / 32.0, 6.0, 14.0))
+        self.text = self.fig.text(0.02, 0.985, "", fontsize=font, va="top", family="monospace")
+
+    def floor(self, z: float, centre: np.ndarray, half: float) -> None:
+        """A faint square on the floor at height ``z``, for depth."""
+        x0, x1 = centre[0] - 0.8 * half, centre[0] + 0.8 * half
+        y0, y1 = centre[1] - 0.8 * half, centre[1] + 0.8 * half
+        xs, ys = [x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0]
+        self.ax.plot(xs, ys, [z] * 5, "-", color=(0.75, 0.75, 0.75), lw=1.0)
+
+    def draw(self, segments: list, colors: list, head: np.ndarray | None, label: str) -> np.ndarray:
+        """Render one frame: ``segments`` ``[(2, 3) arrays]``, one colour each, a head point."""
+        self.lines.set_segments(segments)
+        self.lines.set_color(colors if colors else "none")
+        if head is None:
+            self.head.set_data_3d([], [], [])
+        else:
+            self.head.set_data_3d([head[0]], [head[1]], [head[2]])
+        self.text.set_text(label)
+        self.canvas.draw()
+        rgb = np.asarray(self.canvas.buffer_rgba())[..., :3]
+        w, h = self.size
+        if rgb.shape[:2] != (h, w):  # never expected with an integral inch size at 100 dpi
+            raise RuntimeError(f"matplotlib drew {rgb.shape[:2]} pixels, expected {(h, w)}")
+        return np.ascontiguousarray(rgb)
+
+    def close(self) -> None:
+        self.fig.clear()
+
+
+def _side_color(name: str) -> tuple[float, float, float]:
+    if "Left" in name or name.startswith(("L", "l_")):
+        return LEFT_COLOR
+    if "Right" in name or name.startswith(("R", "r_")):
+        return RIGHT_COLOR
+    return CENTRE_COLOR
+
+
+class _HumanPanel:
+    """The Kinect skeleton in its own body frame (hips at 0), matplotlib."""
+
+    def __init__(self, positions: np.ndarray, size: tuple[int, int], camera: Camera):
+        import jax.numpy as jnp
+
+        from jaxproj.human.skeleton import body_frame
+
+        raw = np.asarray(positions, dtype=np.float32)
+        p = np.where(np.isfinite(raw), raw, 0.0)  # non-finite frames: not ok, drawn empty
+        rot_j, ok_j = body_frame(jnp.asarray(p))
+        rot, ok = np.asarray(rot_j), np.asarray(ok_j) & np.isfinite(raw).all(axis=(1, 2))
+        centred = np.where(ok[:, None, None], p - p[:, J["HipCenter"] : J["HipCenter"] + 1], 0.0)
+        self.points = np.einsum("tij,tkj->tki", rot, centred)  # (T, 20, 3) body frame
+        self.ok = ok & np.isfinite(self.points).all(axis=(1, 2))
+        if self.ok.any():
+            pts = self.points[self.ok]
+            lo, hi = pts.min(axis=(0, 1)), pts.max(axis=(0, 1))
+            centre, half = (lo + hi) / 2.0, float((hi - lo).max()) / 2.0 * 1.1
+            floor = float(pts[:, [J["FootLeft"], J["FootRight"]], 2].min())
+        else:
+            centre, half, floor = np.zeros(3), 1.0, -1.0
+        half = max(half, 0.3)
+        self.canvas = _Canvas(size, camera, centre, half)
+        self.canvas.floor(floor, centre, half)
+        self.pairs = [(J[a], J[b]) for a, b in BONES]
+        self.colors = [_side_color(b) for _, b in BONES]
+
+    def draw(self, t: int, label: str) -> np.ndarray:
+        if not self.ok[t]:
+            return self.canvas.draw([], [], None, label + "\n(no skeleton)")
+        pts = self.points[t]
+        segments = [pts[[i, j]] for i, j in self.pairs]
+        return self.canvas.draw(segments, self.colors, pts[J["Head"]], label)
+
+    def close(self) -> None:
+        self.canvas.close()
+
+
+class _StickRobotPanel:
+    """The NAO as a stick figure from MuJoCo CPU kinematics (no OpenGL), matplotlib."""
+
+    name = "matplotlib"
+
+    def __init__(self, size: tuple[int, int], camera: Camera):
+        import mujoco
+
+        self._mj = mujoco
+        self.model = robot.load_model("fixed")
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        body = {m.body(b).name: b for b in range(m.nbody)}
+        site = {m.site(s).name: s for s in range(m.nsite)}
+        self.data.qpos[:] = robot.config_to_qpos(m, robot.STANDING_POSTURE)
+        mujoco.mj_kinematics(m, self.data)
+        # parent -> child body origins; bodies at their parent's origin draw nothing
+        # (the shoulders hang from the neck, as the skeleton's from ShoulderCenter)
+        parent = {b: int(m.body_parentid[b]) for b in range(1, m.nbody)}
+        parent[body["LShoulder"]] = parent[body["RShoulder"]] = body["Neck"]
+        self.body_pairs = [
+            (parent[b], b)
+            for b in range(1, m.nbody)
+            if parent[b] != 0 and np.linalg.norm(m.body_pos[b]) > 1e-9
+        ]
+        self.site_pairs = [(body["l_ankle"], site["l_sole"]), (body["r_ankle"], site["r_sole"])]
+        self.colors = [_side_color(m.body(b).name) for _, b in self.body_pairs]
+        self.colors += [LEFT_COLOR, RIGHT_COLOR]
+        self.head_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head_geom")
+        floor = float(self.data.site_xpos[[site["l_sole"], site["r_sole"]], 2].min())
+        self.canvas = _Canvas(size, camera, _ROBOT_CENTRE, _ROBOT_HALF)
+        self.canvas.floor(floor, _ROBOT_CENTRE, _ROBOT_HALF)
+
+    def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
+        d = self.data
+        d.qpos[:] = robot.config_to_qpos(self.model, angles)
+        self._mj.mj_kinematics(self.model, d)
+        segments = [d.xpos[[a, b]].copy() for a, b in self.body_pairs]
+        segments += [np.stack([d.xpos[b], d.site_xpos[s]]) for b, s in self.site_pairs]
+        return self.canvas.draw(segments, self.colors, d.geom_xpos[self.head_geom].copy(), label)
+
+    def close(self) -> None:
+        self.canvas.close()
