@@ -12,7 +12,7 @@ from helpers import small_projector
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
-from jaxproj.motion import streaming
+from jaxproj.motion import pipeline, streaming
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
 from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import robot
@@ -127,13 +127,13 @@ def test_no_valid_frame_gives_the_standing_posture(projector):
 
 def test_jit_traces_once(projector, recordings, monkeypatch):
     traces = []
-    original = streaming.descriptor
+    original = pipeline.descriptor
 
     def counting(*args, **kw):  # runs only while jax traces the step
         traces.append(1)
         return original(*args, **kw)
 
-    monkeypatch.setattr(streaming, "descriptor", counting)
+    monkeypatch.setattr(pipeline, "descriptor", counting)
     pos = recordings[1]
     state = streaming.init(projector)
     kw = dict(n_l=3, n_m=4)  # a (L, M) no other test compiles

@@ -130,11 +130,11 @@ def run(args: argparse.Namespace) -> int:
         mirror=mirror,
         smoothing=PAPER_SMOOTHING if args.smooth else None,
         times=rec.times,
+        feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
     )
     angles = result.angles
-    before = feasible.feasibility_report(angles, result.times)
-    if args.feasible:
-        angles = feasible.make_feasible(angles, result.times)
+    unfiltered = angles if result.unfiltered is None else result.unfiltered
+    before = feasible.feasibility_report(unfiltered, result.times)
     after = feasible.feasibility_report(angles, result.times)
     meta = {
         "method": args.method,

@@ -2,12 +2,12 @@
 
 Metrics (paper section IV), per frame, over ``robot.DRIVEN_JOINTS`` (``n = 10``), in degrees:
 ``M_max = max_j |r*_j - r_gt_j|`` and ``M_avg = mean_j |r*_j - r_gt_j|``, where ``r_gt`` is the
-analytic IK of the frame (``jaxproj.robots.nao_h25.ik``). Only valid frames are scored. Besides these headline
-numbers, each method's block says where the error is (``jaxproj.eval.metrics.summarize_errors``):
-p50 / p95 per driven joint (``per_joint``), ``M_max`` without the two ElbowYaw joints
-(``M_max_no_elbow_yaw``) and task-space errors from forward kinematics of the MJCF
-(``task_space``: wrist and elbow position in cm, upper-arm and forearm direction in degrees, per
-side), projected pose against IK pose.
+analytic IK of the frame (``jaxproj.robots.nao_h25.ik``). Only valid frames are scored. Besides
+these headline numbers, each method's block says where the error is
+(``jaxproj.eval.metrics.summarize_errors``): p50 / p95 per driven joint (``per_joint``),
+``M_max`` without the two ElbowYaw joints (``M_max_no_elbow_yaw``) and task-space errors from
+forward kinematics of the MJCF (``task_space``: wrist and elbow position in cm, upper-arm and
+forearm direction in degrees, per side), projected pose against IK pose.
 
 Methods, all on the same landmarks:
 
@@ -19,15 +19,18 @@ Baselines run per chain on a per-chain model (each chain's landmarks, in its own
 * ``global_elm``: one regularised ELM (sigmoid, ``GLOBAL_HIDDEN`` hidden units) fitted to all
   landmark pairs ``h -> r``.
 
-With smoothing, each motion's per-frame answers (invalid frames filled as in
-``jaxproj.motion.retarget``) go through the double exponential smoother before scoring, and the mean
-squared joint jerk (third difference at the recording rate, rad/s^3) is reported before and after.
+Each motion's per-frame answers go through the motion pipeline's stages after the mapping
+(``jaxproj.motion.pipeline.finish``: invalid frames filled as in ``jaxproj.motion.retarget``;
+with smoothing, the double exponential smoother and the clip to the joint limits) before
+scoring, and the mean squared joint jerk (third difference at the recording rate, rad/s^3) is
+reported before and after the smoother.
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -43,9 +46,8 @@ from jaxproj.eval import metrics
 from jaxproj.eval.metrics import describe, frame_errors, summarize_errors
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io.datasets import ACTION_NAMES, MotionSequence, sequence_times
-from jaxproj.motion import feasible
-from jaxproj.motion.retarget import fill_invalid
-from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_batch
+from jaxproj.motion import feasible, pipeline
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
 from jaxproj.projection.api import Model, project
 from jaxproj.projection.objectives import FullConfig, Projector
 from jaxproj.projection.search import nearest
@@ -160,9 +162,9 @@ def fit_global_elm(
     ``lam`` is relative to the mean diagonal of the Gram matrix (see the code comment).
 
     The fit runs op by op, not compiled, under full float32 matmul precision (the jit policy's
-    precision, ``jaxproj._internal.jit``). It is one small solve per evaluation, and its ridge system is
-    ill-conditioned enough that XLA's fused round-off moved the baseline's answers by ~0.5 deg
-    when it was compiled as one program: it stays as it was measured.
+    precision, ``jaxproj._internal.jit``). It is one small solve per evaluation, and its ridge
+    system is ill-conditioned enough that XLA's fused round-off moved the baseline's answers by
+    ~0.5 deg when it was compiled as one program: it stays as it was measured.
     """
     with jax.default_matmul_precision("highest"):
         return _fit_global_elm(p, key, lam, hidden)
@@ -251,8 +253,8 @@ def _predict(model, method, h, *, n_l, n_m, full, seed, devices) -> np.ndarray:
 
 # --------------------------------------------------------------------------------- metrics
 
-# ``frame_errors`` and ``describe`` live in ``jaxproj.eval.metrics`` and are re-exported here (imported
-# above), so ``evaluate.frame_errors`` / ``evaluate.describe`` keep working.
+# ``frame_errors`` and ``describe`` live in ``jaxproj.eval.metrics`` and are re-exported here
+# (imported above), so ``evaluate.frame_errors`` / ``evaluate.describe`` keep working.
 
 
 def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS) -> float:
@@ -271,11 +273,23 @@ def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS
     return total / max(count, 1)
 
 
-_fill_batch = jit(jax.vmap(fill_invalid))
+def _finish_batch(q: jax.Array, valid: jax.Array, lengths: jax.Array, gains: jax.Array | None):
+    """``pipeline.finish`` (``standing="first"``) vmapped over padded motions ``(S, T, n)``."""
+    per_motion = 0 if gains is not None and gains.ndim == 3 else None  # (S, T, 3): per motion
+    one = functools.partial(pipeline.finish, standing="first")
+    return jax.vmap(one, in_axes=(0, 0, 0, per_motion))(q, valid, lengths, gains)
 
 
-def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Scatter valid-frame answers into ``(S, T_max, n)`` motions with invalid frames filled."""
+_finish_batch = jit(_finish_batch)
+
+
+def _per_motion(
+    data: EvalData, per_frame: np.ndarray, gains: jax.Array | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(V, n)`` answers of the valid frames -> ``(filled, scored, lengths)``: ``(S, T_max, n)``
+    motions filled (``pipeline.finish``; no valid frame: standing), the same smoothed and
+    clipped with ``gains`` (``smoothing.frame_gains``; ``None``: ``filled``), ``(S,)``
+    lengths. Frames past a motion's length are padding."""
     n_seq = len(data.names)
     lengths = np.diff(data.offsets)
     t_max = int(lengths.max())
@@ -288,10 +302,10 @@ def _per_motion(data: EvalData, per_frame: np.ndarray) -> tuple[np.ndarray, np.n
         out[s, : b - a] = full[a:b]
         valid[s, : b - a] = data.valid[a:b]
     # one padded call (padding frames are invalid, so they never feed a real frame)
-    out = np.array(_fill_batch(jnp.asarray(out), jnp.asarray(valid)))
-    out[~valid.any(axis=1)] = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
-    out[np.arange(t_max)[None, :] >= lengths[:, None]] = 0.0
-    return out, lengths
+    filled, scored = _finish_batch(
+        jnp.asarray(out), jnp.asarray(valid), jnp.asarray(lengths, jnp.int32), gains
+    )
+    return np.asarray(filled), np.asarray(scored), lengths
 
 
 def _motion_times(data: EvalData, t_max: int) -> np.ndarray:
@@ -403,7 +417,7 @@ def evaluate(
     lengths = np.diff(data.offsets)
     h = data.descriptors[data.valid]
     truth_v = data.truth[data.valid]
-    truth_motion, _ = _per_motion(data, truth_v)
+    truth_motion, _, _ = _per_motion(data, truth_v)
     seq_of_frame = np.repeat(np.arange(len(data.names)), lengths)[data.valid]
     truth_points = metrics.arm_points(truth_v)  # one FK of the IK truth serves every method
     out: dict = {
@@ -426,6 +440,9 @@ def evaluate(
     }
     t_max = int(lengths.max())
     motion_times = _motion_times(data, t_max)  # the smoother uses them only for timed data
+    gains = None
+    if smoothing is not None:
+        gains = frame_gains(smoothing, motion_times if data.timed else None, lengths)
     predictions: dict[str, np.ndarray] = {}
     for method in bar(methods, "evaluating methods", enabled=progress):
         t0 = time.perf_counter()
@@ -438,13 +455,9 @@ def evaluate(
         out["unsmoothed"][method] = summarize_errors(
             pred, truth_v, truth_points=truth_points, pred_points=scored_points
         )
-        motions, _ = _per_motion(data, pred)
+        motions, sm, _ = _per_motion(data, pred, gains)
         jerk_raw = mean_squared_jerk(motions, lengths)
         if smoothing is not None:
-            timed = motion_times if data.timed else None
-            sm = np.asarray(smooth_batch(motions, lengths, smoothing, times=timed))
-            lo, hi = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
-            sm = np.clip(sm, lo, hi)
             flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
             m_max, m_avg = frame_errors(flat, truth_v)
             scored_points = metrics.arm_points(flat)

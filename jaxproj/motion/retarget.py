@@ -2,9 +2,10 @@
 
 ``retarget`` takes a recording's ``(T, 20, 3)`` joint positions and a mapping — the analytic IK
 (``model=None``) or a projector ``Model`` with its objective — and runs, inside ONE compiled
-function (``_motion``): descriptor -> per-frame mapping -> fill invalid frames -> smoothing ->
-clip to the joint limits -> the full 26-joint configuration. A recording's length is padded to a
-bucket (``_bucket``) so recordings of similar length share one compilation.
+function (``jaxproj.motion.pipeline.motion``, the one pipeline): descriptor -> per-frame mapping
+-> fill invalid frames -> smoothing -> clip to the joint limits -> the full 26-joint
+configuration. A recording's length is padded to a bucket (``_bucket``) so recordings of similar
+length share one compilation. Options are checked here, in Python, before tracing.
 
 Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
 documented rule, so a motion never dies halfway and never contains NaN:
@@ -28,19 +29,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import descriptor
 from jaxproj.io.readers import MAX_DURATION_S, MIN_STEP_S
+from jaxproj.motion import pipeline
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
-from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth_motion
-from jaxproj.projection.api import Model, check_neighbours, project_batch
-from jaxproj.projection.objectives import FullConfig, Projector
-from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (its old home)
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
+from jaxproj.projection.api import Model, check_neighbours
+from jaxproj.projection.objectives import FullConfig
+from jaxproj.robots.nao_h25 import ik
 
 Method = Literal["ik", "relaxed", "full"]
 METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
@@ -54,32 +54,14 @@ class RetargetResult:
       angles: ``(T, 26)`` float32 radians in ``robot.JOINT_NAMES`` order.
       valid: ``(T,)`` bool, false where the input frame was invalid (its angles were filled).
       times: ``(T,)`` float64 seconds of the frames (as given, or ``t / smoothing.rate``).
+      unfiltered: ``(T, 26)`` float32 angles before the feasibility filter when ``retarget``
+        ran it (``feasible=``), else ``None`` (``angles`` are then the unfiltered ones).
     """
 
     angles: np.ndarray
     valid: np.ndarray
     times: np.ndarray
-
-
-def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
-    """Fill invalid frames of one motion: hold the last valid frame, back-fill leading ones.
-
-    A plain (traceable) function: call it inside a jitted caller.
-
-    Args:
-      q: ``(T, n)`` per-frame values (anything at invalid frames, NaN included).
-      valid: ``(T,)`` bool.
-
-    Returns:
-      ``(T, n)``: valid frames unchanged; see the module doc for the rest. If no frame is
-      valid the input is returned with non-finite entries zeroed (callers substitute a posture).
-    """
-    t = jnp.arange(q.shape[0])
-    last = jax.lax.cummax(jnp.where(valid, t, -1), axis=0)
-    first = jnp.argmax(valid)
-    src = jnp.where(last >= 0, last, first)
-    out = q[src]
-    return jnp.where(jnp.isfinite(out), out, 0.0)
+    unfiltered: np.ndarray | None = None
 
 
 def _bucket(t: int) -> int:
@@ -87,41 +69,8 @@ def _bucket(t: int) -> int:
     return max(64, 1 << (int(t) - 1).bit_length())
 
 
-def _motion(
-    p: Projector | None,
-    positions: jax.Array,
-    valid: jax.Array,
-    length: jax.Array,
-    gains: jax.Array,
-    *,
-    method: str,
-    n_l: int,
-    n_m: int,
-    full: FullConfig,
-    bones: str | tuple[str, ...],
-    mirror: bool,
-    smooth: bool,
-) -> tuple[jax.Array, jax.Array]:
-    """One padded motion ``(T, 20, 3)`` -> ``((T, 26) angles, (T,) valid)`` (see module doc)."""
-    d, ok = descriptor(positions, bones=bones, mirror=mirror)
-    ok = ok & valid
-    if method == "ik":
-        q = ik.driven_angles(d, ik.bone_index(bones))
-    else:
-        q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
-    q = fill_invalid(q, ok)
-    if smooth:
-        q = smooth_motion(q, length, gains)
-        lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
-        hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
-        q = jnp.clip(q, lo, hi)
-    standing = jnp.asarray(robot.STANDING_POSTURE[robot.DRIVEN_INDEX], q.dtype)
-    q = jnp.where(jnp.any(ok), q, standing)
-    return ik.driven_to_full(q), ok
-
-
 _motion_jit = jit(
-    _motion,
+    pipeline.motion,
     static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth"),
 )
 
@@ -204,9 +153,8 @@ def retarget(
     size = _bucket(t)
     pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
-    dt = np.diff(stamps, prepend=stamps[0])
-    dt = np.concatenate([dt, np.full(size - t, 1.0 / params.rate)])
-    gains = params.gains() if times is None else params.gains(dt)
+    padded = np.concatenate([stamps, np.repeat(stamps[-1:], size - t)])
+    gains = frame_gains(params, None if times is None else padded, t)
     angles, ok_out = _motion_jit(
         p,
         pos,
@@ -222,6 +170,8 @@ def retarget(
         smooth=smoothing is not None,
     )
     angles = np.asarray(angles)[:t]
+    unfiltered = None
     if feasible is not None:
+        unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible)
-    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps)
+    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps, unfiltered)

@@ -31,6 +31,8 @@ returns the gains as given, per frame, as before.
 batch ``(B, T, n)`` with lengths: frames past a motion's length leave its state untouched and
 are returned as the input. ``step`` is one frame of the update: the scan's body, and what
 ``jaxproj.motion.streaming`` runs once per frame, so the two cannot drift apart.
+``frame_gains`` turns times of one padded motion or a padded batch into the gains of each frame
+(``jaxproj.motion.retarget``, ``smooth``, ``smooth_batch`` and ``jaxproj.eval.evaluate``).
 """
 
 from __future__ import annotations
@@ -184,13 +186,9 @@ def smooth(
     y = jnp.asarray(y)
     if y.ndim != 2 or y.shape[0] < 1:
         raise ConfigError(f"smooth expects a (T, n) motion with T >= 1, got shape {y.shape}")
-    if times is None:
-        gains = params.gains()
-    else:
-        t = np.asarray(times, np.float64)
-        if t.shape != (y.shape[0],):
-            raise ConfigError(f"times must be ({y.shape[0]},) seconds, got shape {t.shape}")
-        gains = params.gains(np.diff(t, prepend=t[0]))
+    if times is not None and np.shape(times) != (y.shape[0],):
+        raise ConfigError(f"times must be ({y.shape[0]},) seconds, got shape {np.shape(times)}")
+    gains = frame_gains(params, times, y.shape[0])
     return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), gains)[0]
 
 
@@ -217,14 +215,34 @@ def smooth_batch(
     if y.ndim != 3:
         raise ConfigError(f"smooth_batch expects (B, T, n) motions, got shape {y.shape}")
     lengths = np.asarray(lengths, np.int64)
-    if times is None:
-        gains = params.gains()
-    else:
-        t = np.asarray(times, np.float64)
-        if t.shape != y.shape[:2]:
-            raise ConfigError(f"times must be {y.shape[:2]} seconds, got shape {t.shape}")
-        dt = np.diff(t, axis=1, prepend=t[:, :1])
-        live = np.arange(t.shape[1])[None] < lengths[:, None]
-        dt = np.where(live, dt, 1.0 / params.rate)  # padding frames are not smoothed
-        gains = jnp.stack([params.gains(row) for row in dt])
+    if times is not None and np.shape(times) != y.shape[:2]:
+        raise ConfigError(f"times must be {y.shape[:2]} seconds, got shape {np.shape(times)}")
+    gains = frame_gains(params, times, lengths)
     return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), gains)
+
+
+def frame_gains(
+    params: SmoothingParams, times: np.ndarray | None, lengths: np.ndarray | jax.Array | int
+) -> jax.Array:
+    """The smoother's gains for padded motions (the ``gains`` of ``smooth_motion``).
+
+    Args:
+      params: gains.
+      times: ``(T,)`` seconds of one motion's frames or ``(B, T)`` of a batch's (increasing
+        over each length; padding entries are not used); ``None``: frames ``1 / params.rate``
+        apart.
+      lengths: ``()`` (one motion) or ``(B,)`` true lengths.
+
+    Returns:
+      ``(3,)`` ``params.gains()`` without ``times``; else ``(T, 3)`` or ``(B, T, 3)`` gains of
+      each frame for its own time step (padding frames: ``1 / params.rate``, not smoothed).
+    """
+    if times is None:
+        return params.gains()
+    t = np.asarray(times, np.float64)
+    dt = np.diff(t, axis=-1, prepend=t[..., :1])
+    live = np.arange(t.shape[-1]) < np.asarray(lengths)[..., None]
+    dt = np.where(live, dt, 1.0 / params.rate)  # padding frames are not smoothed
+    if dt.ndim == 1:
+        return params.gains(dt)
+    return jnp.stack([params.gains(row) for row in dt])

@@ -1,10 +1,11 @@
 """Streaming: one pose at a time, live from a sensor, with an optax-style ``init`` / ``update``.
 
-Each frame runs the whole pipeline in one jitted call::
+Each frame runs one frame of the motion pipeline (``jaxproj.motion.pipeline.frame``, the same
+stages as ``retarget``) in one jitted call::
 
-    (20, 3) joint positions -> descriptor (skeleton.descriptor)
-      -> relaxed projection (projection.project_relaxed_rows, the batch code of
-         engine.project on a batch of one; L and M nearest landmarks)
+    (20, 3) joint positions -> descriptor (pipeline.frame_descriptors)
+      -> relaxed projection (pipeline.map_frames: projection.api.project_batch on a batch of
+         one; L and M nearest landmarks)
       -> one step of the double exponential smoother (smoothing.step, the same function the
          whole-motion smoother scans) -> clipped to the joint limits -> (n,) driven angles
 
@@ -37,11 +38,12 @@ import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import N_JOINTS, descriptor, resolve_bones
+from jaxproj.human.skeleton import N_JOINTS, resolve_bones
+from jaxproj.motion import pipeline
+from jaxproj.motion.pipeline import AnyProjector
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
-from jaxproj.motion.smoothing import step as smoothing_step
 from jaxproj.projection.api import Model, check_neighbours
-from jaxproj.projection.objectives import Projector, StackedProjector, project_relaxed_rows
+from jaxproj.projection.objectives import Projector, StackedProjector
 from jaxproj.robots.nao_h25 import robot
 
 
@@ -58,9 +60,6 @@ class StreamState(NamedTuple):
     level: jax.Array
     trend: jax.Array
     started: jax.Array
-
-
-AnyProjector = Projector | StackedProjector
 
 
 def _widths(p: AnyProjector) -> tuple[int, int]:
@@ -99,9 +98,8 @@ def init(model: Model | AnyProjector) -> StreamState:
     _, n = _widths(p)
     if n != len(robot.DRIVEN_JOINTS):
         raise ConfigError(f"model drives {n} joints, streaming expects {len(robot.DRIVEN_JOINTS)}")
-    standing = robot.STANDING_POSTURE[robot.DRIVEN_INDEX].astype(np.float32)
     return StreamState(
-        level=jnp.asarray(standing),
+        level=jnp.asarray(pipeline.standing_driven()),
         trend=jnp.zeros((n,), jnp.float32),
         started=jnp.zeros((), jnp.bool_),
     )
@@ -118,19 +116,11 @@ def _update(
     bones: str | tuple[str, ...],
     mirror: bool,
 ) -> tuple[jax.Array, StreamState]:
-    d, ok = descriptor(positions, bones=bones, mirror=mirror)  # (m,), ()
-    r = project_relaxed_rows(p, d[None], n_l, n_m)[0][0]  # (n,), clipped; engine.project's code
-    s_t, b_t = smoothing_step(state.level, state.trend, r, gains)
-    # the first valid frame starts the smoother, as smoothing.smooth starts a motion
-    s_t = jnp.where(state.started, s_t, r)
-    b_t = jnp.where(state.started, b_t, jnp.zeros_like(b_t))
-    # an invalid frame leaves the state (and so the output) as it was
-    level = jnp.where(ok, s_t, state.level)
-    trend = jnp.where(ok, b_t, state.trend)
-    new = StreamState(level, trend, state.started | ok)
-    lo = jnp.asarray(robot.LOWER[robot.DRIVEN_INDEX])
-    hi = jnp.asarray(robot.UPPER[robot.DRIVEN_INDEX])
-    return jnp.clip(level, lo, hi), new
+    angles, (level, trend, started) = pipeline.frame(
+        p, state.level, state.trend, state.started, positions, gains,
+        n_l=n_l, n_m=n_m, bones=bones, mirror=mirror,
+    )  # fmt: skip
+    return angles, StreamState(level, trend, started)
 
 
 _update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))

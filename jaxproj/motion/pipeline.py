@@ -1,0 +1,268 @@
+"""The one motion pipeline: skeleton positions -> playable NAO joint angles.
+
+Stages, each a small pure (traceable) function written for ONE motion (``(T, 20, 3)``
+positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
+
+    frame_descriptors   (T, 20, 3) positions -> (T, m) descriptors, (T,) valid
+    map_frames          (T, m) -> (T, n) driven angles: analytic IK or a projector
+    fill_invalid        invalid frames hold the last valid frame, leading ones back-fill
+    smooth              the double exponential smoother (``smoothing.smooth_motion``)
+    clip_to_limits      (T, n) -> within ``robot.LOWER`` / ``robot.UPPER``
+    stand_if_lost       a motion with no valid frame -> ``robot.STANDING_POSTURE``
+    feasible            ``feasible.make_feasible`` on the 26-joint motion (host side: it
+                        resamples irregular times on a grid before its own jitted filter)
+
+``finish`` composes fill -> smooth -> clip -> stand for one motion, ``motion`` composes the whole
+pipeline for one motion (descriptor -> map -> finish -> 26 joints), ``frame`` is one frame of
+the same stages with the smoother's ``step`` (causal). No function here is jitted: the callers
+jit at their entry points and add the batch axis (``jax.vmap``) where they call it.
+
+The callers, and the options that keep each one's answers as they were measured:
+
+* ``jaxproj.motion.retarget`` jits ``motion`` on a recording padded to a length bucket. Every
+  frame is mapped (invalid ones too; their answers are then replaced by ``fill_invalid``). The
+  smoother is optional (``smooth=``); the clip comes with it (the smoother's trend term can
+  overshoot the limits; the mappings themselves answer within them). ``standing="last"``: a
+  motion with no valid frame becomes the standing posture after the smoother and the clip, so
+  it is exactly the standing posture. ``feasible`` runs afterwards on the host, optional.
+* ``jaxproj.eval.evaluate`` maps only the valid frames of all its motions at once
+  (``projection.api.project`` or a baseline: the answers it scores per frame), scatters them
+  into padded motions and runs ``finish`` vmapped over them. ``standing="first"``: a motion
+  with no valid frame is set to the standing posture BEFORE the smoother (as evaluate has
+  always done it; with a dead band ``eta > 0`` the smoother holds a constant motion exactly, so
+  the two orders differ only for ``eta = 0``). Smoothing and its clip are optional as in
+  retarget; ``feasible`` is reported beside the scores (``evaluate.feasibility_block``), not
+  scored as the summary.
+* ``jaxproj.motion.streaming`` runs ``frame``: one frame, causal. It cannot look ahead, so
+  invalid frames differ from ``fill_invalid``'s rule: an invalid frame leaves the smoother's
+  state untouched (the output repeats; ``retarget`` instead feeds the held pose to the
+  smoother, whose trend goes on), and before the first valid frame the output is the standing
+  posture (``retarget`` back-fills the first valid frame). The smoother is always on and the
+  output always clipped; no feasibility filter (it needs the whole motion).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import descriptor
+from jaxproj.motion.smoothing import smooth_motion
+from jaxproj.motion.smoothing import step as smoothing_step
+from jaxproj.projection.api import project_batch
+from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
+from jaxproj.robots.nao_h25 import ik, robot
+
+Standing = Literal["first", "last"]
+"""When ``finish`` puts a motion with no valid frame at the standing posture: ``"first"``
+before the smoother (evaluate), ``"last"`` after the smoother and the clip (retarget)."""
+
+AnyProjector = Projector | StackedProjector
+
+
+def frame_descriptors(
+    positions: jax.Array,
+    valid: jax.Array | None,
+    *,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+) -> tuple[jax.Array, jax.Array]:
+    """Descriptors of one motion (or one frame) and their validity.
+
+    Args:
+      positions: ``(T, 20, 3)`` (or ``(20, 3)``) joint positions, Kinect SDK order.
+      valid: ``(T,)`` (or ``()``) bool from the reader, combined with the descriptor's own
+        check; ``None``: the descriptor's check alone.
+      bones, mirror: descriptor options (``skeleton.descriptor``).
+
+    Returns:
+      ``(d, ok)``: ``(T, m)`` descriptors and ``(T,)`` bool.
+    """
+    d, ok = descriptor(positions, bones=bones, mirror=mirror)
+    if valid is not None:
+        ok = ok & valid
+    return d, ok
+
+
+def map_frames(
+    p: AnyProjector | None,
+    d: jax.Array,
+    *,
+    method: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
+    bones: str | tuple[str, ...],
+) -> jax.Array:
+    """Per-frame mapping: ``(T, m)`` descriptors -> ``(T, n)`` driven angles (rad).
+
+    ``method="ik"``: the analytic IK (``p`` unused; ``bones`` picks its bones); ``"relaxed"`` /
+    ``"full"``: ``projection.api.project_batch`` of ``p`` with ``L = n_l``, ``M = n_m``.
+    Both answer within the joint limits.
+    """
+    if method == "ik":
+        return ik.driven_angles(d, ik.bone_index(bones))
+    if p is None:
+        raise ConfigError(f"method {method!r} needs a projector")
+    q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
+    return q
+
+
+def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
+    """Fill invalid frames of one motion: hold the last valid frame, back-fill leading ones.
+
+    Args:
+      q: ``(T, n)`` per-frame values (anything at invalid frames, NaN included).
+      valid: ``(T,)`` bool.
+
+    Returns:
+      ``(T, n)``: valid frames unchanged; an invalid frame takes the last valid frame before
+      it, or the first valid frame if there is none before it. If no frame is valid the input
+      is returned with non-finite entries zeroed (``stand_if_lost`` substitutes a posture).
+    """
+    t = jnp.arange(q.shape[0])
+    last = jax.lax.cummax(jnp.where(valid, t, -1), axis=0)
+    first = jnp.argmax(valid)
+    src = jnp.where(last >= 0, last, first)
+    out = q[src]
+    return jnp.where(jnp.isfinite(out), out, 0.0)
+
+
+def clip_to_limits(q: jax.Array) -> jax.Array:
+    """``(..., n)`` driven angles clipped to ``robot.LOWER`` / ``robot.UPPER`` (float32 limits)."""
+    lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
+    hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
+    return jnp.clip(q, lo, hi)
+
+
+def stand_if_lost(q: jax.Array, valid: jax.Array) -> jax.Array:
+    """``(T, n)`` -> the standing posture's driven joints on every frame if no frame of
+    ``valid`` ``(T,)`` is true, else ``q`` unchanged."""
+    return jnp.where(jnp.any(valid), q, jnp.asarray(standing_driven(), q.dtype))
+
+
+def finish(
+    q: jax.Array,
+    valid: jax.Array,
+    length: jax.Array,
+    gains: jax.Array | None,
+    *,
+    standing: Standing,
+) -> tuple[jax.Array, jax.Array]:
+    """The stages after the mapping for one motion: fill -> smooth -> clip, and the standing
+    posture for a motion with no valid frame (``standing``: before or after the smoother).
+
+    Args:
+      q: ``(T, n)`` per-frame driven angles of a motion padded to ``T`` frames.
+      valid: ``(T,)`` bool (padding frames false).
+      length: ``()`` int, the true length (the smoother leaves later frames as they are).
+      gains: ``(3,)`` or ``(T, 3)`` smoother gains (``smoothing.frame_gains``); ``None``: no
+        smoothing and no clip.
+      standing: ``"first"`` (evaluate) or ``"last"`` (retarget); see the module doc.
+
+    Returns:
+      ``(filled, out)``, each ``(T, n)``: the filled motion (standing posture included with
+      ``"first"``) and the playable one (filled when ``gains`` is ``None``).
+    """
+    q = fill_invalid(q, valid)
+    if standing == "first":
+        q = stand_if_lost(q, valid)
+    filled = q
+    if gains is not None:
+        q = smooth_motion(q, length, gains)
+        q = clip_to_limits(q)
+    if standing == "last":
+        q = stand_if_lost(q, valid)
+    return filled, q
+
+
+def motion(
+    p: AnyProjector | None,
+    positions: jax.Array,
+    valid: jax.Array,
+    length: jax.Array,
+    gains: jax.Array,
+    *,
+    method: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+    smooth: bool,
+) -> tuple[jax.Array, jax.Array]:
+    """The whole pipeline for one padded motion (``retarget``'s compiled call).
+
+    Args:
+      p: the projector (``None`` for ``method="ik"``).
+      positions: ``(T, 20, 3)`` joint positions, padded to ``T`` frames.
+      valid: ``(T,)`` bool from the reader (padding false).
+      length: ``()`` int, the true length.
+      gains: ``(3,)`` or ``(T, 3)`` smoother gains (unused unless ``smooth``).
+      method, n_l, n_m, full, bones: ``map_frames``.
+      mirror: descriptor option.
+      smooth: run the smoother (and the clip).
+
+    Returns:
+      ``((T, 26) angles, (T,) valid)``: ``robot.JOINT_NAMES`` order, the rest of the body at
+      the standing posture; validity after the descriptor's own check.
+    """
+    d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
+    q = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones)
+    _, q = finish(q, ok, length, gains if smooth else None, standing="last")
+    return ik.driven_to_full(q), ok
+
+
+def frame(
+    p: AnyProjector,
+    level: jax.Array,
+    trend: jax.Array,
+    started: jax.Array,
+    positions: jax.Array,
+    gains: jax.Array,
+    *,
+    n_l: int,
+    n_m: int,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
+    """One frame of the pipeline, causal (``streaming.update``'s compiled call).
+
+    Descriptor -> relaxed projection (a batch of one) -> one smoother ``step`` -> clip. The
+    first valid frame starts the smoother (``s = y``, zero trend) as ``smooth_motion`` starts
+    a motion; an invalid frame leaves the state as it was (see the module doc).
+
+    Args:
+      p: the projector.
+      level, trend: ``(n,)`` the smoother's ``s`` (unclipped) and ``b``.
+      started: ``()`` bool, whether a valid frame has been seen.
+      positions: ``(20, 3)`` joint positions of this frame.
+      gains: ``(3,)`` smoother gains.
+      n_l, n_m: ``L`` and ``M`` of the relaxed projection.
+      bones, mirror: descriptor options.
+
+    Returns:
+      ``(angles, (level, trend, started))``: ``(n,)`` clipped driven angles and the next state.
+    """
+    d, ok = frame_descriptors(positions, None, bones=bones, mirror=mirror)  # (m,), ()
+    full = FullConfig()  # unused by the relaxed projection
+    r = map_frames(p, d[None], method="relaxed", n_l=n_l, n_m=n_m, full=full, bones=bones)[0]
+    s_t, b_t = smoothing_step(level, trend, r, gains)
+    # the first valid frame starts the smoother, as smooth_motion starts a motion
+    s_t = jnp.where(started, s_t, r)
+    b_t = jnp.where(started, b_t, jnp.zeros_like(b_t))
+    # an invalid frame leaves the state (and so the output) as it was
+    new_level = jnp.where(ok, s_t, level)
+    new_trend = jnp.where(ok, b_t, trend)
+    new_started = started | ok
+    return clip_to_limits(new_level), (new_level, new_trend, new_started)
+
+
+def standing_driven() -> np.ndarray:
+    """``(n,)`` float32: the standing posture's driven joints (the output before any valid
+    frame, and of a motion without one)."""
+    return robot.STANDING_POSTURE[robot.DRIVEN_INDEX].astype(np.float32)

@@ -1,0 +1,236 @@
+"""The one motion pipeline (``jaxproj.motion.pipeline``): its stages against plain NumPy loops,
+the transformations (jit, vmap), and its three callers (retarget, streaming, evaluate) agreeing
+where the module doc says they should."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import small_projector
+
+from jaxproj.eval import evaluate
+from jaxproj.human.skeleton import descriptor
+from jaxproj.io import datasets
+from jaxproj.motion import feasible, pipeline, streaming
+from jaxproj.motion.retarget import retarget
+from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
+from jaxproj.projection import api as engine
+from jaxproj.robots.nao_h25 import robot
+
+LO, HI = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
+STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
+
+SMOOTH_TOL_RAD = 1e-5
+"""float32 smoother against the float64 NumPy loop: a few ulp per step, accumulated over ~50
+frames of angles up to ~2 rad (measured ~1e-6)."""
+
+BATCH_TOL_RAD = 2e-5
+"""The same relaxed projection in differently shaped batches (one frame, the padded motion, the
+valid frames of a dataset) and the descriptor eager or fused into a jitted call: a few float32
+ulp, up to ~1.5e-5 rad after the kernels (``tests/test_retarget.py``, ``test_streaming.py``)."""
+
+
+def _fill_loop(q: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The documented fill rule as a plain loop."""
+    out = np.array(q, np.float64)
+    if not valid.any():
+        return np.where(np.isfinite(out), out, 0.0)
+    first = int(np.argmax(valid))
+    last = first
+    for t in range(len(q)):
+        if valid[t]:
+            last = t
+        out[t] = q[last]
+    return out
+
+
+def _smooth_loop(y: np.ndarray, gains: np.ndarray) -> np.ndarray:
+    """The double exponential smoother of ``jaxproj.motion.smoothing``'s doc, float64, with
+    ``(T, 3)`` per-frame gains ``(alpha, gamma, eta)``."""
+    y = np.asarray(y, np.float64)
+    s, b = y[0].copy(), np.zeros(y.shape[1])
+    out = [s.copy()]
+    for t in range(1, len(y)):
+        alpha, gamma, eta = gains[t]
+        cand = alpha * y[t] + (1 - alpha) * (s + b)
+        s_new = cand if np.linalg.norm(cand - s) >= eta else s
+        b = gamma * (s_new - s) + (1 - gamma) * b
+        s = s_new
+        out.append(s.copy())
+    return np.stack(out)
+
+
+def _random_motion(rng: np.random.Generator, t: int) -> np.ndarray:
+    walk = np.cumsum(rng.normal(0.0, 0.08, (t, len(robot.DRIVEN_JOINTS))), axis=0)
+    return (0.5 * (LO + HI) + walk).astype(np.float32)
+
+
+@pytest.mark.parametrize("pattern", ["leading", "middle", "none", "all"])
+def test_fill_invalid_is_the_documented_rule(pattern):
+    rng = np.random.default_rng(1)
+    q = _random_motion(rng, 30)
+    valid = np.ones(30, bool)
+    if pattern == "leading":
+        valid[:4] = False
+        valid[10:13] = False
+    elif pattern == "middle":
+        valid[rng.choice(30, 12, replace=False)] = False
+        valid[0] = True
+    elif pattern == "none":
+        valid[:] = False
+    q[~valid] = np.nan  # whatever invalid frames hold never leaks
+    got = np.asarray(jax.jit(pipeline.fill_invalid)(q, valid))
+    np.testing.assert_array_equal(got, _fill_loop(q, valid).astype(np.float32))
+
+
+@pytest.mark.parametrize("standing", ["first", "last"])
+@pytest.mark.parametrize("gains", ["paper", "timed", None])
+def test_finish_is_fill_smooth_clip(standing, gains):
+    rng = np.random.default_rng(2)
+    t, pad = 50, 14
+    q = _random_motion(rng, t + pad)
+    valid = np.ones(t + pad, bool)
+    valid[[0, 1, 20, 21, 22]] = False
+    valid[t:] = False  # padding
+    times = np.cumsum(rng.uniform(1 / 40, 1 / 10, t + pad))
+    g = {
+        "paper": PAPER_SMOOTHING.gains(),
+        "timed": frame_gains(PAPER_SMOOTHING, times, t),
+        None: None,
+    }[gains]
+    fn = jax.jit(pipeline.finish, static_argnames=("standing",))
+    filled, out = fn(q, valid, np.int32(t), g, standing=standing)
+    filled, out = np.asarray(filled), np.asarray(out)
+    want_filled = _fill_loop(q[:t], valid[:t])
+    np.testing.assert_array_equal(filled[:t], want_filled.astype(np.float32))
+    if g is None:
+        np.testing.assert_array_equal(out, filled)
+        return
+    per_frame = np.broadcast_to(np.asarray(g, np.float64), (t + pad, 3))
+    want = _smooth_loop(want_filled, per_frame[:t])
+    np.testing.assert_allclose(out[:t], np.clip(want, LO, HI), rtol=0, atol=SMOOTH_TOL_RAD)
+    assert (out >= LO).all() and (out <= HI).all()
+
+
+@pytest.mark.parametrize("standing", ["first", "last"])
+def test_a_motion_without_valid_frames_stands(standing):
+    q = np.full((16, 10), np.nan, np.float32)
+    valid = np.zeros(16, bool)
+    fn = jax.jit(pipeline.finish, static_argnames=("standing",))
+    filled, out = fn(q, valid, np.int32(16), PAPER_SMOOTHING.gains(), standing=standing)
+    np.testing.assert_array_equal(np.asarray(out), np.tile(STANDING, (16, 1)))
+    if standing == "first":  # evaluate's order: the filled motion already stands
+        np.testing.assert_array_equal(np.asarray(filled), np.tile(STANDING, (16, 1)))
+
+
+def test_finish_vmapped_equals_a_loop_and_eager():
+    rng = np.random.default_rng(3)
+    q = np.stack([_random_motion(rng, 40) for _ in range(3)])
+    valid = rng.random((3, 40)) > 0.2
+    lengths = np.array([40, 25, 7], np.int32)
+    g = PAPER_SMOOTHING.gains()
+    one = jax.jit(lambda a, v, n: pipeline.finish(a, v, n, g, standing="last")[1])
+    batch = jax.jit(jax.vmap(lambda a, v, n: pipeline.finish(a, v, n, g, standing="last")[1]))
+    got = np.asarray(batch(q, valid, lengths))
+    for i in range(3):
+        np.testing.assert_allclose(got[i], np.asarray(one(q[i], valid[i], lengths[i])), atol=1e-6)
+    eager = pipeline.finish(jnp.asarray(q[0]), valid[0], 40, g, standing="last")[1]
+    np.testing.assert_allclose(got[0], np.asarray(eager), rtol=0, atol=1e-6)
+
+
+def test_clip_to_limits_is_numpy_clip():
+    x = np.random.default_rng(5).uniform(-4, 4, (9, 10)).astype(np.float32)
+    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x)), np.clip(x, LO, HI))
+    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x[0])), np.clip(x[0], LO, HI))
+
+
+# ------------------------------------------------------------------ the callers agree
+
+
+@pytest.fixture(scope="module")
+def projector():
+    return small_projector()
+
+
+@pytest.fixture(scope="module")
+def model(projector):
+    return engine.Model(projector, engine.BuildConfig(), 0.0, np.ones(200), 200)
+
+
+@pytest.fixture(scope="module")
+def sequences():
+    """Two recordings of subject 2: one fully valid, one with lost-tracking frames."""
+    seqs = datasets.msr_action3d(subjects=[2], actions=[1, 13])
+    clean = next(s for s in seqs if np.asarray(descriptor(s.positions)[1]).all() and s.valid.all())
+    lossy = next(s for s in seqs if (~s.valid).any())
+    return clean, lossy
+
+
+def test_streaming_frame_by_frame_equals_retarget_of_the_motion(model, sequences):
+    """All frames valid, no times: the causal stream is retarget's smoothed, clipped motion."""
+    pos = sequences[0].positions[:40]
+    state = streaming.init(model)
+    got = []
+    for frame in pos:
+        a, state = streaming.update(model, state, frame)
+        got.append(np.asarray(a))
+    whole = retarget(pos, model=model, method="relaxed", smoothing=PAPER_SMOOTHING)
+    want = whole.angles[:, robot.DRIVEN_INDEX]
+    np.testing.assert_allclose(np.stack(got), want, rtol=0, atol=BATCH_TOL_RAD)
+
+
+def test_streaming_holds_where_retarget_fills(model, sequences):
+    """Where they differ by design (module doc): leading invalid frames stand in the stream and
+    take the first valid frame in retarget."""
+    pos = np.concatenate([np.full((3, 20, 3), np.nan, np.float32), sequences[0].positions[:10]])
+    state = streaming.init(model)
+    first = []
+    for frame in pos[:4]:
+        a, state = streaming.update(model, state, frame)
+        first.append(np.asarray(a))
+    np.testing.assert_array_equal(np.stack(first[:3]), np.tile(STANDING, (3, 1)))
+    whole = retarget(pos, model=model, smoothing=PAPER_SMOOTHING).angles[:, robot.DRIVEN_INDEX]
+    np.testing.assert_array_equal(whole[:3], np.tile(whole[3], (3, 1)))  # back-filled
+    np.testing.assert_allclose(first[3], whole[3], rtol=0, atol=BATCH_TOL_RAD)
+
+
+@pytest.mark.parametrize("smoothing", [PAPER_SMOOTHING, None])
+def test_evaluate_scores_retargets_motion(model, sequences, smoothing):
+    """evaluate's scored motion of a method is retarget's motion of each sequence (invalid
+    frames filled the same way; smoothed and clipped the same way)."""
+    data = evaluate.prepare(list(sequences))
+    out = evaluate.evaluate(model, data, ("relaxed",), smoothing=smoothing, feasibility=None)
+    scored = out["_predictions"]["relaxed"]
+    truth = out["_truth"]
+    for s, seq in enumerate(sequences):
+        a, b = data.offsets[s], data.offsets[s + 1]
+        r = retarget(seq.positions, seq.valid, model=model, smoothing=smoothing)
+        np.testing.assert_array_equal(r.valid, data.valid[a:b])
+        got = r.angles[:, robot.DRIVEN_INDEX]
+        np.testing.assert_allclose(scored[a:b], got, rtol=0, atol=BATCH_TOL_RAD)
+        ik = retarget(seq.positions, seq.valid, smoothing=None).angles[:, robot.DRIVEN_INDEX]
+        np.testing.assert_allclose(truth[a:b], ik, rtol=0, atol=1e-6)
+
+
+def test_retarget_feasible_is_the_filter_of_the_unfiltered_motion(model, sequences):
+    seq = sequences[1]
+    plain = retarget(seq.positions, seq.valid, model=model)
+    safe = retarget(seq.positions, seq.valid, model=model, feasible=feasible.DEFAULT_FEASIBLE)
+    assert plain.unfiltered is None
+    np.testing.assert_array_equal(safe.unfiltered, plain.angles)
+    np.testing.assert_array_equal(safe.angles, feasible.make_feasible(plain.angles, plain.times))
+    assert not np.array_equal(safe.angles, plain.angles)
+
+
+def test_frame_gains_of_one_motion_and_of_a_batch_agree():
+    times = np.cumsum(np.full((2, 12), 1 / 30.0), axis=1)
+    lengths = np.array([12, 7])
+    batch = np.asarray(frame_gains(PAPER_SMOOTHING, times, lengths))
+    for i, n in enumerate(lengths):
+        one = np.asarray(frame_gains(PAPER_SMOOTHING, times[i], n))
+        np.testing.assert_array_equal(batch[i], one)
+    # padding frames get the gains of the reference rate
+    np.testing.assert_allclose(batch[1, 7:], np.tile(np.asarray(PAPER_SMOOTHING.gains()), (5, 1)),
+                               rtol=1e-6)  # fmt: skip
+    params = SmoothingParams(alpha=0.5)
+    np.testing.assert_array_equal(np.asarray(frame_gains(params, None, 3)), params.gains())
