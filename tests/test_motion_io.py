@@ -11,8 +11,9 @@ import pytest
 
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.io import motion_files as motion_io
-from jaxproj.io.motion_files import UPPER_JOINTS, Motion, load_motion, save_motion
+from jaxproj.io.motion_files import Motion, load_motion, save_motion
 from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots.nao_h25.naoqi import UPPER_JOINTS
 
 # float32 values whose shortest decimal form is a trap for naive formatting: -0.0, subnormals,
 # the extremes, and neighbours one ulp apart

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from jaxproj.errors import ConfigError
-from jaxproj.eval import rollout
+from jaxproj.eval import rollout, rollout_model
 from jaxproj.robots.nao_h25 import robot
 
 T = 10  # frames per motion (15 frames/s: 0.67 s)
@@ -74,7 +74,7 @@ def fixed() -> mujoco.MjModel:
 
 
 def _cpu_rollout(model: mujoco.MjModel, targets: np.ndarray) -> dict[str, np.ndarray]:
-    """The rollout protocol of jaxproj.eval.rollout written out with CPU MuJoCo (float64) mj_step."""
+    """The rollout protocol of jaxproj.eval.rollout written out with CPU MuJoCo (float64)."""
     qi, di = robot.joint_qpos_index(model), robot.joint_dof_index(model)
     act = robot.actuator_index(model)
     src = np.empty(model.nu, dtype=np.int64)  # joint driven by each actuator
@@ -294,7 +294,7 @@ def test_split_guard_falls_back(batch, whole: rollout.RolloutResult, monkeypatch
     targets, lengths, _ = batch
     center, _, margin, names = rollout._head_ball()
     rollout._setup.cache_clear()
-    monkeypatch.setattr(rollout, "_head_ball", lambda: (center, 0.3, margin, names))
+    monkeypatch.setattr(rollout_model, "_head_ball", lambda robot: (center, 0.3, margin, names))
     try:
         r = rollout.simulate(targets, lengths)
     finally:

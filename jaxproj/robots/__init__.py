@@ -1,1 +1,68 @@
-"""jaxproj.robots."""
+"""Robots as data: the ``Robot`` spec and the registry of robots.
+
+A robot is one module that builds a ``Robot`` (``jaxproj.robots.base``) and one ``register``
+line below. Everything above ``robots/`` takes a ``robot: Robot`` (default ``NAO_H25``).
+
+``register(robot)`` adds a robot under ``robot.name``; ``get(name)`` returns it; ``names()``
+lists them; ``DEFAULT`` is the name of the default robot (``"nao_h25"``).
+"""
+
+from __future__ import annotations
+
+from jaxproj.errors import ConfigError
+from jaxproj.robots.base import Chain, Export, Mjcf, Robot
+from jaxproj.robots.nao_h25.spec import NAO_H25
+
+__all__ = ["DEFAULT", "NAO_H25", "Chain", "Export", "Mjcf", "Robot", "get", "names", "register",
+           "unregister"]  # fmt: skip
+
+DEFAULT = "nao_h25"
+"""Name of the default robot."""
+
+_REGISTRY: dict[str, Robot] = {}
+
+
+def register(robot: Robot, *, replace: bool = False) -> Robot:
+    """Add ``robot`` to the registry under ``robot.name`` and return it.
+
+    Raises:
+      ConfigError: not a ``Robot``, or the name is taken by another robot (unless ``replace``).
+    """
+    if not isinstance(robot, Robot):
+        raise ConfigError(f"register needs a jaxproj.robots.Robot, got {type(robot).__name__}")
+    old = _REGISTRY.get(robot.name)
+    if old is not None and old is not robot and not replace:
+        raise ConfigError(f"a robot named {robot.name!r} is already registered")
+    _REGISTRY[robot.name] = robot
+    return robot
+
+
+def unregister(name: str) -> None:
+    """Remove the robot ``name`` (tests; the default robot cannot be removed)."""
+    if name == DEFAULT:
+        raise ConfigError(f"the default robot {DEFAULT!r} cannot be unregistered")
+    if name not in _REGISTRY:
+        raise ConfigError(f"no robot named {name!r}; registered: {names()}")
+    del _REGISTRY[name]
+
+
+def get(name: str | Robot | None = None) -> Robot:
+    """The robot registered as ``name`` (``None``: the default; a ``Robot`` is returned as is).
+
+    Raises:
+      ConfigError: no robot of that name.
+    """
+    if isinstance(name, Robot):
+        return name
+    key = DEFAULT if name is None else name
+    if key not in _REGISTRY:
+        raise ConfigError(f"unknown robot {key!r}; registered robots: {names()}")
+    return _REGISTRY[key]
+
+
+def names() -> tuple[str, ...]:
+    """Names of the registered robots, sorted."""
+    return tuple(sorted(_REGISTRY))
+
+
+register(NAO_H25)

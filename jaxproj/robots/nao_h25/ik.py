@@ -54,7 +54,7 @@ Every angle is clamped to its joint limits; joints outside ``DRIVEN_JOINTS`` are
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -63,6 +63,8 @@ import numpy as np
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import UPPER_BODY, resolve_bones
+from jaxproj.robots.base import Chain
+from jaxproj.robots.base import driven_to_full as _driven_to_full
 from jaxproj.robots.nao_h25 import robot
 
 ELBOW_OFFSET_ANGLE = math.atan2(robot.ELBOW_OFFSET_Y, robot.UPPER_ARM_LENGTH)
@@ -83,32 +85,24 @@ _LO = {n: float(robot.LOWER[robot.IDX[n]]) for n in robot.DRIVEN_JOINTS}
 _HI = {n: float(robot.UPPER[robot.IDX[n]]) for n in robot.DRIVEN_JOINTS}
 
 
-@dataclass(frozen=True)
-class Chain:
-    """A kinematic chain: descriptor bones and the driven joints that depend on them alone.
-
-    Attributes:
-      name: ``"head"``, ``"left_arm"`` or ``"right_arm"``.
-      bones: the descriptor bones the chain's angles are computed from (``skeleton.BONE_NAMES``).
-      joints: the driven joints it determines (``robot.DRIVEN_JOINTS`` names, in that order).
-    """
-
-    name: str
-    bones: tuple[str, ...]
-    joints: tuple[str, ...]
+def _chain_ik(x: np.ndarray, *, name: str) -> np.ndarray:
+    """``Chain.ik`` of the chain called ``name``: ``solve_chain`` from its own columns."""
+    return solve_chain(x, _CHAIN_BY_NAME[name])
 
 
 CHAINS: tuple[Chain, ...] = (
-    Chain("head", ("neck",), ("HeadYaw", "HeadPitch")),
+    Chain("head", ("neck",), ("HeadYaw", "HeadPitch"), partial(_chain_ik, name="head")),
     Chain(
         "left_arm",
         ("upper_arm_left", "forearm_left"),
         ("LShoulderPitch", "LShoulderRoll", "LElbowYaw", "LElbowRoll"),
+        partial(_chain_ik, name="left_arm"),
     ),
     Chain(
         "right_arm",
         ("upper_arm_right", "forearm_right"),
         ("RShoulderPitch", "RShoulderRoll", "RElbowYaw", "RElbowRoll"),
+        partial(_chain_ik, name="right_arm"),
     ),
 )
 """How the IK factorises: the head angles depend only on the neck bone, each arm's four angles
@@ -116,11 +110,13 @@ only on that arm's upper arm and forearm (``_solve_driven`` computes them from e
 bones; ``tests/test_ik.py`` perturbs one chain's bones and checks the others' outputs are
 bit-identical). Together the chains cover ``robot.DRIVEN_JOINTS`` once each."""
 
-WHOLE_BODY = Chain("whole", UPPER_BODY, robot.DRIVEN_JOINTS)
+WHOLE_BODY = Chain("whole", UPPER_BODY, robot.DRIVEN_JOINTS, partial(_chain_ik, name="whole"))
 """The paper's formulation as one chain: all five upper-body bones -> all ten driven joints."""
 
 CHAIN_SETS: dict[str, tuple[Chain, ...]] = {"upper": CHAINS, "whole": (WHOLE_BODY,)}
 """Named chain sets of ``BuildConfig.chains``: per-chain projection (default) or whole-body."""
+
+_CHAIN_BY_NAME = {c.name: c for c in (*CHAINS, WHOLE_BODY)}
 
 _REST_DIRECTION = {"neck": (0.0, 0.0, 1.0)}
 """Fill for the bones a chain does not read (any valid direction gives the same chain angles);
@@ -271,11 +267,7 @@ def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Ar
 
 def driven_to_full(q_driven: jax.Array) -> jax.Array:
     """``(..., 10)`` driven angles -> ``(..., 26)`` configuration; the rest at the standing pose."""
-    q_driven = jnp.asarray(q_driven, dtype=jnp.float32)
-    base = jnp.broadcast_to(
-        jnp.asarray(robot.STANDING_POSTURE), (*q_driven.shape[:-1], robot.N_JOINTS)
-    )
-    return base.at[..., robot.DRIVEN_INDEX].set(q_driven)
+    return _driven_to_full(robot.STANDING_POSTURE, robot.DRIVEN_INDEX, q_driven)
 
 
 def solve(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:

@@ -4,8 +4,10 @@ Robot configuration vectors in jaxproj are ``(..., 26)`` arrays of joint angles 
 order of ``JOINT_NAMES`` (the ALMotion "Body" order of the H25). LHand / RHand are the hands'
 open/close commands (unitless 0..1, kept as joints so the vector matches ALMotion).
 
-The analytic IK (``jaxproj.robots.nao_h25.ik``) drives ``DRIVEN_JOINTS`` (head and both arms up to the elbow);
-every other joint is held at ``STANDING_POSTURE``. Metrics average over ``DRIVEN_JOINTS`` only.
+The analytic IK (``jaxproj.robots.nao_h25.ik``) drives ``DRIVEN_JOINTS`` (head and both arms up
+to the elbow); every other joint is held at ``STANDING_POSTURE``. Metrics average over
+``DRIVEN_JOINTS`` only. ``jaxproj.robots.NAO_H25`` (``nao_h25/spec.py``) is the ``Robot`` built
+from these constants.
 
 All numbers come from ``shared/reference/nao_h25_kinematics.md`` (Aldebaran H25 V4/V5 docs and the
 Aldebaran-generated V5 URDF, cross-checked); see the MJCF ``assets/nao_h25.xml`` for the inertials.
@@ -21,6 +23,8 @@ import mujoco
 import numpy as np
 
 from jaxproj.errors import ConfigError, InputError
+from jaxproj.robots.base import joint_qpos_index as _qpos_index
+from jaxproj.robots.base import mj_joint_ids
 
 NAME = "NAO H25 V5"
 
@@ -231,18 +235,12 @@ def _remove_subtrees(spec: mujoco.MjSpec, roots: Sequence[str]) -> None:
 
 def _joint_ids(model: mujoco.MjModel) -> np.ndarray:
     """(26,) MuJoCo joint id of each of ``JOINT_NAMES``; ConfigError if one is missing."""
-    ids = np.empty(N_JOINTS, dtype=np.int64)
-    for i, name in enumerate(JOINT_NAMES):
-        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if jid < 0:
-            raise ConfigError(f"model has no joint named {name!r}")
-        ids[i] = jid
-    return ids
+    return mj_joint_ids(model, JOINT_NAMES)
 
 
 def joint_qpos_index(model: mujoco.MjModel) -> np.ndarray:
     """(26,) int: address in ``qpos`` of each joint of ``JOINT_NAMES`` in ``model``."""
-    return np.asarray(model.jnt_qposadr[_joint_ids(model)], dtype=np.int64)
+    return _qpos_index(model, JOINT_NAMES)
 
 
 def joint_dof_index(model: mujoco.MjModel) -> np.ndarray:

@@ -1,0 +1,381 @@
+"""The robot spec: a ``Robot`` is data (joints, limits, posture, chains, IK, MJCF, export hooks).
+
+A robot module builds one ``Robot`` from its own constants and registers it in
+``jaxproj.robots`` (``register``); everything above ``robots/`` takes a ``robot: Robot``
+argument instead of reaching for one robot's module constants. The NAO H25
+(``jaxproj.robots.nao_h25``) is the one instance shipped; ``tests/toy_robot.py`` is a second.
+
+Models: PyRoki's ``Robot.from_urdf`` (one frozen record of the kinematic data), mink's small
+base classes, GMR's per-(source, robot) IK configs (here: a ``Chain`` holds the human bones it
+reads and its own IK).
+
+A ``Robot`` is not a pytree: its arrays are constants of the traces that use them (as module
+constants were before), and it hashes by identity (``eq=False``), so it can be a static argument
+of a jitted function or a key of a cache. Its arrays are read-only float32 copies.
+
+Shapes: a configuration is ``(..., n_joints)`` joint angles in ``joint_names`` order (rad); the
+driven angles (what the IK computes and the projection predicts) are ``(..., n_driven)`` in
+``driven_joints`` order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import BONE_NAMES
+
+ChainIK = Callable[[np.ndarray], np.ndarray]
+"""IK of one chain: ``(N, 3 * len(bones))`` bone directions (the chain's descriptor columns,
+bone after bone, body frame) -> ``(N, len(joints))`` float32 angles, rad."""
+
+DescriptorIK = Callable[..., jax.Array]
+"""IK of all driven joints: ``(d, bones)`` with ``d`` ``(..., 3 * n_bones)`` descriptors of the
+bone subset ``bones`` -> ``(..., n_driven)`` float32 angles, rad (within limits, finite)."""
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A kinematic chain: the human bones it reads and the robot joints it drives.
+
+    Attributes:
+      name: e.g. ``"head"``, ``"left_arm"``.
+      bones: the descriptor bones (``skeleton.BONE_NAMES``) the chain's angles depend on.
+      joints: the driven joints it determines (a subset of ``Robot.driven_joints``, in that order).
+      ik: its IK from its own descriptor columns to its joints (``ChainIK``), or ``None``. Not part
+        of a chain's equality or hash (chains compare by name, bones and joints).
+    """
+
+    name: str
+    bones: tuple[str, ...]
+    joints: tuple[str, ...]
+    ik: ChainIK | None = field(default=None, compare=False, repr=False)
+
+    def solve(self, x: np.ndarray) -> np.ndarray:
+        """``(N, 3 * len(bones))`` -> ``(N, len(joints))`` angles (``ik``); ConfigError if none."""
+        if self.ik is None:
+            raise ConfigError(f"chain {self.name!r} has no IK function")
+        return self.ik(x)
+
+
+@dataclass(frozen=True)
+class Mjcf:
+    """A robot's MuJoCo model and the names in it that the evaluation uses.
+
+    Attributes:
+      path: the MJCF file.
+      load: ``load(mount="free" | "fixed", without=())`` -> compiled ``mujoco.MjModel`` (the
+        ``"fixed"`` mount welds the base to the world; ``without``: bodies removed with their
+        subtrees).
+      free_joint: name of the floating-base joint, or ``None``.
+      arm_sites: side -> (shoulder, elbow, wrist) site names: the task-space metrics'
+        points (``jaxproj.eval.metrics``); sides in the order of the metrics' side axis.
+      fk_without: bodies that cannot move any ``arm_sites`` site (removed from the model the
+        metrics' forward kinematics runs; speed only).
+      hand_sites: end-effector sites (``jaxproj.eval.rollout.hand_error_cm``).
+      split: rollout parts, part name -> bodies removed for it (``"upper"``: the legs' roots,
+        ``"legs"``: the head's and arms' roots); empty: no split rollout.
+      head_root: the body the head turns about (the split rollout's certificate), or ``None``.
+    """
+
+    path: Path
+    load: Callable[..., mujoco.MjModel]
+    free_joint: str | None = None
+    arm_sites: Mapping[str, tuple[str, str, str]] = field(default_factory=dict)
+    fk_without: tuple[str, ...] = ()
+    hand_sites: tuple[str, ...] = ()
+    split: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    head_root: str | None = None
+
+
+@dataclass(frozen=True)
+class Export:
+    """A trajectory document a robot's own controller reads (e.g. NAOqi JSON for the NAO).
+
+    ``jaxproj.io.motion_files`` dispatches ``save_motion`` / ``load_motion`` to it by ``suffix``.
+
+    Attributes:
+      name: e.g. ``"naoqi"``.
+      suffix: the file extension, e.g. ``".json"``.
+      check: ``check(robot, joints, lead_in)`` validates the export options (ConfigError)
+        and returns them resolved.
+      write: ``write(robot, angles (T, n_joints), times (T,), valid (T,), meta, options)`` ->
+        the document's text.
+      read: ``read(robot, path)`` -> ``(angles (T, n_joints) float32, times (T,) float64,
+        valid (T,) bool, meta dict)``; ``InputError`` / ``ConfigError`` for a bad file.
+    """
+
+    name: str
+    suffix: str
+    check: Callable[..., Any]
+    write: Callable[..., str]
+    read: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]]
+
+
+def _vector(value: object, n: int, what: str) -> np.ndarray:
+    a = np.array(value, dtype=np.float32)
+    if a.shape != (n,):
+        raise ConfigError(f"{what} must have shape ({n},) (one per joint), got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ConfigError(f"{what} must be finite")
+    a.flags.writeable = False
+    return a
+
+
+def _unique_names(names: Sequence[str], what: str) -> tuple[str, ...]:
+    names = tuple(names)
+    if not names or not all(isinstance(n, str) and n for n in names):
+        raise ConfigError(f"{what} must be a non-empty tuple of non-empty str, got {names!r}")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"{what} names a joint twice: {names}")
+    return names
+
+
+def driven_to_full(
+    standing: np.ndarray, driven_index: np.ndarray, q_driven: jax.Array
+) -> jax.Array:
+    """``(..., n_driven)`` driven angles -> ``(..., n_joints)``; the rest at ``standing``.
+
+    Args:
+      standing: ``(n_joints,)`` the posture of the other joints, rad.
+      driven_index: ``(n_driven,)`` positions of the driven joints in the configuration.
+      q_driven: ``(..., n_driven)`` angles, rad.
+
+    Returns:
+      ``(..., n_joints)`` float32 configurations.
+    """
+    q_driven = jnp.asarray(q_driven, dtype=jnp.float32)
+    base = jnp.broadcast_to(jnp.asarray(standing), (*q_driven.shape[:-1], len(standing)))
+    return base.at[..., driven_index].set(q_driven)
+
+
+def mj_joint_ids(model: mujoco.MjModel, joint_names: Sequence[str]) -> np.ndarray:
+    """``(len(joint_names),)`` int64 MuJoCo joint id of each name; ConfigError if one is missing."""
+    ids = np.empty(len(joint_names), dtype=np.int64)
+    for i, name in enumerate(joint_names):
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if jid < 0:
+            raise ConfigError(f"model has no joint named {name!r}")
+        ids[i] = jid
+    return ids
+
+
+def joint_qpos_index(model: mujoco.MjModel, joint_names: Sequence[str]) -> np.ndarray:
+    """``(len(joint_names),)`` int64: address in ``qpos`` of each named joint of ``model``."""
+    return np.asarray(model.jnt_qposadr[mj_joint_ids(model, joint_names)], dtype=np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A robot as data: what retargeting, evaluation and export need to know about it.
+
+    Attributes:
+      name: registry key, e.g. ``"nao_h25"``.
+      title: human-readable name, e.g. ``"NAO H25 V5"``.
+      joint_names: every joint, in configuration order (``n_joints``).
+      lower, upper: ``(n_joints,)`` joint limits, rad (``lower <= upper``).
+      standing: ``(n_joints,)`` the standing posture, rad (within the limits): every joint the IK
+        does not drive is held there.
+      driven_joints: the joints the IK drives (and the projection predicts), in driven order.
+      chains: how the IK factorises (``Chain``); together they drive each driven joint once.
+      ik: IK of all driven joints from a descriptor (``DescriptorIK``), or ``None``.
+      velocity_limits: ``(n_joints,)`` maximum joint speeds, rad/s (> 0), or ``None``.
+      acceleration_limits: ``(n_joints,)`` rad/s^2 (> 0), or ``None``.
+      coupled_joints: ``(leader, follower)`` pairs driven by one motor (follower := leader).
+      loose_joints: driven joints whose IK truth is ill-conditioned in some poses (left out of
+        ``jaxproj.eval.metrics.m_max_without`` by default).
+      mjcf: the MuJoCo model (``Mjcf``), or ``None``.
+      exports: controller documents by file suffix (``Export``), e.g. ``{".json": naoqi}``.
+
+    Raises:
+      ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
+        them, chains not covering the driven joints once, unknown bones, bad exports).
+    """
+
+    name: str
+    title: str
+    joint_names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    standing: np.ndarray
+    driven_joints: tuple[str, ...]
+    chains: tuple[Chain, ...]
+    ik: DescriptorIK | None = None
+    velocity_limits: np.ndarray | None = None
+    acceleration_limits: np.ndarray | None = None
+    coupled_joints: tuple[tuple[str, str], ...] = ()
+    loose_joints: tuple[str, ...] = ()
+    mjcf: Mjcf | None = None
+    exports: Mapping[str, Export] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.name, str) and self.name.isidentifier()):
+            raise ConfigError(f"robot name must be an identifier (registry key), got {self.name!r}")
+        joints = _unique_names(self.joint_names, "joint_names")
+        n = len(joints)
+        index = {j: i for i, j in enumerate(joints)}
+        lower = _vector(self.lower, n, "lower")
+        upper = _vector(self.upper, n, "upper")
+        if (lower > upper).any():
+            bad = [joints[i] for i in np.flatnonzero(lower > upper)]
+            raise ConfigError(f"lower > upper for joints {bad}")
+        standing = _vector(self.standing, n, "standing")
+        outside = (standing < lower) | (standing > upper)
+        if outside.any():
+            bad = [joints[i] for i in np.flatnonzero(outside)]
+            raise ConfigError(f"the standing posture is outside the limits at {bad}")
+        driven = _unique_names(self.driven_joints, "driven_joints")
+        unknown = [j for j in driven if j not in index]
+        if unknown:
+            raise ConfigError(f"driven_joints {unknown} are not in joint_names")
+        self._check_chains(driven)
+        limits = {}
+        for what in ("velocity_limits", "acceleration_limits"):
+            value = getattr(self, what)
+            if value is not None:
+                value = _vector(value, n, what)
+                if (value <= 0).any():
+                    raise ConfigError(f"{what} must be > 0")
+            limits[what] = value
+        for pair in self.coupled_joints:
+            if len(pair) != 2 or any(j not in index for j in pair):
+                raise ConfigError(f"coupled_joints: {pair!r} is not a (leader, follower) of joints")
+        loose = tuple(self.loose_joints)
+        if any(j not in driven for j in loose):
+            raise ConfigError(f"loose_joints {loose} must be driven joints")
+        for suffix, export in self.exports.items():
+            ok = isinstance(export, Export) and suffix == export.suffix
+            if not (ok and suffix.startswith(".")):
+                raise ConfigError(f"exports[{suffix!r}] must be an Export with that suffix")
+        if self.mjcf is not None and not isinstance(self.mjcf, Mjcf):
+            raise ConfigError(f"mjcf must be an Mjcf or None, got {type(self.mjcf).__name__}")
+        set_ = object.__setattr__
+        set_(self, "joint_names", joints)
+        set_(self, "driven_joints", driven)
+        set_(self, "chains", tuple(self.chains))
+        set_(self, "lower", lower)
+        set_(self, "upper", upper)
+        set_(self, "standing", standing)
+        set_(self, "loose_joints", loose)
+        set_(self, "coupled_joints", tuple((a, b) for a, b in self.coupled_joints))
+        set_(self, "exports", dict(self.exports))
+        for what, value in limits.items():
+            set_(self, what, value)
+        set_(self, "_index", index)
+        driven_index = np.array([index[j] for j in driven], dtype=np.int32)
+        driven_index.flags.writeable = False
+        set_(self, "_driven_index", driven_index)
+
+    def _check_chains(self, driven: tuple[str, ...]) -> None:
+        chains = tuple(self.chains)
+        if not chains or not all(isinstance(c, Chain) for c in chains):
+            raise ConfigError("chains must be a non-empty tuple of Chain")
+        names = [c.name for c in chains]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"chain names repeat: {names}")
+        covered = [j for c in chains for j in c.joints]
+        if sorted(covered) != sorted(driven):
+            raise ConfigError(
+                f"the chains must drive each driven joint exactly once; they drive {covered}, "
+                f"the driven joints are {driven}"
+            )
+        for c in chains:
+            if list(c.joints) != sorted(c.joints, key=driven.index):
+                raise ConfigError(f"chain {c.name!r}: joints must be in driven_joints order")
+            bad = [b for b in c.bones if b not in BONE_NAMES]
+            if not c.bones or bad:
+                raise ConfigError(f"chain {c.name!r}: unknown or no bones {bad}; use {BONE_NAMES}")
+
+    # --- derived helpers ---------------------------------------------------------------------
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints (the length of a configuration)."""
+        return len(self.joint_names)
+
+    @property
+    def n_driven(self) -> int:
+        """Number of driven joints."""
+        return len(self.driven_joints)
+
+    @property
+    def driven_index(self) -> np.ndarray:
+        """``(n_driven,)`` int32 positions of ``driven_joints`` in ``joint_names`` (read-only)."""
+        return self._driven_index  # type: ignore[attr-defined,no-any-return]
+
+    def index(self, name: str) -> int:
+        """Position of joint ``name`` in ``joint_names``; ConfigError for an unknown name."""
+        index: dict[str, int] = self._index  # type: ignore[attr-defined]
+        if name not in index:
+            raise ConfigError(f"{self.name} has no joint {name!r}; joints: {self.joint_names}")
+        return index[name]
+
+    def has_joint(self, name: str) -> bool:
+        """Whether ``name`` is one of ``joint_names``."""
+        return name in self._index  # type: ignore[attr-defined]
+
+    def chain(self, name: str) -> Chain:
+        """The chain called ``name``; ConfigError for an unknown one."""
+        for c in self.chains:
+            if c.name == name:
+                return c
+        known = [c.name for c in self.chains]
+        raise ConfigError(f"{self.name} has no chain {name!r}; chains: {known}")
+
+    def driven_to_full(self, q_driven: jax.Array) -> jax.Array:
+        """``(..., n_driven)`` driven angles -> ``(..., n_joints)`` float32; the rest standing."""
+        return driven_to_full(self.standing, self.driven_index, q_driven)
+
+    def clip(self, angles: jax.Array) -> jax.Array:
+        """``(..., n_joints)`` configurations clipped to ``[lower, upper]`` (jnp, float32)."""
+        q = jnp.asarray(angles, dtype=jnp.float32)
+        lo = jnp.broadcast_to(self.lower, q.shape)
+        return jnp.clip(q, lo, jnp.broadcast_to(self.upper, q.shape))
+
+    def clip_driven(self, angles: jax.Array) -> jax.Array:
+        """``(..., n_driven)`` driven angles clipped to their limits (jnp, float32)."""
+        q = jnp.asarray(angles, dtype=jnp.float32)
+        lo = jnp.broadcast_to(self.lower[self.driven_index], q.shape)
+        return jnp.clip(q, lo, jnp.broadcast_to(self.upper[self.driven_index], q.shape))
+
+    def from_columns(self, names: Sequence[str], columns: np.ndarray) -> np.ndarray:
+        """``(T, len(names))`` angle columns placed by joint name into ``(T, n_joints)`` float32
+        configurations, every joint not named at ``standing``.
+
+        Raises:
+          ConfigError: an unknown or repeated joint name.
+        """
+        unknown = [str(n) for n in names if not self.has_joint(n)]
+        if unknown:
+            raise ConfigError(f"unknown joint names {unknown}")
+        if len(set(names)) != len(names):
+            dup = sorted({str(n) for n in names if list(names).count(n) > 1})
+            raise ConfigError(f"joint names repeated: {dup}")
+        out = np.tile(self.standing, (columns.shape[0], 1))
+        out[:, [self.index(n) for n in names]] = columns
+        return out
+
+    def couple(self, angles: np.ndarray) -> np.ndarray:
+        """``(..., n_joints)`` -> a copy with every coupled follower set to its leader (NumPy)."""
+        q = np.array(angles)
+        for leader, follower in self.coupled_joints:
+            q[..., self.index(follower)] = q[..., self.index(leader)]
+        return q
+
+    def load_model(self, mount: str = "free", without: Sequence[str] = ()) -> mujoco.MjModel:
+        """The compiled MJCF (``mjcf.load``); ConfigError when the robot has no MJCF."""
+        return self.require_mjcf().load(mount, without)
+
+    def require_mjcf(self) -> Mjcf:
+        """``mjcf``, or ConfigError naming the robot when it has none."""
+        if self.mjcf is None:
+            raise ConfigError(f"robot {self.name!r} has no MJCF model (needed for physics / FK)")
+        return self.mjcf

@@ -1,0 +1,54 @@
+"""The NAO H25 as a ``Robot``: built from the constants of ``robot`` and ``ik`` (no copies).
+
+``jaxproj.robots.NAO_H25`` (registered as ``"nao_h25"``, the default robot) is ``NAO_H25`` here.
+"""
+
+from __future__ import annotations
+
+from jaxproj.robots.base import Mjcf, Robot
+from jaxproj.robots.nao_h25 import ik, naoqi, robot
+
+ARM_SITES: dict[str, tuple[str, str, str]] = {
+    "left": ("l_shoulder", "l_elbow", "l_wrist"),
+    "right": ("r_shoulder", "r_elbow", "r_wrist"),
+}
+"""MJCF sites (shoulder, elbow, wrist) of each arm: the joint origins of LShoulderPitch /
+LElbowYaw / LWristYaw (and the right ones); the task-space metrics' points."""
+
+HAND_SITES: tuple[str, str] = ("l_hand", "r_hand")
+"""End-effector sites (left, right) of ``jaxproj.eval.rollout.hand_error_cm``."""
+
+LOOSE_JOINTS: tuple[str, str] = ("LElbowYaw", "RElbowYaw")
+"""Driven joints whose IK truth is ill-conditioned near a straight elbow (``ik`` module doc)."""
+
+HEAD_ROOT = "Neck"
+"""The body the head turns about."""
+
+MJCF = Mjcf(
+    path=robot.mjcf_path(),
+    load=robot.load_model,
+    free_joint="root",
+    arm_sites=ARM_SITES,
+    fk_without=(HEAD_ROOT, *robot.LEG_ROOTS),  # head and legs: they cannot move the arms
+    hand_sites=HAND_SITES,
+    split={"upper": robot.LEG_ROOTS, "legs": robot.UPPER_ROOTS},
+    head_root=HEAD_ROOT,
+)
+
+NAO_H25 = Robot(
+    name="nao_h25",
+    title=robot.NAME,
+    joint_names=robot.JOINT_NAMES,
+    lower=robot.LOWER,
+    upper=robot.UPPER,
+    standing=robot.STANDING_POSTURE,
+    driven_joints=robot.DRIVEN_JOINTS,
+    chains=ik.CHAINS,
+    ik=ik.solve_driven,
+    velocity_limits=robot.VELOCITY_LIMITS,
+    coupled_joints=(robot.COUPLED_JOINTS,),
+    loose_joints=LOOSE_JOINTS,
+    mjcf=MJCF,
+    exports={naoqi.EXPORT.suffix: naoqi.EXPORT},
+)
+"""The NAO H25 V5: 26 joints, 10 driven (head, arms to the elbow), three chains, NAOqi JSON."""

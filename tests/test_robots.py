@@ -1,0 +1,223 @@
+"""The robot spec (jaxproj.robots): validation, the registry, derived helpers, the NAO instance
+against its module constants, and the robot seam proved with a toy robot (tests/toy_robot.py):
+its IK, motion files and metrics run with no NAO number in sight."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+from toy_robot import CHAINS, DRIVEN, JOINTS, LOWER, STANDING, UPPER, arm_fk, make_toy_robot
+
+from jaxproj import robots
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.eval import metrics
+from jaxproj.io.motion_files import Motion, load_motion, save_motion
+from jaxproj.robots import NAO_H25, Chain, Robot
+from jaxproj.robots.nao_h25 import ik, naoqi, robot
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory: pytest.TempPathFactory):
+    """The toy robot with its MJCF, registered for the module."""
+    r = robots.register(make_toy_robot(tmp_path_factory.mktemp("toy")))
+    yield r
+    robots.unregister(r.name)
+
+
+def _bits(a: object) -> bytes:
+    return np.asarray(a).tobytes()
+
+
+# --- the NAO instance ---------------------------------------------------------------------------
+
+
+def test_nao_is_built_from_its_module_constants() -> None:
+    r = robots.get()
+    assert r is NAO_H25 and r is robots.get("nao_h25") and robots.DEFAULT == "nao_h25"
+    assert r.joint_names == robot.JOINT_NAMES and r.n_joints == robot.N_JOINTS
+    assert r.driven_joints == robot.DRIVEN_JOINTS and r.n_driven == len(robot.DRIVEN_JOINTS)
+    for mine, theirs in ((r.lower, robot.LOWER), (r.upper, robot.UPPER),
+                         (r.standing, robot.STANDING_POSTURE),
+                         (r.velocity_limits, robot.VELOCITY_LIMITS),
+                         (r.driven_index, robot.DRIVEN_INDEX)):  # fmt: skip
+        assert mine.dtype == theirs.dtype and _bits(mine) == _bits(theirs)
+        assert not mine.flags.writeable
+    assert r.chains == ik.CHAINS and r.ik is ik.solve_driven
+    assert r.coupled_joints == (robot.COUPLED_JOINTS,)
+    assert r.exports == {".json": naoqi.EXPORT} and r.title == robot.NAME
+    assert r.require_mjcf().path == robot.mjcf_path()
+    assert all(r.index(n) == robot.IDX[n] for n in robot.JOINT_NAMES)
+
+
+def test_nao_helpers_match_the_ik_module() -> None:
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(7, robot.N_JOINTS)).astype(np.float32)
+    drv = q[:, robot.DRIVEN_INDEX]
+    assert _bits(NAO_H25.driven_to_full(drv)) == _bits(ik.driven_to_full(drv))
+    assert _bits(jax.jit(NAO_H25.driven_to_full)(drv)) == _bits(ik.driven_to_full(drv))
+    np.testing.assert_array_equal(NAO_H25.clip(q), np.clip(q, robot.LOWER, robot.UPPER))
+    np.testing.assert_array_equal(
+        NAO_H25.clip_driven(drv),
+        np.clip(drv, robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]),
+    )
+    # each chain's IK is ik.solve_chain on its own columns
+    x = rng.normal(size=(5, 15)).astype(np.float32)
+    for chain in NAO_H25.chains:
+        cols = list(ik.chain_columns(chain))
+        assert _bits(chain.solve(x[:, cols])) == _bits(ik.solve_chain(x[:, cols], chain))
+    coupled = NAO_H25.couple(q)
+    lead, follow = (robot.IDX[n] for n in robot.COUPLED_JOINTS)
+    np.testing.assert_array_equal(coupled[:, follow], q[:, lead])
+
+
+# --- validation ---------------------------------------------------------------------------------
+
+
+def _fields() -> dict:
+    r = make_toy_robot()
+    return {f.name: getattr(r, f.name) for f in dataclasses.fields(r)}
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"name": "not a name"}, "identifier"),
+        ({"joint_names": JOINTS[:-1] + ("waist",)}, "twice"),
+        ({"lower": LOWER[:-1]}, r"lower must have shape \(9,\)"),
+        ({"upper": np.where(np.arange(9) == 3, -3.0, UPPER)}, "lower > upper"),
+        ({"standing": np.where(np.arange(9) == 5, 3.0, STANDING)}, "outside the limits"),
+        ({"standing": np.full(9, np.nan)}, "finite"),
+        ({"driven_joints": DRIVEN + ("tail",)}, "not in joint_names"),
+        ({"chains": CHAINS[:2]}, "exactly once"),
+        ({"chains": ()}, "non-empty"),
+        ({"chains": (CHAINS[0], CHAINS[0], *CHAINS[1:])}, "repeat"),
+        ({"chains": (Chain("head", ("tail",), DRIVEN[:2]), *CHAINS[1:])}, "unknown or no bones"),
+        ({"chains": (Chain("head", ("neck",), DRIVEN[1::-1]), *CHAINS[1:])}, "order"),
+        ({"velocity_limits": np.zeros(9)}, "velocity_limits must be > 0"),
+        ({"coupled_joints": (("waist", "tail"),)}, "coupled_joints"),
+        ({"loose_joints": ("waist",)}, "loose_joints"),
+        ({"exports": {".csv": naoqi.EXPORT}}, "exports"),
+        ({"mjcf": "toy.xml"}, "mjcf must be an Mjcf"),
+    ],
+)
+def test_validation_names_what_to_change(change: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        Robot(**{**_fields(), **change})
+
+
+def test_registry() -> None:
+    toy = make_toy_robot(name="toy_registry")
+    assert "toy_registry" not in robots.names()
+    assert robots.register(toy) is toy and robots.get("toy_registry") is toy
+    assert robots.register(toy) is toy  # the same robot again is fine
+    with pytest.raises(ConfigError, match="already registered"):
+        robots.register(make_toy_robot(name="toy_registry"))
+    other = robots.register(make_toy_robot(name="toy_registry"), replace=True)
+    assert robots.get("toy_registry") is other
+    assert robots.get(other) is other
+    robots.unregister("toy_registry")
+    assert robots.names() == ("nao_h25",) or "toy_registry" not in robots.names()
+    with pytest.raises(ConfigError, match="unknown robot 'toy_registry'"):
+        robots.get("toy_registry")
+    with pytest.raises(ConfigError, match="cannot be unregistered"):
+        robots.unregister("nao_h25")
+    with pytest.raises(ConfigError, match="needs a jaxproj.robots.Robot"):
+        robots.register("nao_h25")  # type: ignore[arg-type]
+
+
+# --- the toy robot ------------------------------------------------------------------------------
+
+
+def test_toy_helpers(toy: Robot) -> None:
+    assert robots.get("toy") is toy and toy.n_joints == 9 and toy.n_driven == 8
+    assert toy.index("l_elbow") == 5 and toy.driven_index.tolist() == list(range(1, 9))
+    with pytest.raises(ConfigError, match="no joint 'LElbowYaw'"):
+        toy.index("LElbowYaw")
+    drv = np.arange(16, dtype=np.float32).reshape(2, 8) / 10
+    full = np.asarray(toy.driven_to_full(drv))
+    assert full.shape == (2, 9) and full.dtype == np.float32
+    np.testing.assert_array_equal(full[:, 0], STANDING[0])  # the waist stands
+    np.testing.assert_array_equal(full[:, 1:], drv)
+    wild = np.full((3, 9), 10.0, np.float32)
+    np.testing.assert_array_equal(toy.clip(wild), np.broadcast_to(UPPER, (3, 9)))
+    np.testing.assert_array_equal(toy.clip(-wild), np.broadcast_to(LOWER, (3, 9)))
+    cols = toy.from_columns(["r_elbow", "waist"], np.array([[1.5, 0.25]], np.float32))
+    expect = STANDING.copy()
+    expect[[8, 0]] = (1.5, 0.25)
+    np.testing.assert_array_equal(cols, expect[None])
+    with pytest.raises(ConfigError, match="joint names repeated"):
+        toy.from_columns(["waist", "waist"], np.zeros((1, 2), np.float32))
+    assert toy.chain("left_arm").joints == DRIVEN[2:5]
+    with pytest.raises(ConfigError, match="no chain"):
+        toy.chain("tail")
+    with pytest.raises(ConfigError, match="no MJCF"):
+        make_toy_robot().load_model("fixed")
+
+
+def test_toy_ik_inverts_its_fk(toy: Robot) -> None:
+    # random arm angles -> FK bone directions -> the chain IK gives the angles back
+    rng = np.random.default_rng(3)
+    q = np.tile(STANDING, (64, 1))
+    q[:, 3:] = rng.uniform(LOWER[3:] + 0.05, UPPER[3:] - 0.05, size=(64, 6))
+    q[:, [5, 8]] = rng.uniform(0.2, 1.9, size=(64, 2))  # elbow away from straight
+    pts = arm_fk(q)
+    for i, chain in enumerate(toy.chains[1:]):
+        u = (pts[:, i, 1] - pts[:, i, 0]) / 0.1
+        f = (pts[:, i, 2] - pts[:, i, 1]) / 0.1
+        got = chain.solve(np.concatenate([u, f], axis=1).astype(np.float32))
+        k = [toy.index(j) for j in chain.joints]
+        np.testing.assert_allclose(got, q[:, k], atol=2e-5)
+    # the whole-robot IK is the chains side by side
+    d = np.concatenate([np.tile([0.0, 0.0, 1.0], (64, 1)),
+                        (pts[:, 0, 1] - pts[:, 0, 0]) / 0.1, (pts[:, 0, 2] - pts[:, 0, 1]) / 0.1,
+                        (pts[:, 1, 1] - pts[:, 1, 0]) / 0.1, (pts[:, 1, 2] - pts[:, 1, 1]) / 0.1],
+                       axis=1).astype(np.float32)  # fmt: skip
+    assert toy.ik is not None
+    np.testing.assert_allclose(np.asarray(toy.ik(d))[:, 2:], q[:, 3:], atol=2e-5)
+    np.testing.assert_allclose(np.asarray(toy.ik(d))[:, :2], 0.0, atol=1e-7)
+
+
+def test_toy_motion_files(toy: Robot, tmp_path: Path) -> None:
+    rng = np.random.default_rng(4)
+    angles = rng.uniform(LOWER, UPPER, size=(6, 9)).astype(np.float32)
+    m = Motion(angles, np.arange(6) / 15.0, np.ones(6, bool), meta={"src": "toy"}, robot=toy)
+    for name in ("m.npz", "m.csv"):
+        back = load_motion(save_motion(tmp_path / name, m), robot=toy)
+        assert back.robot is toy and _bits(back.angles) == _bits(m.angles)
+    assert (tmp_path / "m.csv").read_text().splitlines()[0] == "time," + ",".join(JOINTS)
+    with pytest.raises(ConfigError, match=r"use one of \.npz, \.csv$"):
+        save_motion(tmp_path / "m.json", m)  # the toy has no controller document
+    with pytest.raises(ConfigError, match=r"\(T, 9\)"):
+        Motion(np.zeros((2, 26), np.float32), np.arange(2.0), np.ones(2, bool), robot=toy)
+    with pytest.raises(InputError, match="unknown joint names"):
+        load_motion(tmp_path / "m.npz")  # read as a NAO motion: the toy's names are unknown
+
+
+def test_toy_metrics(toy: Robot) -> None:
+    rng = np.random.default_rng(5)
+    truth = rng.uniform(LOWER, UPPER, size=(40, 9)).astype(np.float32)
+    pred = np.clip(truth + rng.normal(scale=0.05, size=truth.shape), LOWER, UPPER)
+    pred = pred.astype(np.float32)
+    err = np.degrees(np.abs(pred.astype(np.float64) - truth))[:, 1:]
+    np.testing.assert_allclose(metrics.joint_errors_deg(pred, truth, robot=toy), err)
+    np.testing.assert_allclose(metrics.m_max_without(pred, truth, robot=toy),
+                               err[:, [0, 1, 2, 3, 5, 6]].max(axis=1))  # fmt: skip
+    per_joint = metrics.joint_percentiles(pred, truth, robot=toy)
+    assert list(per_joint) == list(DRIVEN)
+    # FK of the arm sites against the toy's own NumPy FK (an independent reference)
+    pts = metrics.arm_points(truth, robot=toy)
+    assert pts.shape == (40, 2, 3, 3)
+    np.testing.assert_allclose(pts, arm_fk(truth), atol=1e-5)
+    drv = metrics.arm_points(truth[:, 1:], robot=toy)  # driven angles: the waist stands
+    np.testing.assert_allclose(drv, pts, atol=1e-6)
+    block = metrics.summarize_errors(pred, truth, robot=toy)
+    assert block["M_max"] == metrics.describe(err.max(axis=1))
+    hand = block["task_space"]["left"]["hand_cm"]["max"]
+    ref = 100 * np.linalg.norm(arm_fk(pred)[:, 0, 2] - arm_fk(truth)[:, 0, 2], axis=-1).max()
+    assert hand == pytest.approx(ref, abs=1e-3)
+    with pytest.raises(ConfigError, match=r"\(F, 8\) \(driven joints\) or \(F, 9\)"):
+        metrics.joint_errors_deg(truth[:, :5], truth[:, :5], robot=toy)
