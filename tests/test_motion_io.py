@@ -174,7 +174,7 @@ def _fail_mid_write(*args, **kwargs):
 def test_write_is_atomic_when_the_writer_fails(tmp_path, monkeypatch):
     target = tmp_path / "m.npz"
     target.write_bytes(b"old content")
-    monkeypatch.setattr(motion_io.np, "savez", _fail_mid_write)
+    monkeypatch.setattr(np.lib.format, "write_array", _fail_mid_write)
     with pytest.raises(InputError) as e:
         save_motion(target, _motion())
     assert str(target) in str(e.value) and "No space left" in str(e.value)

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write
+from jaxproj._internal.atomic import atomic_write, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import N_JOINTS as N_HUMAN_JOINTS
 from jaxproj.robots import NAO_H25, Robot
@@ -208,7 +208,7 @@ def save_motion(
         raise ConfigError(f"motion must be a jaxproj.io.motion_files.Motion, got {kind}")
     options = {s: e.check(robot, joints, lead_in) for s, e in robot.exports.items()}
     if ext == ".npz":
-        return atomic_write(path, lambda tmp: _write_npz(tmp, motion))
+        return write_npz(path, _npz_arrays(motion))
     if ext == ".csv":
         return atomic_write(path, lambda tmp: _write_csv(tmp, motion))
     text = robot.exports[ext].write(
@@ -224,7 +224,7 @@ def _write_text(tmp: Path, text: str) -> None:
             fh.write("\n")
 
 
-def _write_npz(tmp: Path, motion: Motion) -> None:
+def _npz_arrays(motion: Motion) -> dict[str, np.ndarray]:
     arrays: dict[str, np.ndarray] = {
         "angles": motion.angles,
         "times": motion.times,
@@ -234,8 +234,7 @@ def _write_npz(tmp: Path, motion: Motion) -> None:
     }
     if motion.positions is not None:
         arrays["positions"] = motion.positions
-    with open(tmp, "wb") as fh:  # a file object: np.savez would append ".npz" to a name
-        np.savez(fh, **arrays)
+    return arrays
 
 
 def exact_strings(values: np.ndarray) -> list[str]:
