@@ -9,7 +9,7 @@ from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 from jaxproj.robots.nao_h25 import ik, robot
 
 CFG = engine.BuildConfig(
@@ -83,7 +83,7 @@ def test_full_objective_is_a_real_optimisation(model):
 def _full_values(model, d, cfg):
     import jax
 
-    from jaxproj.projection.objectives import project_full_one
+    from jaxproj.projection.full import project_full_one
 
     fn = jax.jit(jax.vmap(lambda h: project_full_one(model.projector.chain(0), h, 10, 10, cfg)))
     r, f, f0 = fn(d)
@@ -211,7 +211,8 @@ def test_bad_neighbour_counts_are_config_errors(model):
 
 
 def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
-    from jaxproj.projection.objectives import _cluster, _solve_cluster, _start_value, candidates
+    from jaxproj.projection.full import cluster, solve_cluster, start_value
+    from jaxproj.projection.projector import candidates
     from jaxproj.projection.search import nearest
 
     p = model.projector.chain(0)
@@ -225,10 +226,10 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
     def by_hand(h):  # solve only the cluster whose warm start is best
         cand = candidates(p, h, 10)
         ridx, _ = nearest(p.robot, p.robot_sq, cand, 10)
-        start = [_start_value(p, h, _cluster(p, cand[i], ridx[i], cfg), cfg) for i in range(10)]
+        start = [start_value(p, h, cluster(p, cand[i], ridx[i], cfg), cfg) for i in range(10)]
         j = int(np.argmin(start))
-        c = _cluster(p, cand[j], ridx[j], cfg)
-        r, f = _solve_cluster(p, h, c, start[j], cfg)
+        c = cluster(p, cand[j], ridx[j], cfg)
+        r, f = solve_cluster(p, h, c, start[j], cfg)
         return np.clip(r, p.lower, p.upper), f
 
     # The engine (jitted, vmapped) and by_hand (eager) round differently, and 30 Adam steps pass
@@ -371,38 +372,44 @@ def test_per_chain_settings_are_validated():
     assert engine.BuildConfig(landmarks=(50, 800, 700)).chain_config(0).landmarks == 50
 
 
-def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model, monkeypatch):
+def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
     """``engine.project_batch``'s relaxed path (all candidates' robot searches in one
     ``nearest_rows`` call) gives the per-query projection's answers bit for bit on the CPU, and
-    the same answers with the CUDA path's fused Pallas search (run in Pallas' interpreter)."""
+    the same answers with the CUDA path's fused Pallas search (``impl="pallas"`` for the
+    searches, run in Pallas' interpreter here; XLA's back-projection)."""
     import jax
     import jax.numpy as jnp
 
     from jaxproj._internal.jit import jit
-    from jaxproj.projection import objectives as projection
-    from jaxproj.projection.ops import knn_pallas as _knn_pallas
+    from jaxproj.projection import relaxed
+    from jaxproj.projection.stacked import project_stacked_one
 
     sp = chain_model.projector
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
 
-    def batched():  # traced anew each call, so a patched search is picked up
-        return jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
-
+    r, v = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="xla"))(sp, h)
     one = jit(
-        lambda p, x: jax.vmap(
-            lambda q: projection.project_stacked_one(p, q, "relaxed", 5, 5, FullConfig())
-        )(x)
+        lambda p, x: jax.vmap(lambda q: project_stacked_one(p, q, "relaxed", 5, 5, FullConfig()))(
+            x
+        )
     )
-    r, v = batched()
     r1, v1 = one(sp, h)
     np.testing.assert_array_equal(np.asarray(r), np.asarray(r1))
     np.testing.assert_array_equal(np.asarray(v), np.asarray(v1))
+    # "auto" on the CPU is XLA: the same program
+    r0, v0 = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
+    np.testing.assert_array_equal(np.asarray(r0), np.asarray(r))
+    np.testing.assert_array_equal(np.asarray(v0), np.asarray(v))
 
-    def fused(points, points_sq, x, n):
-        return _knn_pallas.knn(points, jnp.isfinite(points_sq), x, n, interpret=True)
+    @jit
+    def fused_search(p, x):
+        xs, cand, ridx = relaxed.relaxed_candidates(p, x, 5, 5, impl="pallas")
+        best = relaxed.least_deviations_rows(
+            p.stack, relaxed.backward_widths(p), xs, cand, ridx, impl="xla"
+        )
+        return relaxed.pick_rows(p, cand, best)
 
-    monkeypatch.setattr(projection, "nearest_rows", fused)
-    r2, v2 = batched()
+    r2, v2 = fused_search(sp, h)
     np.testing.assert_allclose(np.asarray(r2), np.asarray(r), rtol=0, atol=1e-6)
     np.testing.assert_allclose(np.asarray(v2), np.asarray(v), rtol=1e-5)
 
@@ -415,11 +422,11 @@ def test_two_level_relaxed_batches_give_the_same_answers(chain_model, monkeypatc
     import jax.numpy as jnp
 
     from jaxproj._internal.jit import jit
-    from jaxproj.projection import objectives as projection
+    from jaxproj.projection import relaxed
 
     sp = chain_model.projector
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
-    rows = jit(projection.project_relaxed_rows, static_argnames=("n_l", "n_m", "chunk"))
+    rows = jit(relaxed.project_relaxed_rows, static_argnames=("n_l", "n_m", "chunk"))
     r0, v0 = rows(sp, h, n_l=5, n_m=5)
     for chunk in (8, 16, 48):
         r, v = rows(sp, h, n_l=5, n_m=5, chunk=chunk)
@@ -451,7 +458,7 @@ def test_search_batch_divides_the_batch_within_the_cpu_budget(chain_model):
         assert not (fits and doubled <= batch and batch % doubled == 0), (batch, sub, out)
 
 
-def test_fused_back_projection_matches_xla(chain_model, monkeypatch):
+def test_fused_back_projection_matches_xla(chain_model):
     """The CUDA path's fused back-projection kernel (run in Pallas' interpreter) gives XLA's
     least deviations to float32 round-off, and the batched relaxed projection with it gives the
     same answers, except where a chain's two best candidates tie to round-off."""
@@ -459,40 +466,41 @@ def test_fused_back_projection_matches_xla(chain_model, monkeypatch):
     import jax.numpy as jnp
 
     from jaxproj._internal.jit import jit
-    from jaxproj.projection import objectives as projection
+    from jaxproj.projection import relaxed
+    from jaxproj.projection.projector import candidates
+    from jaxproj.projection.search import nearest
 
     sp = chain_model.projector
     st, lay = sp.stack, sp.layout
-    dims = projection.backward_widths(sp)
+    dims = relaxed.backward_widths(sp)
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
     s = h.shape[0]
 
     @jit
     def prep(st, h):
         x = jnp.concatenate([h, jnp.zeros((s, 1), h.dtype)], axis=1)[:, lay.input_index()]
-        per_chain = jax.vmap(projection.candidates, in_axes=(0, 0, None))
+        per_chain = jax.vmap(candidates, in_axes=(0, 0, None))
         cand = jax.vmap(per_chain, in_axes=(None, 0, None))(st, x, 5)  # (S, C, L, n)
         ridx = jax.vmap(
-            jax.vmap(lambda p, c: projection.nearest(p.robot, p.robot_sq, c, 5)[0]),
+            jax.vmap(lambda p, c: nearest(p.robot, p.robot_sq, c, 5)[0]),
             in_axes=(None, 0),
         )(st, cand)
         return x, cand, ridx
 
     x, cand, ridx = prep(st, h)
-    b_x = np.asarray(projection.least_deviations_rows(st, dims, x, cand, ridx, fused=False))
-    b_k = np.asarray(projection.least_deviations_rows(st, dims, x, cand, ridx, fused=True))
+    b_x = np.asarray(relaxed.least_deviations_rows(st, dims, x, cand, ridx, impl="xla"))
+    b_k = np.asarray(relaxed.least_deviations_rows(st, dims, x, cand, ridx, impl="pallas"))
     assert b_k.shape == (s, 3, 5)
     np.testing.assert_allclose(b_k, b_x, rtol=1e-4, atol=1e-10)
 
-    def answers():  # traced anew each call, so a patched back-projection is picked up
-        return jit(lambda p, q: engine.project_batch(p, q, "relaxed", 5, 5))(sp, h)
+    @jit
+    def fused_back_projection(p, q):  # XLA's searches, the fused back-projection
+        xs, cand, ridx = relaxed.relaxed_candidates(p, q, 5, 5, impl="xla")
+        best = relaxed.least_deviations_rows(p.stack, dims, xs, cand, ridx, impl="pallas")
+        return relaxed.pick_rows(p, cand, best)
 
-    r_x, _ = answers()
-    default = projection.least_deviations_rows
-    monkeypatch.setattr(
-        projection, "least_deviations_rows", lambda *a: default(*a, fused=True)
-    )
-    r_k, v_k = answers()
+    r_x, _ = jit(lambda p, q: engine.project_batch(p, q, "relaxed", 5, 5, impl="xla"))(sp, h)
+    r_k, v_k = fused_back_projection(sp, h)
     best = np.sort(b_x, axis=-1)
     tie = np.any(best[..., 1] - best[..., 0] <= 1e-4 * best[..., 0], axis=1)  # (S,)
     moved = np.any(np.asarray(r_k) != np.asarray(r_x), axis=1)

@@ -1,6 +1,7 @@
 """Exact k-nearest-neighbour search: the XLA search and the fused Pallas kernel.
 
-The kernel serves CUDA GPUs only (``search.nearest_rows``); here it runs in Pallas' interpreter,
+The kernel serves CUDA GPUs (``search.nearest_rows`` with ``impl="pallas"``, the default there);
+here it runs in Pallas' interpreter,
 which executes the same kernel program on the CPU, so its logic (block minima, both selections,
 padding, ragged row counts) is checked without a GPU. Its Triton lowering and speed are checked
 on a GPU by ``benchmarks/experiments/fused_knn_ab.py``.
@@ -11,7 +12,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxproj.errors import ConfigError
 from jaxproj.projection import search
+from jaxproj.projection.ops import Impl, resolve_impl
 from jaxproj.projection.ops import knn_pallas as _knn_pallas
 
 
@@ -102,3 +105,30 @@ def test_nearest_rows_off_gpu_is_the_xla_search(n):
         np.testing.assert_array_equal(np.asarray(idx[c]), np.asarray(i1))
         np.testing.assert_allclose(np.asarray(d2[c]), np.asarray(v1), rtol=1e-5, atol=1e-6)
     _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), n)
+
+
+def test_nearest_rows_with_impl_pallas_is_the_kernel():
+    """``impl="pallas"`` selects the fused kernel (Pallas' interpreter off CUDA GPUs): bit for
+    bit the kernel's answer; ``impl="xla"`` and ``"auto"`` (on the CPU) the XLA search."""
+    pts, valid, x = _sets(np.random.default_rng(4), 2, 300, 4, 21, (300, 90))
+    sq = np.where(valid, (pts.astype(np.float32) ** 2).sum(-1), np.inf).astype(np.float32)
+    rows = jax.jit(search.nearest_rows, static_argnames=("n", "impl"))
+    idx, d2 = rows(pts, sq, x, n=10, impl="pallas")
+    want_i, want_d = _knn_pallas.knn(jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), 10, True)
+    np.testing.assert_array_equal(np.asarray(idx), np.asarray(want_i))
+    np.testing.assert_array_equal(np.asarray(d2), np.asarray(want_d))
+    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), 10)
+    xla_i, _ = rows(pts, sq, x, n=10, impl="xla")
+    auto_i, _ = rows(pts, sq, x, n=10)
+    np.testing.assert_array_equal(np.asarray(auto_i), np.asarray(xla_i))
+
+
+def test_impl_resolves_once_from_the_platform():
+    """``"auto"`` is the Pallas kernels on CUDA GPUs and XLA elsewhere (here: the CPU); explicit
+    values pass through; anything else is a ``ConfigError`` naming the choices."""
+    want = Impl.PALLAS if jax.devices()[0].platform == "gpu" else Impl.XLA
+    assert resolve_impl("auto") is resolve_impl(Impl.AUTO) is want
+    assert resolve_impl("auto", jax.devices("cpu")) is Impl.XLA
+    assert resolve_impl("xla") is Impl.XLA and resolve_impl("pallas") is Impl.PALLAS
+    with pytest.raises(ConfigError, match="impl must be one of 'auto', 'xla', 'pallas'"):
+        resolve_impl("triton")

@@ -100,4 +100,4 @@ def test_resolve_devices() -> None:
     with pytest.raises(ConfigError, match="'all'"):
         engine.resolve_devices("many")
     with pytest.raises(ConfigError, match="twice"):
-        engine._placement([jax.devices()[0]] * 2, 64)
+        engine.placement([jax.devices()[0]] * 2, 64)

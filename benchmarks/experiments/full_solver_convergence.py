@@ -22,8 +22,9 @@ from optax.projections import projection_simplex
 
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection import objectives as projection
-from jaxproj.projection.objectives import FullConfig, _cluster, _objective, _start_value, candidates
+from jaxproj.projection.config import FullConfig
+from jaxproj.projection.full import cluster, cluster_objective, solve_cluster, start_value
+from jaxproj.projection.projector import candidates
 from jaxproj.projection.search import nearest
 
 SCALES = jnp.asarray([8.0, 4, 2, 1, 0.5, 0.25, 0.125, 1 / 16, 1 / 32, 1 / 64], jnp.float32)
@@ -35,7 +36,7 @@ def solve_pgls(p, h, c, f0, cfg, iters):
     """Projected gradient, parallel line search over ``SCALES`` x the current step."""
 
     def obj(w):
-        return _objective(p, h, c, cfg, w)
+        return cluster_objective(p, h, c, cfg, w)
 
     vg = jax.value_and_grad(obj)
 
@@ -59,11 +60,11 @@ def solve_pgls(p, h, c, f0, cfg, iters):
 def full_one(p, h, cfg, solver, iters):
     cand = candidates(p, h, 10)
     ridx, _ = nearest(p.robot, p.robot_sq, cand, 10)
-    cl = jax.vmap(_cluster, in_axes=(None, 0, 0, None))(p, cand, ridx, cfg)
-    f0 = jax.vmap(_start_value, in_axes=(None, None, 0, None))(p, h, cl, cfg)
+    cl = jax.vmap(cluster, in_axes=(None, 0, 0, None))(p, cand, ridx, cfg)
+    f0 = jax.vmap(start_value, in_axes=(None, None, 0, None))(p, h, cl, cfg)
     if solver == "adam":
         c2 = dataclasses.replace(cfg, iterations=iters)
-        solve = jax.vmap(projection._solve_cluster, in_axes=(None, None, 0, 0, None))
+        solve = jax.vmap(solve_cluster, in_axes=(None, None, 0, 0, None))
         r, f = solve(p, h, cl, f0, c2)
     else:
         solve = jax.vmap(solve_pgls, in_axes=(None, None, 0, 0, None, None))

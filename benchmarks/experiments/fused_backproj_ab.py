@@ -1,14 +1,15 @@
 """A/B of the back-projection inside the relaxed projection on a CUDA GPU: the fused Pallas kernel
-(``jaxproj.projection.ops.backproj_pallas``, the default there) against XLA's three passes, in one run, on the
-same model and queries; both checked against the float64 reference; then the public
-``jaxproj.project`` on 1 M host poses.
+(``jaxproj.projection.ops.backproj_pallas``, ``impl="pallas"``, the default there) against XLA's
+three passes (``impl="xla"``), in one run, on the same model and queries; both checked against
+the float64 reference; then the public ``jaxproj.project`` on 1 M host poses.
 
     python -m benchmarks.experiments.fused_backproj_ab MODEL.npz [--ref-queries 1000]
 
-Prints, for relaxed L = M = 10 at batch 65,536: ns per pose of one jitted ``engine.project_batch``
-with each back-projection; the back-projection alone on the batch's real candidate rows; how
-many answers are identical; both engines' distance from the float64 reference on held-out
-queries. Needs a CUDA GPU (elsewhere both paths are XLA).
+Prints, for relaxed L = M = 10 at batch 65,536: ns per pose of one jitted relaxed projection
+with each back-projection (the fused search in both, ``selection_ab.relaxed_rows_batch``); the
+back-projection alone on the batch's real candidate rows; how many answers are identical; both
+engines' distance from the float64 reference on held-out queries. Needs a CUDA GPU (elsewhere
+``impl="pallas"`` runs in Pallas' interpreter: far too slow at this batch).
 """
 
 from __future__ import annotations
@@ -20,31 +21,22 @@ from selection_ab import (  # this folder
     per_pose_ns,
     print_public_rate,
     print_reference_errors,
-    relaxed_batch,
+    relaxed_rows_batch,
 )
 
 from jaxproj import testing
 from jaxproj._internal.jit import jit
-from jaxproj.projection import objectives as projection
+from jaxproj.projection import relaxed
 
 
 def main() -> None:
     args, model, q = ab_setup(__doc__, 1000)
     sp = model.projector
 
-    fused = relaxed_batch()
+    fused = relaxed_rows_batch("pallas", "pallas")
     r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)
-    default = projection.least_deviations_rows
-
-    def xla_only(*a):
-        return default(*a, fused=False)
-
-    projection.least_deviations_rows = xla_only  # XLA's back-projection, traced anew
-    try:
-        xla = relaxed_batch()
-        r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
-    finally:
-        projection.least_deviations_rows = default
+    xla = relaxed_rows_batch("pallas", "xla")  # XLA's back-projection
+    r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
     diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
     print(
         f"relaxed L=M=10, batch {BATCH}: XLA back-projection {t_old:.1f} ns/pose, fused kernel "
@@ -55,10 +47,10 @@ def main() -> None:
 
     # the back-projection alone, on the batch's real candidates
     st = sp.stack
-    dims = projection.backward_widths(sp)
-    x, cand, ridx = jit(lambda p, h: projection.relaxed_candidates(p, h, 10, 10))(sp, q)
-    kern = jit(lambda s, x, c, r: projection.least_deviations_rows(s, dims, x, c, r))
-    ref = jit(lambda s, x, c, r: projection.least_deviations_rows(s, dims, x, c, r, False))
+    dims = relaxed.backward_widths(sp)
+    x, cand, ridx = jit(lambda p, h: relaxed.relaxed_candidates(p, h, 10, 10))(sp, q)
+    kern = jit(lambda s, x, c, r: relaxed.least_deviations_rows(s, dims, x, c, r, "pallas"))
+    ref = jit(lambda s, x, c, r: relaxed.least_deviations_rows(s, dims, x, c, r, "xla"))
     t_k, t_x = per_pose_ns(kern, st, x, cand, ridx), per_pose_ns(ref, st, x, cand, ridx)
     b_k, b_x = np.asarray(kern(st, x, cand, ridx)), np.asarray(ref(st, x, cand, ridx))
     rel = np.abs(b_k - b_x) / np.maximum(b_x, 1e-30)

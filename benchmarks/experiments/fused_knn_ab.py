@@ -1,15 +1,16 @@
 """A/B of the robot-landmark search inside the relaxed projection on a CUDA GPU: the fused Pallas
-kernel (``jaxproj.projection.ops.knn_pallas``, the default there) against the XLA search (``search.nearest``),
-in one run, on the same model and queries; both checked against the float64 reference; then the
-public ``jaxproj.project`` on 1 M host poses.
+kernel (``jaxproj.projection.ops.knn_pallas``, ``impl="pallas"``, the default there) against the
+XLA search (``impl="xla"``, ``search.nearest``), in one run, on the same model and queries; both
+checked against the float64 reference; then the public ``jaxproj.project`` on 1 M host poses.
 
     python -m benchmarks.experiments.fused_knn_ab MODEL.npz [--ref-queries 500]
 
-Prints, for relaxed L = M = 10 at batch 65,536 in one jitted ``engine.project_batch``: ns per pose
-of both; the search alone on the batch's real candidate rows (ns per pose, neighbour sets equal,
-and the kernel's neighbour distances against float64 distances); both engines' largest
-difference from the float64 reference on held-out queries. Needs a CUDA GPU (elsewhere both
-paths are the XLA search).
+Prints, for relaxed L = M = 10 at batch 65,536 in one jitted relaxed projection (the fused
+back-projection in both, ``selection_ab.relaxed_rows_batch``): ns per pose of both; the search
+alone on the batch's real candidate rows (ns per pose, neighbour sets equal, and the kernel's
+neighbour distances against float64 distances); both engines' largest
+difference from the float64 reference on held-out queries. Needs a CUDA GPU (elsewhere
+``impl="pallas"`` runs in Pallas' interpreter: far too slow at this batch).
 """
 
 from __future__ import annotations
@@ -23,27 +24,21 @@ from selection_ab import (  # this folder
     per_pose_ns,
     print_public_rate,
     print_reference_errors,
-    relaxed_batch,
-    xla_rows,
+    relaxed_rows_batch,
 )
 
-from jaxproj.projection import objectives as projection
-from jaxproj.projection.ops import knn_pallas as _knn_pallas
+from jaxproj.projection.projector import candidates
+from jaxproj.projection.search import nearest_rows
 
 
 def main() -> None:
     args, model, q = ab_setup(__doc__, 500)
     sp = model.projector
 
-    fused = relaxed_batch()
+    fused = relaxed_rows_batch("pallas", "pallas")
     r_new, t_new = np.asarray(fused(sp, q)[0]), per_pose_ns(fused, sp, q)
-    default = projection.nearest_rows
-    projection.nearest_rows = xla_rows  # the XLA search, traced anew
-    try:
-        xla = relaxed_batch()
-        r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
-    finally:
-        projection.nearest_rows = default
+    xla = relaxed_rows_batch("xla", "pallas")  # the XLA search
+    r_old, t_old = np.asarray(xla(sp, q)[0]), per_pose_ns(xla, sp, q)
     diff = np.degrees(np.abs(r_new - r_old)).max(axis=1)
     print(
         f"relaxed L=M=10, batch {BATCH}: XLA search {t_old:.1f} ns/pose, fused kernel "
@@ -58,15 +53,15 @@ def main() -> None:
     x = jnp.concatenate([q, jnp.zeros((BATCH, 1), q.dtype)], axis=1)[:, lay.input_index()]
     cands = jax.jit(
         lambda s, x: jax.vmap(
-            jax.vmap(projection.candidates, in_axes=(0, 0, None)), in_axes=(None, 0, None)
+            jax.vmap(candidates, in_axes=(0, 0, None)), in_axes=(None, 0, None)
         )(s, x, 10)
     )
     with jax.default_matmul_precision("highest"):
         cand = cands(st, x)
     c, n = cand.shape[1], cand.shape[3]
     rows = cand.transpose(1, 0, 2, 3).reshape(c, BATCH * 10, n)
-    kern = jax.jit(lambda p, s, r: _knn_pallas.knn(p, jnp.isfinite(s), r, 10))
-    ref = jax.jit(lambda p, s, r: xla_rows(p, s, r, 10))
+    kern = jax.jit(lambda p, s, r: nearest_rows(p, s, r, 10, impl="pallas"))
+    ref = jax.jit(lambda p, s, r: nearest_rows(p, s, r, 10, impl="xla"))
     with jax.default_matmul_precision("highest"):
         t_k = per_pose_ns(kern, st.robot, st.robot_sq, rows)
         t_x = per_pose_ns(ref, st.robot, st.robot_sq, rows)

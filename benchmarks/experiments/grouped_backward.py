@@ -28,7 +28,9 @@ from jax.experimental.pallas import triton as plgpu
 from jaxproj._internal.jit import jit
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection import objectives as projection
+from jaxproj.projection.elm import predict
+from jaxproj.projection.projector import back_deviation
+from jaxproj.projection.search import nearest_rows
 
 L = M = 10
 HP, OP, KP = 256, 8, 2048
@@ -116,13 +118,13 @@ def main(path, S=65536):
 
     @jit
     def prep(st, x):
-        hidx, _ = projection.nearest_rows(st.human, st.human_sq, x.transpose(1, 0, 2), L)
+        hidx, _ = nearest_rows(st.human, st.human_sq, x.transpose(1, 0, 2), L)
         cand = jax.vmap(
-            jax.vmap(lambda p, q, i: projection.predict(p.forward, q, i)), in_axes=(None, 0, 0)
+            jax.vmap(lambda p, q, i: predict(p.forward, q, i)), in_axes=(None, 0, 0)
         )(st, x, hidx.transpose(1, 0, 2))
         c, n = cand.shape[1], cand.shape[3]
         rows = cand.transpose(1, 0, 2, 3).reshape(c, S * L, n)
-        ridx, _ = projection.nearest_rows(st.robot, st.robot_sq, rows, M)
+        ridx, _ = nearest_rows(st.robot, st.robot_sq, rows, M)
         return cand, ridx.reshape(c, S, L, M).transpose(1, 0, 2, 3)
 
     cand, ridx = prep(st, x)  # (S, C, L, n), (S, C, L, M)
@@ -130,7 +132,7 @@ def main(path, S=65536):
     @jit
     def xla_bwd(st, x, cand, ridx):
         def one(p, q, cd, ri):
-            dev = jax.vmap(projection.back_deviation, in_axes=(None, 0, None, 0))(p, cd, q, ri)
+            dev = jax.vmap(back_deviation, in_axes=(None, 0, None, 0))(p, cd, q, ri)
             return jnp.min(dev, axis=1)  # (L,)
 
         return jax.vmap(jax.vmap(one), in_axes=(None, 0, 0, 0))(st, x, cand, ridx)  # (S, C, L)

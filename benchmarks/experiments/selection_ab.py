@@ -23,8 +23,9 @@ from jaxproj import testing
 from jaxproj._internal.jit import jit
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection import objectives as projection
-from jaxproj.projection import search
+from jaxproj.projection import relaxed, search
+from jaxproj.projection.ops import ImplLike
+from jaxproj.projection.projector import StackedProjector
 
 BATCH = 65536
 
@@ -45,13 +46,6 @@ def held_out_queries(n: int) -> np.ndarray:
     test = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS))
     test = test[np.random.default_rng(0).permutation(len(test))].astype(np.float32)
     return np.tile(test, (n // len(test) + 1, 1))[:n]
-
-
-def xla_rows(
-    points: jax.Array, points_sq: jax.Array, x: jax.Array, n: int
-) -> tuple[jax.Array, jax.Array]:
-    """``search.nearest_rows`` with the XLA search on every platform (no fused kernel)."""
-    return jax.vmap(lambda p, s, q: search.nearest(p, s, q, n))(points, points_sq, x)
 
 
 def print_public_rate(model: engine.Model) -> None:
@@ -79,14 +73,38 @@ def ab_setup(doc: str, ref_queries: int) -> tuple[argparse.Namespace, engine.Mod
     return args, model, q
 
 
-def relaxed_batch():
-    """A freshly traced, jitted relaxed ``engine.project_batch`` (L = M = 10) through the
-    library's jit policy (full float32 matmul precision), so a patched function is picked up."""
-    return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10))
+def relaxed_batch(impl: ImplLike = "auto"):
+    """A freshly traced, jitted relaxed ``engine.project_batch`` (L = M = 10, backend ``impl``)
+    through the library's jit policy (full float32 matmul precision), so a patched function is
+    picked up."""
+    return jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10, impl=impl))
+
+
+def relaxed_rows_batch(search_impl: ImplLike, back_impl: ImplLike):
+    """A jitted relaxed projection (L = M = 10) with the k-NN searches on ``search_impl`` and
+    the back-projection on ``back_impl``: ``engine.project_batch``'s program on an accelerator
+    (``engine.sub_batch`` queries per ``lax.map`` step, each searched and back-projected at
+    once), built from ``relaxed``'s steps, so one kernel can be A/B'd with the other fixed."""
+
+    def batch(p: StackedProjector, h: jax.Array) -> tuple[jax.Array, jax.Array]:
+        sub = engine.sub_batch(p, "relaxed", 10, 10, h.shape[0])
+        dims = relaxed.backward_widths(p)
+
+        def rows(x: jax.Array) -> tuple[jax.Array, jax.Array]:
+            xs, cand, ridx = relaxed.relaxed_candidates(p, x, 10, 10, impl=search_impl)
+            best = relaxed.least_deviations_rows(p.stack, dims, xs, cand, ridx, impl=back_impl)
+            return relaxed.pick_rows(p, cand, best)
+
+        if sub >= h.shape[0]:
+            return rows(h)
+        r, v = jax.lax.map(rows, h.reshape(-1, sub, h.shape[1]))
+        return r.reshape(h.shape[0], -1), v.reshape(-1)
+
+    return jit(batch)
 
 
 def print_reference_errors(
-    sp: projection.StackedProjector, q: jax.Array, answers: dict[str, np.ndarray], nq: int
+    sp: StackedProjector, q: jax.Array, answers: dict[str, np.ndarray], nq: int
 ) -> None:
     """Print each named engine's largest distance (deg) from the float64 reference (relaxed,
     L = M = 10) on the first ``nq`` queries of ``q``, and how many are beyond 0.001 / 0.01 deg."""
@@ -112,17 +130,19 @@ def main(path: str) -> None:
     sp = model.projector
     q = jax.device_put(held_out_queries(BATCH))
     # both selections live in the XLA search; since 2026-11-23 CUDA GPUs run the fused kernel
-    # (fused_knn_ab.py) instead, so the XLA search is forced here for both variants
-    projection.nearest_rows = xla_rows
+    # (fused_knn_ab.py) instead, so the XLA search (impl="xla") is asked for in both variants,
+    # the back-projection left at its default
 
-    # relaxed_batch traces through the library's jit policy (full float32 matmul precision); a
-    # bare jax.jit ran at XLA's TF32 default on GPUs until 2026-11-23 (RESULTS.md says so)
-    new = relaxed_batch()
+    # relaxed_rows_batch traces through the library's jit policy (full float32 matmul
+    # precision); a bare jax.jit ran at XLA's TF32 default on GPUs until 2026-11-23 (RESULTS.md)
+    new = relaxed_rows_batch("xla", "auto")
     r_new, t_new = np.asarray(new(sp, q)[0]), per_pose_ns(new, sp, q)
+    # search.smallest's per-platform choice is not a backend (ops.Impl's doc): the old selection
+    # is patched in for the second variant
     default = search.smallest
     search.smallest = _top_k  # the selection before this change, traced anew
     try:
-        old = relaxed_batch()
+        old = relaxed_rows_batch("xla", "auto")
         r_old, t_old = np.asarray(old(sp, q)[0]), per_pose_ns(old, sp, q)
     finally:
         search.smallest = default

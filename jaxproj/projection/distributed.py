@@ -22,7 +22,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.projection import api as engine
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 
 
 def process_share(

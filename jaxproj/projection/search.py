@@ -18,9 +18,10 @@ fused reductions beat XLA's ``TopK`` kernel (one arm chain's robot search, 10 ro
 landmarks per query, batch 65,536: 151 -> 90 ns per query, the same neighbour sets); on the CPU
 the rounds were 3x slower than ``TopK`` (``benchmarks/RESULTS.md``).
 
-``nearest_rows`` searches many rows of several landmark sets at once; on CUDA GPUs it runs the
-fused Pallas kernel of ``jaxproj.projection.ops.knn_pallas`` (distances, block minima and both selections in
-one kernel, no ``(rows, K)`` matrix in memory), elsewhere ``nearest``.
+``nearest_rows`` searches many rows of several landmark sets at once: with ``impl="pallas"``
+(the default on CUDA GPUs, ``jaxproj.projection.ops.Impl``) the fused Pallas kernel of
+``jaxproj.projection.ops.knn_pallas`` (distances, block minima and both selections in one
+kernel, no ``(rows, K)`` matrix in memory), with ``impl="xla"`` ``nearest`` per set.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxproj.projection.ops import Impl, ImplLike, pallas_interpret, resolve_impl
 from jaxproj.projection.ops import knn_pallas as _knn_pallas
 
 BLOCK = 16
@@ -80,7 +82,7 @@ def nearest(
 
 
 def nearest_rows(
-    points: jax.Array, points_sq: jax.Array, x: jax.Array, n: int
+    points: jax.Array, points_sq: jax.Array, x: jax.Array, n: int, impl: ImplLike = Impl.AUTO
 ) -> tuple[jax.Array, jax.Array]:
     """The ``n`` nearest landmarks of many rows, per landmark set, exact.
 
@@ -90,24 +92,23 @@ def nearest_rows(
         returned while ``n`` others exist).
       x: ``(C, R, d)`` query rows of each set.
       n: how many (static), ``n <= K``.
+      impl: ``"xla"``: ``nearest`` per set; ``"pallas"``: the fused kernel (for
+        ``n <= knn_pallas.SLOTS``; XLA above); ``"auto"`` (default): ``ops.resolve_impl``'s choice
+        for the default backend (static).
 
     Returns:
-      ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances. On CUDA
-      GPUs with ``n <= _knn_pallas.SLOTS`` the fused kernel computes ``|x - p|^2`` directly; the
-      XLA search (``nearest``) expands it, so the two may differ where distances tie to float32
-      round-off (``jaxproj.projection.ops.knn_pallas``).
+      ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances. The
+      fused kernel computes ``|x - p|^2`` directly; the XLA search (``nearest``) expands it, so
+      the two may differ where distances tie to float32 round-off
+      (``jaxproj.projection.ops.knn_pallas``).
     """
 
     def xla(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
         return jax.vmap(lambda p, s, q: nearest(p, s, q, n))(points, points_sq, x)
 
-    if n > _knn_pallas.SLOTS:
+    if n > _knn_pallas.SLOTS or resolve_impl(impl) is Impl.XLA:
         return xla(points, points_sq, x)
-
-    def fused(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
-        return _knn_pallas.knn(points, jnp.isfinite(points_sq), x, n)
-
-    return jax.lax.platform_dependent(points, points_sq, x, cuda=fused, default=xla)
+    return _knn_pallas.knn(points, jnp.isfinite(points_sq), x, n, interpret=pallas_interpret())
 
 
 def smallest(values: jax.Array, n: int) -> tuple[jax.Array, jax.Array]:

@@ -17,7 +17,7 @@ import numpy as np  # noqa: E402
 
 from jaxproj.io import datasets  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
-from jaxproj.projection.objectives import FullConfig  # noqa: E402
+from jaxproj.projection.config import FullConfig  # noqa: E402
 from jaxproj.robots.nao_h25 import ik  # noqa: E402
 
 
@@ -57,7 +57,7 @@ def main() -> None:
         p = model.projector
         chunk = jax.device_put(h[:64], devices[0])
         one = engine.project_chunk.lower(p, chunk, objective, 4, 4, full).compile()
-        mesh = engine._placement(devices, 64)
+        mesh = engine.placement(devices, 64)
         sharded_in = jax.device_put(
             h[:64], jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
         )

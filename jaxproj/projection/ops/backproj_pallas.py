@@ -2,7 +2,7 @@
 
 For every candidate row ``r`` (a robot point, with its query ``h`` and its ``M`` nearest robot
 landmarks ``k_1..k_M``) the relaxed projection needs ``min_k ||kappa^r_k(r) - h||^2`` over the
-row's backward kernels (``projection.back_deviation``, then a minimum). In XLA that is three
+row's backward kernels (``projector.back_deviation``, then a minimum). In XLA that is three
 passes: the hidden layer ``sigmoid(W r / rho_k + beta_k)`` of every (row, kernel) pair is
 written to memory as a ``(rows, M, hidden)`` tensor (one fusion), read back and contracted with
 the gathered output weights (a second), then squared and reduced (a third). This kernel does it

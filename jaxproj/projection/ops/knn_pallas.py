@@ -1,7 +1,8 @@
 """Fused exact k-nearest-neighbour search on CUDA GPUs: one Pallas (Triton) kernel.
 
-``search.nearest_rows`` calls it on CUDA GPUs; every other platform runs the XLA search
-(``search.nearest``). The kernel does, per program (``ROWS`` query rows of one landmark set):
+``search.nearest_rows`` calls it with ``impl="pallas"`` (the default on CUDA GPUs,
+``jaxproj.projection.ops.Impl``); ``impl="xla"`` runs the XLA search (``search.nearest``). The
+kernel does, per program (``ROWS`` query rows of one landmark set):
 
 1. distances ``|x - p|^2`` (computed directly, coordinate by coordinate) to every landmark, a
    tile of ``TILE_BLOCKS * BLOCK`` landmarks at a time, reduced at once to the minimum of each

@@ -1,0 +1,210 @@
+"""Build and projection settings, validated in plain Python before anything is traced.
+
+``BuildConfig`` (with its per-chain view ``ChainConfig`` and the tuned ``DEFAULTS``) says how
+``jaxproj.projection.build`` builds a model; ``FullConfig`` how the full objective
+(``jaxproj.projection.full``) solves. Both are frozen, hashable dataclasses (``FullConfig`` is a
+static argument of the jitted projection) that raise ``ConfigError`` saying what to change.
+They sit apart from the code that uses them so that the model file (``model_file``), the
+builder and the projection read one definition without importing each other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from jaxproj.errors import ConfigError
+from jaxproj.robots.nao_h25 import ik
+
+HEAD_BANDWIDTH = 0.01125
+"""Mean-shift bandwidth of the head chain when ``BuildConfig.landmarks`` is one number (that
+number is then the count of each arm chain, and of the whole-body chain). The neck direction of
+a Kinect skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count
+target would bisect the bandwidth over many mean-shift runs; one run at this bandwidth (tuned
+leave-one-training-subject-out, ``benchmarks/TUNING.md``) gives ~800 head landmarks on subjects
+1,3,5,7,9."""
+
+DEFAULTS: dict[str, dict[str, object]] = {
+    "upper": dict(
+        bandwidth=(HEAD_BANDWIDTH, 0.01875, 0.01875), k=96, hidden=192, lam=1e-4, input_scale=0.5
+    ),
+    "whole": dict(landmarks=1644, k=96, hidden=96, lam=1e-3, input_scale=0.5),
+}
+"""What a ``BuildConfig`` setting left at ``None`` means, per chain set. ``"upper"``: tuned per
+chain on the training subjects only (leave-one-training-subject-out over 1,3,5,7,9; the grid,
+fold means and the rule are in ``benchmarks/TUNING.md``): mean-shift bandwidths (head, left arm,
+right arm; the right arm takes the left arm's tuned value), 192 hidden units, ridge 1e-4.
+``"whole"``: the paper's 1644 landmarks and the whole-body engine's earlier defaults, so that
+its answers stay those measured before chains existed."""
+
+PerChain = tuple  # a tuple with one value per chain, in chain order
+
+
+def _per_chain(value: object, c: int, n: int, name: str) -> object:
+    if isinstance(value, (tuple, list)):
+        if len(value) != n:
+            raise ConfigError(f"{name} has {len(value)} values for {n} chains")
+        return value[c]
+    return value
+
+
+@dataclass(frozen=True)
+class ChainConfig:
+    """The settings of one chain's projector (``BuildConfig.chain_config``)."""
+
+    landmarks: int | None
+    bandwidth: float | None
+    k: int
+    hidden: int
+    lam: float
+    input_scale: float
+    seed: int
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    """How a model is built: which chains, and per chain its landmarks and kernels.
+
+    Validated when constructed (``ConfigError`` with what to change). Every per-chain setting
+    is one value for all chains or a tuple with one value per chain (in ``ik.CHAIN_SETS[chains]``
+    order: head, left_arm, right_arm).
+
+    Attributes:
+      chains: ``"upper"`` (default): one projector per kinematic chain (``ik.CHAINS``: head,
+        left arm, right arm), searched and trained in the chain's own bones; ``"whole"``: one
+        projector over the whole descriptor, the paper's formulation.
+      landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
+        number sets each arm chain (and the whole-body chain); the head then uses
+        ``HEAD_BANDWIDTH``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
+        With neither ``landmarks`` nor ``bandwidth`` given, ``DEFAULTS[chains]`` decides.
+      bandwidth: mean-shift bandwidth, used as is (per chain where ``landmarks`` is ``None``).
+      bones: descriptor bone subset (``skeleton.descriptor``); the IK needs ``"upper"`` bones.
+      mirror: mirror imitation (human left drives robot right).
+      k: training neighbours per ELM kernel (the landmark itself included), capped at the
+        chain's number of landmarks ``K``: a small set (the paper's 86) trains every kernel on all
+        its landmarks. The ``k`` used is in the model's layout.
+      hidden: hidden units per kernel (``>= k``).
+      lam: ridge regulariser of the ELMs.
+      input_scale: standard deviation of the random hidden weights.
+      (``k``, ``hidden``, ``lam``, ``input_scale`` left at ``None``: ``DEFAULTS[chains]``.)
+      seed: PRNG seed of the random hidden layers (chain 0 uses ``PRNGKey(seed)``, chain ``c``
+        ``fold_in(PRNGKey(seed), c)``).
+    """
+
+    landmarks: int | PerChain | None = None
+    bandwidth: float | PerChain | None = None
+    chains: str = "upper"
+    bones: str = "upper"
+    mirror: bool = False
+    k: int | PerChain | None = None
+    hidden: int | PerChain | None = None
+    lam: float | PerChain | None = None
+    input_scale: float | PerChain | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("landmarks", "bandwidth", "k", "hidden", "lam", "input_scale"):
+            if isinstance(getattr(self, name), list):  # from JSON
+                object.__setattr__(self, name, tuple(getattr(self, name)))
+        chains = ik.chain_set(self.chains)
+        if not isinstance(self.bones, str):
+            object.__setattr__(self, "bones", tuple(self.bones))
+        ik.bone_index(self.bones)  # unknown bone names, or a subset the IK cannot use
+        for c in range(len(chains)):
+            self.chain_config(c)
+
+    @property
+    def chain_names(self) -> tuple[str, ...]:
+        """Names of the chains, in order."""
+        return tuple(ch.name for ch in ik.chain_set(self.chains))
+
+    def chain_config(self, c: int) -> ChainConfig:
+        """Chain ``c``'s settings (validated; ``ConfigError`` says what to change)."""
+        chains = ik.chain_set(self.chains)
+        n, name = len(chains), chains[c].name
+
+        defaults = DEFAULTS[self.chains]
+        sizes_given = self.landmarks is not None or self.bandwidth is not None
+
+        def get(field_name: str) -> object:
+            value = getattr(self, field_name)
+            if value is None and (field_name not in ("landmarks", "bandwidth") or not sizes_given):
+                value = defaults.get(field_name)
+            return _per_chain(value, c, n, field_name)
+
+        landmarks, bandwidth = get("landmarks"), get("bandwidth")
+        if name == "head" and isinstance(self.landmarks, int) and bandwidth is None:
+            landmarks, bandwidth = None, HEAD_BANDWIDTH
+        if (landmarks is None) == (bandwidth is None):
+            raise ConfigError(f"chain {name}: give exactly one of landmarks (a count) or bandwidth")
+        if landmarks is not None and landmarks < 2:
+            raise ConfigError(f"chain {name}: landmarks={landmarks} must be >= 2")
+        if bandwidth is not None and not bandwidth > 0:
+            raise ConfigError(f"chain {name}: bandwidth={bandwidth} must be > 0")
+        cfg = ChainConfig(
+            landmarks, bandwidth, get("k"), get("hidden"), get("lam"), get("input_scale"), self.seed
+        )
+        if cfg.k < 2:
+            raise ConfigError(f"chain {name}: k={cfg.k} must be >= 2")
+        if self.k is not None and landmarks is not None and cfg.k > landmarks:
+            raise ConfigError(
+                f"chain {name}: k={cfg.k} is larger than its landmark count {landmarks} (a kernel "
+                f"trains on at most all landmarks): lower k to <= {landmarks} or raise landmarks"
+            )
+        if cfg.hidden < cfg.k:
+            raise ConfigError(f"chain {name}: hidden={cfg.hidden} must be >= k={cfg.k}")
+        if not cfg.lam > 0:
+            raise ConfigError(f"chain {name}: lam={cfg.lam} must be > 0")
+        if not cfg.input_scale > 0:
+            raise ConfigError(f"chain {name}: input_scale={cfg.input_scale} must be > 0")
+        return cfg
+
+
+FullObjective = Literal["weighted", "min"]
+Solver = Literal["adam", "newton"]
+
+
+@dataclass(frozen=True)
+class FullConfig:
+    """Settings of the full (simplex-weighted) objective. Static (hashable) under ``jax.jit``.
+
+    Validated when constructed: a bad value raises ``ConfigError``.
+
+    Attributes:
+      objective: ``"weighted"`` (default) ``f(w) = sum_k w_k ||kappa^r_{j,k}(r(w)) - h||^2``;
+        ``"min"`` ``f(w) = min_k ||kappa^r_{j,k}(r(w)) - h||^2`` (the paper's eq. 2 read
+        literally as the best kernel of the cluster).
+      solver: ``"adam"`` (default): projected ``optax.adam`` steps; ``"newton"``: projected
+        Newton steps on the face of the simplex the weights lie on, tried in parallel beside
+        projected-gradient steps, the best kept (``full.solve_cluster_newton``). Both project with
+        ``optax.projections.projection_simplex`` and never return worse than the warm start.
+        Adam's 30 steps stop far from a minimum (``benchmarks/RESULTS.md``); Newton's converge.
+      iterations: solver steps per candidate (fixed; no early exit), ``>= 0``.
+      learning_rate: Adam step size on the weights, ``> 0`` (the weights live on the simplex, so
+        the scale is absolute: 0.05 moves at most ~5% of mass per step). Unused by Newton.
+      include_candidate: add the candidate ``r_j`` itself as vertex 0 of its simplex (warm start
+        ``w0 = e_0``, i.e. the relaxed answer).
+      clusters: optimise only the ``clusters`` candidates whose objective is smallest at their
+        warm start (``0``: all ``L``, the exact full objective). A speed option: it skips the
+        projected gradient of clusters that start far behind; its measured effect on the
+        answers is in ``benchmarks/RESULTS.md``.
+    """
+
+    objective: FullObjective = "weighted"
+    solver: Solver = "adam"
+    iterations: int = 30
+    learning_rate: float = 0.05
+    include_candidate: bool = False
+    clusters: int = 0
+
+    def __post_init__(self) -> None:
+        if self.objective not in ("weighted", "min"):
+            raise ConfigError(f"full objective must be 'weighted' or 'min', got {self.objective!r}")
+        if self.solver not in ("adam", "newton"):
+            raise ConfigError(f"full solver must be 'adam' or 'newton', got {self.solver!r}")
+        if self.iterations < 0:
+            raise ConfigError(f"full iterations={self.iterations} must be >= 0")
+        if not self.learning_rate > 0:
+            raise ConfigError(f"full learning_rate={self.learning_rate} must be > 0")
+        if self.clusters < 0:
+            raise ConfigError(f"full clusters={self.clusters} must be >= 0 (0: all L)")

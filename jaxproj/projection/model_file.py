@@ -1,0 +1,274 @@
+"""The model file: ``save`` / ``load`` a ``Model`` through one ``.npz``, and every check on read.
+
+A file holds every chain's arrays unpadded (``chain<c>.human``, ``chain<c>.forward.out``, ...),
+the ``BuildConfig``, the chain layout and a format version in a JSON ``meta`` entry. ``load``
+refuses (``InputError`` naming the file) anything that is not such a file of this jaxproj's
+format version and chain layout, before an array reaches JAX.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import asdict
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj._internal.atomic import atomic_write
+from jaxproj.errors import InputError
+from jaxproj.projection.build import Model
+from jaxproj.projection.config import BuildConfig
+from jaxproj.projection.elm import ELMBank
+from jaxproj.projection.projector import make_projector
+from jaxproj.projection.stacked import chain_inputs, layout_of, stack_projectors
+from jaxproj.robots.nao_h25 import ik, robot
+
+FORMAT = "jaxproj-projector"
+FORMAT_VERSION = 3
+"""3: one projector per kinematic chain (``chain<c>.*`` arrays, the layout in the metadata);
+2: kernel output weights stored ``(n_kernels, d_out, hidden)``; 1: ``(hidden, d_out)``."""
+
+
+_BANK_FIELDS = ("w", "inv_scale", "bias", "out", "offset", "neighbours")
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+
+# Array shapes of one chain in a model file: K landmarks, m descriptor columns and n joints of
+# the chain (known from the layout), Hf / Hb hidden units and kf / kb neighbours (read).
+def _bank_shapes(bank: str, d_in: str, d_out: str, hidden: str, k: str) -> dict:
+    """The ``_ARRAY_SHAPES`` entries of one kernel bank, in ``_BANK_FIELDS`` order."""
+    shapes = ((hidden, d_in), ("K",), ("K", hidden), ("K", d_out, hidden), ("K", d_out), ("K", k))
+    return {f"{bank}.{f}": shape for f, shape in zip(_BANK_FIELDS, shapes, strict=True)}
+
+
+_ARRAY_SHAPES: dict[str, tuple[str, ...]] = {
+    "human": ("K", "m"),
+    "robot": ("K", "n"),
+    "counts": ("K",),
+    **_bank_shapes("forward", "m", "n", "Hf", "kf"),
+    **_bank_shapes("backward", "n", "m", "Hb", "kb"),
+}
+
+
+def save(model: Model, path: str | Path) -> None:
+    """Write a model to one ``.npz``: every chain's arrays (unpadded), the config, the chain
+    layout and a format version.
+
+    The file is written under a temporary name beside ``path`` and then renamed
+    (``jaxproj._internal.atomic``), so an interrupted or failed save never leaves a half-written
+    model; the zip members carry fixed timestamps, so the same model gives a byte-identical file.
+
+    Raises:
+      InputError: the file cannot be written.
+    """
+    sp = model.projector
+    lay = sp.layout
+    arrays: dict[str, np.ndarray] = {}
+    for c in range(lay.n_chains):
+        p = sp.chain(c)
+        arrays[f"chain{c}.human"] = np.asarray(p.human)
+        arrays[f"chain{c}.robot"] = np.asarray(p.robot)
+        arrays[f"chain{c}.counts"] = np.asarray(model.counts[c])
+        for name, bank in (("forward", p.forward), ("backward", p.backward)):
+            for f in _BANK_FIELDS:
+                arrays[f"chain{c}.{name}.{f}"] = np.asarray(getattr(bank, f))
+    meta = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "config": asdict(model.config),
+        "chains": {"names": list(lay.names), "inputs": lay.inputs, "outputs": lay.outputs},
+        "bandwidth": list(model.bandwidth),
+        "n_train": model.n_train,
+        "driven_joints": list(robot.DRIVEN_JOINTS),
+        "ik": {
+            "head_pitch_neutral": ik.HEAD_PITCH_NEUTRAL,
+            "elbow_yaw_neutral": ik.ELBOW_YAW_NEUTRAL,
+        },
+    }
+    arrays = {"meta": np.array(json.dumps(meta)), **arrays}
+    atomic_write(path, lambda tmp: _write_npz(tmp, arrays))
+
+
+def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """``np.savez`` (uncompressed, no pickles) with fixed zip timestamps: deterministic bytes."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for key, value in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
+            info.external_attr = 0o644 << 16
+            with zf.open(info, "w", force_zip64=True) as fh:
+                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def load(path: str | Path) -> Model:
+    """Read a model written by ``save``.
+
+    Raises:
+      InputError: naming the file: missing, a directory, not an npz archive, truncated or
+        corrupt, not a jaxproj model, another format version (a newer one: upgrade jaxproj), a
+        chain layout other than this jaxproj's for the model's configuration, a missing,
+        mis-shaped or non-finite array.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(path, "is a directory, not a model file")
+    if not path.is_file():
+        raise InputError(path, "model file not found")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+            if head != b"PK\x03\x04":
+                what = "an empty file" if not head else "not an npz archive"
+                raise InputError(path, f"not a jaxproj model ({what}; see `jaxproj build`)")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+    except InputError:
+        raise
+    except Exception as e:  # zipfile / zlib / numpy errors of a truncated or corrupt archive
+        raise InputError(path, f"not a readable model file ({_one_line(e)})") from None
+    meta = _read_meta(path, data)
+    try:
+        config = BuildConfig(**meta["config"])
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(path, f"invalid model configuration ({_one_line(e)})") from None
+    chains = ik.chain_set(config.chains)
+    _check_layout(path, meta, config, data)
+    try:
+        bandwidth = tuple(float(b) for b in meta["bandwidth"])
+        n_train = int(meta["n_train"])
+        if len(bandwidth) != len(chains):
+            raise ValueError(f"{len(bandwidth)} bandwidths for {len(chains)} chains")
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(path, f"corrupt model metadata ({_one_line(e)})") from None
+    projectors, counts = [], []
+    for c, ch in enumerate(chains):
+        a = _chain_arrays(path, data, c, len(chain_inputs(config, ch)), len(ik.chain_joints(ch)))
+        banks = {}
+        for name in ("forward", "backward"):
+            f = {f: a[f"{name}.{f}"] for f in _BANK_FIELDS}
+            banks[name] = ELMBank(
+                **{k: jnp.asarray(v) for k, v in f.items()},
+                n_kernels=int(f["out"].shape[0]),
+                hidden=int(f["out"].shape[2]),
+                d_in=int(f["w"].shape[1]),
+                d_out=int(f["out"].shape[1]),
+                k=int(f["neighbours"].shape[1]),
+            )
+        joints = list(ik.chain_joints(ch))
+        projectors.append(
+            make_projector(
+                a["human"],
+                a["robot"],
+                banks["forward"],
+                banks["backward"],
+                robot.LOWER[robot.DRIVEN_INDEX][joints],
+                robot.UPPER[robot.DRIVEN_INDEX][joints],
+            )
+        )
+        counts.append(a["counts"])
+    try:
+        stacked = stack_projectors(projectors, layout_of(config, projectors))
+    except (TypeError, ValueError) as e:
+        raise InputError(path, f"inconsistent model file ({_one_line(e)})") from None
+    return Model(stacked, config, bandwidth, tuple(counts), n_train)
+
+
+def _read_meta(path: Path, data: dict[str, np.ndarray]) -> dict:
+    """The checked ``meta`` entry: a jaxproj model of this format version."""
+    if "meta" not in data:
+        found = ", ".join(sorted(data)[:5]) or "none"
+        raise InputError(path, f"not a jaxproj model (no 'meta' entry; arrays found: {found})")
+    try:
+        meta = json.loads(str(data["meta"]))
+    except (json.JSONDecodeError, TypeError, ValueError):
+        raise InputError(path, "corrupt model metadata (not JSON)") from None
+    if not isinstance(meta, dict):
+        raise InputError(path, "corrupt model metadata (not a JSON object)")
+    if meta.get("format") != FORMAT:
+        raise InputError(path, f"not a jaxproj model (format {meta.get('format')!r})")
+    version = meta.get("format_version")
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise InputError(path, f"corrupt model metadata (format_version {version!r})")
+    if version > FORMAT_VERSION:
+        raise InputError(
+            path,
+            f"model format version {version} was written by a newer jaxproj (this one reads "
+            f"version {FORMAT_VERSION}): upgrade jaxproj, or rebuild the model with "
+            "`jaxproj build`",
+        )
+    if version != FORMAT_VERSION:
+        raise InputError(
+            path,
+            f"model format version {version} is not supported (this jaxproj reads version "
+            f"{FORMAT_VERSION}); rebuild it with `jaxproj build`",
+        )
+    return meta
+
+
+def _check_layout(path: Path, meta: dict, config: BuildConfig, data: dict) -> None:
+    """``InputError`` unless the file's chains are this jaxproj's chains for its config."""
+    chains = ik.chain_set(config.chains)
+    want = {
+        "names": [ch.name for ch in chains],
+        "inputs": [list(chain_inputs(config, ch)) for ch in chains],
+        "outputs": [list(ik.chain_joints(ch)) for ch in chains],
+    }
+    got = meta.get("chains")
+    got = {k: got.get(k) for k in want} if isinstance(got, dict) else {}
+    rebuild = "written by another chain layout; rebuild it with `jaxproj build`"
+    for key, value in want.items():
+        if got.get(key) != value:
+            raise InputError(
+                path,
+                f"chain {key} {got.get(key)} differ from this jaxproj's {value} for "
+                f"chains={config.chains!r}: {rebuild}",
+            )
+    if meta.get("driven_joints") != list(robot.DRIVEN_JOINTS):
+        raise InputError(path, f"driven joints {meta.get('driven_joints')} differ from this "
+                               f"jaxproj's {list(robot.DRIVEN_JOINTS)}: {rebuild}")  # fmt: skip
+    held = {k.split(".", 1)[0] for k in data if k != "meta"}
+    extra = sorted(held - {f"chain{c}" for c in range(len(chains))})
+    if extra:
+        raise InputError(
+            path, f"arrays {', '.join(extra)} beyond its {len(chains)} chain(s): {rebuild}"
+        )
+
+
+def _chain_arrays(
+    path: Path, data: dict[str, np.ndarray], c: int, m: int, n: int
+) -> dict[str, np.ndarray]:
+    """Chain ``c``'s arrays, checked against ``_ARRAY_SHAPES`` (``InputError`` naming the array:
+    missing, mis-shaped, wrong kind, non-finite, neighbour index out of range)."""
+    dims: dict[str, int] = {"m": m, "n": n}
+    out = {}
+    for key, spec in _ARRAY_SHAPES.items():
+        name = f"chain{c}.{key}"
+        if name not in data:
+            raise InputError(path, f"missing array {name!r} (an incomplete or foreign model file)")
+        a = data[name]
+        integer = key == "counts" or key.endswith("neighbours")
+        ok = a.ndim == len(spec) and a.dtype.kind in ("iu" if integer else "f")
+        for sym, size in zip(spec, a.shape if ok else (), strict=False):
+            ok = ok and dims.setdefault(sym, size) == size and size >= 1
+        if not ok:
+            want = ", ".join(f"{s}={dims[s]}" if s in dims else s for s in spec)
+            kind = "integers" if integer else "floats"
+            raise InputError(
+                path, f"array {name!r} has shape {a.shape} ({a.dtype}), expected ({want}) {kind}"
+            )
+        if not integer and not np.isfinite(a).all():
+            raise InputError(path, f"array {name!r} has non-finite values")
+        out[key] = a
+    for bank in ("forward", "backward"):
+        nb = out[f"{bank}.neighbours"]
+        if nb.min() < 0 or nb.max() >= dims["K"] or nb.shape[1] > dims["K"]:
+            raise InputError(path, f"array 'chain{c}.{bank}.neighbours' indexes beyond the "
+                                   f"{dims['K']} landmarks")  # fmt: skip
+    return out

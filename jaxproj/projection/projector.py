@@ -1,0 +1,216 @@
+"""The projector pytrees: one chain's landmarks and kernel banks, and the chains stacked.
+
+``Projector`` holds everything one projection needs (``(K, m)`` human and ``(K, n)`` robot
+landmarks, both ELM banks, joint limits); ``StackedProjector`` holds one per kinematic chain,
+padded and stacked on a leading chain axis, with its static ``ChainLayout``. The two per-query
+steps that both objectives share (``candidates``, ``back_deviation``) live here too, so that
+``relaxed`` and ``full`` depend on this module and not on each other. Stacking per-chain
+projectors (padding) is ``jaxproj.projection.stacked``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxproj.projection.elm import ELMBank, predict
+from jaxproj.projection.search import nearest, sq_norms
+from jaxproj.robots.nao_h25 import robot
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Projector:
+    """Landmarks and both kernel banks: everything a projection needs (a pytree).
+
+    Attributes:
+      human: ``(K, m)`` human landmarks ``h_i`` (descriptors).
+      robot: ``(K, n)`` robot landmarks ``r_i = IK(h_i)`` (driven joint angles, rad).
+      human_sq, robot_sq: ``(K,)`` squared norms (for the distance computations).
+      forward: ELM bank ``h -> r`` (one kernel per landmark).
+      backward: ELM bank ``r -> h``.
+      lower, upper: ``(n,)`` joint limits the outputs are clipped to.
+    """
+
+    human: jax.Array
+    robot: jax.Array
+    human_sq: jax.Array
+    robot_sq: jax.Array
+    forward: ELMBank
+    backward: ELMBank
+    lower: jax.Array
+    upper: jax.Array
+    n_landmarks: int = field(metadata=dict(static=True))
+
+
+def make_projector(
+    human: jax.Array,
+    robot_poses: jax.Array,
+    forward: ELMBank,
+    backward: ELMBank,
+    lower: jax.Array | None = None,
+    upper: jax.Array | None = None,
+) -> Projector:
+    """Assemble a ``Projector`` from landmarks ``(K, m)``, ``(K, n)`` and the two banks.
+
+    ``lower`` / ``upper`` ``(n,)`` are the limits of the ``n`` joints the robot landmarks hold
+    (default: ``robot.DRIVEN_JOINTS``'s, for ``n = 10``).
+    """
+    human = jnp.asarray(human, jnp.float32)
+    robot_poses = jnp.asarray(robot_poses, jnp.float32)
+    if lower is None:
+        lower = robot.LOWER[robot.DRIVEN_INDEX]
+    if upper is None:
+        upper = robot.UPPER[robot.DRIVEN_INDEX]
+    return Projector(
+        human=human,
+        robot=robot_poses,
+        human_sq=sq_norms(human),
+        robot_sq=sq_norms(robot_poses),
+        forward=forward,
+        backward=backward,
+        lower=jnp.asarray(lower, jnp.float32),
+        upper=jnp.asarray(upper, jnp.float32),
+        n_landmarks=int(human.shape[0]),
+    )
+
+
+def candidates(p: Projector, h: jax.Array, n_l: int) -> jax.Array:
+    """``(m,) -> (L, n)``: forward-kernel candidates of the ``L`` nearest human landmarks."""
+    idx, _ = nearest(p.human, p.human_sq, h, n_l)
+    return predict(p.forward, h, idx)
+
+
+def back_deviation(p: Projector, r: jax.Array, h: jax.Array, idx: jax.Array) -> jax.Array:
+    """``||kappa^r_k(r) - h||^2`` for backward kernels ``idx (M,)`` at one robot point ``r``."""
+    back = predict(p.backward, r, idx)  # (M, m)
+    return jnp.sum((back - h[None]) ** 2, axis=-1)
+
+
+def _widths(columns: tuple[tuple[int, ...], ...]) -> list[int]:
+    """Per chain, how many columns (inputs) or joints (outputs) it has."""
+    return [len(c) for c in columns]
+
+
+@dataclass(frozen=True)
+class ChainLayout:
+    """How chains split a descriptor and fill the driven joints (static, hashable).
+
+    Attributes:
+      names: chain names (``ik.Chain.name``), in stacking order.
+      inputs: per chain, the descriptor columns it reads (``3 * n_bones`` each).
+      outputs: per chain, the positions in ``robot.DRIVEN_JOINTS`` it writes.
+      landmarks: per chain, its landmark count ``K_c`` (before padding to the largest).
+      hidden: per chain, hidden units of its forward and backward kernels.
+      k: per chain, training neighbours of its kernels.
+    """
+
+    names: tuple[str, ...]
+    inputs: tuple[tuple[int, ...], ...]
+    outputs: tuple[tuple[int, ...], ...]
+    landmarks: tuple[int, ...]
+    hidden: tuple[int, ...]
+    k: tuple[int, ...]
+
+    @property
+    def n_chains(self) -> int:
+        """``C``."""
+        return len(self.names)
+
+    @property
+    def m_max(self) -> int:
+        """Widest chain input (padded width of the stacked human landmarks)."""
+        return max(_widths(self.inputs))
+
+    @property
+    def n_max(self) -> int:
+        """Widest chain output (padded width of the stacked robot landmarks)."""
+        return max(_widths(self.outputs))
+
+    @property
+    def m(self) -> int:
+        """Width of the whole descriptor."""
+        return sum(_widths(self.inputs))
+
+    @property
+    def n(self) -> int:
+        """Number of driven joints written."""
+        return sum(_widths(self.outputs))
+
+    @property
+    def identity(self) -> bool:
+        """One chain reading the whole descriptor and writing every joint, in order."""
+        return (
+            self.n_chains == 1
+            and self.inputs[0] == tuple(range(self.m))
+            and self.outputs[0] == tuple(range(self.n))
+        )
+
+    def input_index(self) -> np.ndarray:
+        """``(C, m_max)`` int: columns of ``[h, 0]`` that make each chain's padded input."""
+        idx = np.full((self.n_chains, self.m_max), self.m, np.int32)  # padding reads the 0
+        for c, cols in enumerate(self.inputs):
+            idx[c, : len(cols)] = cols
+        return idx
+
+    def output_index(self) -> np.ndarray:
+        """``(n,)`` int: for each driven joint, its place in the flattened ``(C, n_max)``."""
+        idx = np.zeros(self.n, np.int32)
+        for c, cols in enumerate(self.outputs):
+            idx[list(cols)] = c * self.n_max + np.arange(len(cols))
+        return idx
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class StackedProjector:
+    """One projector per kinematic chain, stacked along a leading chain axis (a pytree).
+
+    ``stack`` is a ``Projector`` whose every array has a leading ``(C,)`` axis, padded to the
+    largest chain: landmarks to ``K_max`` rows, inputs to ``m_max`` and outputs to ``n_max``
+    columns, hidden layers to the widest. Padding never wins a nearest-neighbour search (padded
+    landmarks have squared norm ``+inf``, hence infinite distance to every point) and never enters
+    a kernel (padded weights, offsets and columns are 0, and padded query columns are 0 too).
+    The whole-body projector (the paper's formulation) is the one-chain case.
+
+    Attributes:
+      stack: the padded, stacked per-chain projectors.
+      layout: the static chain layout.
+    """
+
+    stack: Projector
+    layout: ChainLayout = field(metadata=dict(static=True))
+
+    @property
+    def n_landmarks(self) -> int:
+        """The smallest chain's landmark count (``L`` and ``M`` may not exceed it)."""
+        return min(self.layout.landmarks)
+
+    def chain(self, c: int) -> Projector:
+        """Chain ``c``'s own projector, unpadded (host-side; for baselines, tests, reports)."""
+        lay = self.layout
+        k, m, n = lay.landmarks[c], len(lay.inputs[c]), len(lay.outputs[c])
+        h, kk = lay.hidden[c], lay.k[c]
+        s = jax.tree.map(lambda a: a[c], self.stack)
+        fwd = _slice_bank(s.forward, k, m, n, h, kk)
+        bwd = _slice_bank(s.backward, k, n, m, h, kk)
+        return make_projector(s.human[:k, :m], s.robot[:k, :n], fwd, bwd, s.lower[:n], s.upper[:n])
+
+
+def _slice_bank(bank: ELMBank, k: int, d_in: int, d_out: int, hidden: int, kk: int) -> ELMBank:
+    return ELMBank(
+        w=bank.w[:hidden, :d_in],
+        inv_scale=bank.inv_scale[:k],
+        bias=bank.bias[:k, :hidden],
+        out=bank.out[:k, :d_out, :hidden],
+        offset=bank.offset[:k, :d_out],
+        neighbours=bank.neighbours[:k, :kk],
+        n_kernels=k,
+        hidden=hidden,
+        d_in=d_in,
+        d_out=d_out,
+        k=kk,
+    )

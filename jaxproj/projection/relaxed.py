@@ -1,0 +1,254 @@
+"""The relaxed objective (paper eq. 4): the candidate with the least back-projected deviation.
+
+For one query ``h*``: the ``L`` nearest human landmarks give ``L`` forward-kernel candidates
+``r_j`` (``projector.candidates``); each candidate's ``M`` nearest robot landmarks give ``M``
+backward kernels; the answer is the candidate with the least ``min_k ||kappa^r_{j,k}(r_j) - h*||``.
+
+``project_relaxed_one`` is written for ONE query (the float32 reference; callers vmap it). A
+batch runs as rows instead (``relaxed_candidates``, ``least_deviations_rows``,
+``project_relaxed_rows``): every search of a batch is one call and the back-projection of all
+candidates one more, which is what ``api.project_batch`` uses. Those two calls are where the
+Pallas kernels of ``jaxproj.projection.ops`` and their XLA twins are chosen, by one ``impl``
+argument (``ops.Impl``). Nothing here is jitted; ``L``, ``M`` and ``impl`` are static.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import jax
+import jax.numpy as jnp
+
+from jaxproj.errors import ConfigError
+from jaxproj.projection.elm import predict
+from jaxproj.projection.ops import Impl, ImplLike, pallas_interpret, resolve_impl
+from jaxproj.projection.ops.backproj_pallas import back_min
+from jaxproj.projection.projector import (
+    ChainLayout,
+    Projector,
+    StackedProjector,
+    back_deviation,
+    candidates,
+)
+from jaxproj.projection.search import nearest, nearest_rows
+
+
+def project_relaxed_one(
+    p: Projector, h: jax.Array, n_l: int, n_m: int
+) -> tuple[jax.Array, jax.Array]:
+    """Relaxed projection of one query.
+
+    Args:
+      p: the projector.
+      h: ``(m,)`` human descriptor.
+      n_l, n_m: ``L`` and ``M`` (static).
+
+    Returns:
+      ``(r, dev)``: ``(n,)`` projected robot pose (clipped to the joint limits) and the
+      back-projected deviation ``min_k ||kappa^r_{j,k}(r_j) - h||`` of the chosen candidate.
+    """
+    cand = candidates(p, h, n_l)  # (L, n)
+    ridx, _ = nearest(p.robot, p.robot_sq, cand, n_m)  # (L, M)
+    return _relaxed_pick(p, h, cand, ridx)
+
+
+def _relaxed_pick(
+    p: Projector, h: jax.Array, cand: jax.Array, ridx: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Steps 2-3 of the relaxed projection of one query, given its candidates ``(L, n)`` and
+    their robot landmarks ``ridx (L, M)``: the candidate with the least back-projected deviation
+    and that deviation (``project_relaxed_one``'s result)."""
+    return _pick(p, cand, _least_deviations(p, h, cand, ridx))
+
+
+def _least_deviations(p: Projector, h: jax.Array, cand: jax.Array, ridx: jax.Array) -> jax.Array:
+    """``(L,)``: each candidate's least squared back-projected deviation over its ``M`` kernels."""
+    dev = jax.vmap(back_deviation, in_axes=(None, 0, None, 0))(p, cand, h, ridx)  # (L, M)
+    return jnp.min(dev, axis=1)
+
+
+def _pick(p: Projector, cand: jax.Array, best: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The candidate ``(L, n)`` whose least squared deviation ``best (L,)`` is smallest: its
+    pose clipped to the joint limits, and its deviation."""
+    j = jnp.argmin(best)
+    return jnp.clip(cand[j], p.lower, p.upper), jnp.sqrt(best[j])
+
+
+def backward_widths(p: Projector | StackedProjector) -> list[tuple[int, int, int]]:
+    """Per chain ``(n, m, hidden)``: robot width, descriptor width and backward hidden units
+    (one entry for a plain projector), before any padding of the stacked arrays."""
+    if isinstance(p, StackedProjector):
+        lay = p.layout
+        widths = zip(lay.outputs, lay.inputs, lay.hidden, strict=True)
+        return [(len(o), len(i), hidden) for o, i, hidden in widths]
+    return [(p.robot.shape[1], p.human.shape[1], p.backward.hidden)]
+
+
+def least_deviations_rows(
+    stack: Projector,
+    dims: Sequence[tuple[int, int, int]],
+    x: jax.Array,
+    cand: jax.Array,
+    ridx: jax.Array,
+    impl: ImplLike = Impl.AUTO,
+) -> jax.Array:
+    """Every candidate's least squared back-projected deviation, for a batch and every chain.
+
+    Args:
+      stack: one projector per chain, stacked on a leading axis.
+      dims: per chain ``(n, m, hidden)`` (``backward_widths``; the stacked arrays may be
+        padded beyond them).
+      x: ``(S, C, m)`` queries per chain; cand: ``(S, C, L, n)`` candidates; ridx:
+        ``(S, C, L, M)`` their robot landmarks.
+      impl: ``"xla"``: XLA's three passes (``_least_deviations`` per query); ``"pallas"``: the
+        fused kernel (``jaxproj.projection.ops.backproj_pallas``); ``"auto"`` (default):
+        ``ops.resolve_impl``'s choice for the default backend (static).
+
+    Returns:
+      ``(S, C, L)``: ``min_k ||kappa^r_{j,k}(r_j) - h||^2`` (``_least_deviations`` per query).
+    """
+
+    def xla(stack: Projector, x: jax.Array, cand: jax.Array, ridx: jax.Array) -> jax.Array:
+        per_query = jax.vmap(_least_deviations)  # over chains
+        return jax.vmap(per_query, in_axes=(None, 0, 0, 0))(stack, x, cand, ridx)
+
+    def kernel(
+        stack: Projector, x: jax.Array, cand: jax.Array, ridx: jax.Array, interpret: bool
+    ) -> jax.Array:
+        s, _, n_l, n_m = ridx.shape
+        best = []
+        for c, (n, m, hidden) in enumerate(dims):
+            bank = jax.tree.map(lambda a, c=c: a[c], stack.backward)
+            rows = cand[:, c].reshape(s * n_l, -1)
+            queries = jnp.repeat(x[:, c], n_l, axis=0)
+            idx = ridx[:, c].reshape(s * n_l, n_m)
+            b = back_min(bank, rows, queries, idx, n, m, hidden, interpret=interpret)
+            best.append(b.reshape(s, n_l))
+        return jnp.stack(best, axis=1)
+
+    if resolve_impl(impl) is Impl.XLA:
+        return xla(stack, x, cand, ridx)
+    return kernel(stack, x, cand, ridx, pallas_interpret())
+
+
+def relaxed_candidates(
+    p: Projector | StackedProjector, h: jax.Array, n_l: int, n_m: int, impl: ImplLike = Impl.AUTO
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Steps 1-2 of the relaxed projection for a batch, every chain at once: the human-landmark
+    searches of all queries and the robot-landmark searches of all their candidates as one
+    ``search.nearest_rows`` call each (with ``impl="pallas"``, the default on CUDA GPUs, the
+    fused kernel of ``jaxproj.projection.ops.knn_pallas``), not one small search per query.
+
+    Args:
+      p: a projector, or one projector per chain.
+      h: ``(S, m)`` human descriptors.
+      n_l, n_m: ``L`` and ``M`` (static).
+      impl: the backend of the searches (``ops.Impl``; static).
+
+    Returns:
+      ``(x, cand, ridx)``: ``(S, C, m_max)`` each chain's part of the queries, ``(S, C, L, n)``
+      the forward-kernel candidates (as ``candidates``) and ``(S, C, L, M)`` their robot
+      landmarks (``C = 1`` for a plain projector).
+    """
+    stack, lay = _chains(p)
+    s = h.shape[0]
+    if lay is None or lay.identity:
+        x = h[:, None, :]  # (S, 1, m)
+    else:
+        x = jnp.concatenate([h, jnp.zeros((s, 1), h.dtype)], axis=1)[:, lay.input_index()]
+    hidx, _ = nearest_rows(stack.human, stack.human_sq, x.transpose(1, 0, 2), n_l, impl)  # (C,S,L)
+
+    def forward(p: Projector, q: jax.Array, idx: jax.Array) -> jax.Array:
+        return predict(p.forward, q, idx)  # (L, n), as ``candidates``
+
+    per_chain = jax.vmap(forward)
+    cand = jax.vmap(per_chain, in_axes=(None, 0, 0))(stack, x, hidx.transpose(1, 0, 2))
+    c, n = cand.shape[1], cand.shape[3]  # cand: (S, C, L, n)
+    rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
+    ridx, _ = nearest_rows(stack.robot, stack.robot_sq, rows, n_m, impl)  # (C, S * L, M)
+    return x, cand, ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
+
+
+def _chains(p: Projector | StackedProjector) -> tuple[Projector, ChainLayout | None]:
+    """``p``'s projectors stacked on a leading chain axis, and the layout (``None`` for a plain
+    projector: one chain reading the whole descriptor)."""
+    if isinstance(p, StackedProjector):
+        return p.stack, p.layout
+    return jax.tree.map(lambda a: a[None], p), None
+
+
+def project_relaxed_rows(
+    p: Projector | StackedProjector,
+    h: jax.Array,
+    n_l: int,
+    n_m: int,
+    chunk: int | None = None,
+    impl: ImplLike = Impl.AUTO,
+) -> tuple[jax.Array, jax.Array]:
+    """Relaxed projection of a batch of queries, every chain at once.
+
+    The same answers as ``project_relaxed_one`` (``project_stacked_one`` for a stacked
+    projector) vmapped over the batch, but with every search of the batch as one call
+    (``relaxed_candidates``) and the back-projection of all candidates as
+    ``least_deviations_rows`` calls (with ``impl="pallas"``, the default on CUDA GPUs, the fused
+    kernels of ``jaxproj.projection.ops``, whose sums round differently: see there).
+
+    Args:
+      p: a projector, or one projector per chain.
+      h: ``(S, m)`` human descriptors.
+      n_l, n_m: ``L`` and ``M`` (static).
+      chunk: back-project ``chunk`` queries at a time (a ``lax.map`` loop inside the one
+        search call; static, must divide ``S``). ``None`` (default): all ``S`` at once. On the
+        CPU the searches want many queries per call and the back-projection few (its gathered
+        kernels should stay in cache): ``api.project_batch`` sets both.
+      impl: the backend of the searches and the back-projection (``ops.Impl``; static),
+        resolved once here (``"auto"``: for the default backend).
+
+    Returns:
+      ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the
+      whole descriptor: ``sqrt(sum_c dev_c^2)`` for chains).
+    """
+    impl = resolve_impl(impl)
+    stack, lay = _chains(p)
+    s = h.shape[0]
+    x, cand, ridx = relaxed_candidates(p, h, n_l, n_m, impl)
+    dims = backward_widths(p)
+    if chunk is None or chunk >= s:
+        best = least_deviations_rows(stack, dims, x, cand, ridx, impl)  # (S, C, L)
+    else:
+        if s % chunk:
+            raise ConfigError(f"chunk={chunk} does not divide the batch of {s} queries")
+
+        def part(a: tuple[jax.Array, jax.Array, jax.Array]) -> jax.Array:
+            return least_deviations_rows(stack, dims, *a, impl)
+
+        parts = jax.tree.map(lambda a: a.reshape(s // chunk, chunk, *a.shape[1:]), (x, cand, ridx))
+        best = jax.lax.map(part, parts).reshape(s, *ridx.shape[1:3])
+    return _pick_rows(stack, lay, cand, best)
+
+
+def pick_rows(
+    p: Projector | StackedProjector, cand: jax.Array, best: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Step 3 of the relaxed projection for a batch: per query and chain, the candidate with the
+    least deviation, the chains' answers assembled.
+
+    Args:
+      p: a projector, or one projector per chain.
+      cand: ``(S, C, L, n)`` candidates (``relaxed_candidates``).
+      best: ``(S, C, L)`` their least squared deviations (``least_deviations_rows``).
+
+    Returns:
+      ``(r, dev)`` as ``project_relaxed_rows``.
+    """
+    return _pick_rows(*_chains(p), cand, best)
+
+
+def _pick_rows(
+    stack: Projector, lay: ChainLayout | None, cand: jax.Array, best: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    s = cand.shape[0]
+    r, v = jax.vmap(jax.vmap(_pick), in_axes=(None, 0, 0))(stack, cand, best)  # (S, C, n), (S, C)
+    if lay is None or lay.identity:
+        return r[:, 0], v[:, 0]
+    return r.reshape(s, -1)[:, lay.output_index()], jnp.sqrt(jnp.sum(v * v, axis=1))
