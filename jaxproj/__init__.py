@@ -27,7 +27,7 @@ from jaxproj.motion import streaming
 from jaxproj.motion.retarget import RetargetResult, retarget
 from jaxproj.motion.smoothing import SmoothingParams, smooth, smooth_batch
 from jaxproj.projection.api import BuildConfig, Model, build, load, project, save
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 
 __all__ = [
     "BuildConfig",

@@ -9,14 +9,13 @@ format version and chain layout, before an array reaches JAX.
 from __future__ import annotations
 
 import json
-import zipfile
 from dataclasses import asdict
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write
+from jaxproj._internal.atomic import write_npz
 from jaxproj.errors import InputError
 from jaxproj.projection.build import Model
 from jaxproj.projection.config import BuildConfig
@@ -32,7 +31,6 @@ FORMAT_VERSION = 3
 
 
 _BANK_FIELDS = ("w", "inv_scale", "bias", "out", "offset", "neighbours")
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
 # Array shapes of one chain in a model file: K landmarks, m descriptor columns and n joints of
@@ -88,17 +86,7 @@ def save(model: Model, path: str | Path) -> None:
         },
     }
     arrays = {"meta": np.array(json.dumps(meta)), **arrays}
-    atomic_write(path, lambda tmp: _write_npz(tmp, arrays))
-
-
-def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """``np.savez`` (uncompressed, no pickles) with fixed zip timestamps: deterministic bytes."""
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
-        for key, value in arrays.items():
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
-            info.external_attr = 0o644 << 16
-            with zf.open(info, "w", force_zip64=True) as fh:
-                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
+    write_npz(path, arrays)
 
 
 def _one_line(err: BaseException) -> str:
