@@ -229,8 +229,8 @@ class StackedReference:
             r, v = ref.project(h[list(cols)], objective, n_l, n_m, full)
             out[list(joints)] = r
             values.append(v)
-        v = np.asarray(values)
-        value = float(np.sqrt(np.sum(v * v))) if objective == "relaxed" else float(np.sum(v))
+        vs = np.asarray(values)
+        value = float(np.sqrt(np.sum(vs * vs))) if objective == "relaxed" else float(np.sum(vs))
         if len(values) == 1:
             value = float(values[0])
         return out, value

@@ -10,6 +10,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from jaxproj.errors import ConfigError
 
@@ -117,7 +118,7 @@ def _safe_unit(v: jax.Array, min_norm: float = MIN_BONE_LENGTH) -> tuple[jax.Arr
 
 
 def descriptor(
-    positions: jax.Array,
+    positions: ArrayLike,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
 ) -> tuple[jax.Array, jax.Array]:

@@ -41,6 +41,14 @@ _UTK_LABELS = "actionLabel.txt"
 _UTK_BLOCK_RE = re.compile(r"^s(\d{2})_e(\d{2})$")
 
 
+def _file_numbers(pattern: re.Pattern[str], path: Path) -> tuple[str, ...]:
+    """The numbers in a recording's file name (the listing kept only names that match)."""
+    m = pattern.match(path.name)
+    if m is None:
+        raise InputError(path, f"file name does not match {pattern.pattern}")
+    return m.groups()
+
+
 def bundle_msr_action3d(src_dir: str | os.PathLike[str], out_path: str | os.PathLike[str]) -> None:
     """Convert the raw MSR Action3D text files of ``src_dir`` into one compressed npz.
 
@@ -61,7 +69,7 @@ def bundle_msr_action3d(src_dir: str | os.PathLike[str], out_path: str | os.Path
     for path in files:
         raw = read_msr_rows(path)[:, list(MSR_TO_SDK), :]  # (T, 20, 4) float64, SDK order
         names.append(path.name[: -len("_skeleton3D.txt")])
-        numbers.append([int(g) for g in _FILE_RE.match(path.name).groups()])
+        numbers.append([int(g) for g in _file_numbers(_FILE_RE, path)])
         positions.append(micrometres(path, raw[..., :3]))
         confidence.append(raw[..., 3])
     cvpr12_path = src / _CVPR12_LIST
@@ -148,7 +156,7 @@ def bundle_utkinect_action3d(
         if name not in labels:
             raise InputError(src / _UTK_LABELS, f"no segment block for {name}")
         names.append(name)
-        numbers.append([int(g) for g in _UTK_FILE_RE.match(path.name).groups()])
+        numbers.append([int(g) for g in _file_numbers(_UTK_FILE_RE, path)])
         frames.append(frame.astype("<i4"))
         positions.append(micrometres(path, xyz))
         segments.append(labels[name])

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
@@ -194,7 +195,7 @@ def smooth(
 
 def smooth_batch(
     y: jax.Array,
-    lengths: jax.Array,
+    lengths: ArrayLike,
     params: SmoothingParams = PAPER_SMOOTHING,
     times: np.ndarray | None = None,
 ) -> jax.Array:

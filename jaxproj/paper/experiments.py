@@ -11,6 +11,7 @@ shared helpers of ``timing`` (compilation apart, blocked calls, median).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Sequence
@@ -32,7 +33,8 @@ from jaxproj.paper.synthetic import (
     skeleton_from_directions,
 )
 from jaxproj.projection import api as engine
-from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
+from jaxproj.projection.config import FullConfig
+from jaxproj.projection.projector import Projector, StackedProjector
 from jaxproj.robots.nao_h25 import ik, robot
 from jaxproj.timing import compile_timed, time_calls
 
@@ -59,8 +61,8 @@ def _ik(d: np.ndarray, bones: str) -> np.ndarray:
 def _descriptors(model: engine.Model | Projector, positions: np.ndarray) -> np.ndarray:
     """``(F, 20, 3)`` -> ``(F, m)`` descriptors with the model's bones; all must be valid."""
     bones, mirror = _bones_of(model)
-    d, ok = descriptor(positions, bones=bones, mirror=mirror)
-    d, ok = np.asarray(d), np.asarray(ok)
+    dj, okj = descriptor(positions, bones=bones, mirror=mirror)
+    d, ok = np.asarray(dj), np.asarray(okj)
     if not ok.all():
         raise ConfigError(f"{int((~ok).sum())} synthetic frames have a degenerate descriptor")
     return d
@@ -114,7 +116,7 @@ def run_pose_experiments(
     *,
     n_l: int = 10,
     n_m: int = 10,
-    objectives: Sequence[str] = ("relaxed", "full"),
+    objectives: Sequence[engine.Objective] = ("relaxed", "full"),
     key: jax.Array,
     seconds: float = 2.0,
     fps: float = DEFAULT_FPS,
@@ -234,7 +236,7 @@ def run_pose_experiments(
 
 
 def _held_out_metrics(
-    model: engine.Model, eval_descriptors: np.ndarray, objective: str, n_l: int, n_m: int
+    model: engine.Model, eval_descriptors: np.ndarray, objective: engine.Objective, n_l: int, n_m: int
 ) -> dict[str, float]:
     bones = model.config.bones
     h = np.asarray(eval_descriptors, np.float32)
@@ -255,7 +257,7 @@ def landmark_size_study(
     train_descriptors: np.ndarray,
     sizes: Sequence[int] = (1644, 961, 86),
     *,
-    objective: str = "relaxed",
+    objective: engine.Objective = "relaxed",
     key: jax.Array,
     eval_descriptors: np.ndarray | None = None,
     config: engine.BuildConfig | None = None,
@@ -339,7 +341,7 @@ def efficiency_study(
     model: engine.Model | Projector,
     descriptors: np.ndarray,
     ls: Sequence[int] = (10, 20, 30, 40, 50),
-    objective: str = "relaxed",
+    objective: engine.Objective = "relaxed",
     batch: int = 4096,
     *,
     repeats: int = 3,
@@ -402,9 +404,9 @@ def efficiency_study(
         compiled, compile_s = compile_timed(
             engine.project_chunk, p, chunk, objective=objective, n_l=n, n_m=n, full=full
         )
-        first = time_calls(lambda c=compiled, x=chunk: c(p, x), min_repeats=1, max_repeats=1)
+        first = time_calls(functools.partial(compiled, p, chunk), min_repeats=1, max_repeats=1)
         timed = time_calls(
-            lambda c=compiled, x=chunk: c(p, x), min_repeats=repeats, max_repeats=repeats
+            functools.partial(compiled, p, chunk), min_repeats=repeats, max_repeats=repeats
         )
         pred, _ = engine.project(model, h, objective, n_l=n, n_m=n, full=full, batch_size=b)
         m_max, m_avg = frame_errors(pred, truth)

@@ -17,7 +17,7 @@ Shapes: human descriptors ``(B, m)`` (``m = 15`` for the default upper-body bone
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import jax
 import jax.numpy as jnp
@@ -390,7 +390,7 @@ def project(
     pad = (-len(h)) % batch_size
     if pad:
         h = np.concatenate([h, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
-    kw = {"objective": objective, "n_l": n_l, "n_m": n_m, "full": full}
+    kw: dict[str, Any] = {"objective": objective, "n_l": n_l, "n_m": n_m, "full": full}
     if impl is not resolve_impl(Impl.AUTO):
         # another backend than ``project_batch``'s own "auto" (the default backend's) picks:
         # pass it; otherwise leave it out, so that every call of one backend shares one

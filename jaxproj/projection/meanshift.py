@@ -617,9 +617,10 @@ def find_bandwidth(
             lo = (u, k)
         if k < target and (hi is None or u < hi[0]):
             hi = (u, k)
-        u = _next_log_bandwidth(lo, hi, seen, target, max_step)
-        if u is None:
+        nxt = _next_log_bandwidth(lo, hi, seen, target, max_step)
+        if nxt is None:
             break
+        u = nxt
     best = min(results, key=lambda r: abs(r.n_modes - target))  # the first of equally close
     warnings.warn(
         f"find_bandwidth: no bandwidth gives {target} +- {window:.0f} modes; closest is "

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from jaxproj._internal.atomic import write_npz
+
 FAST_ENV = "JAXPROJ_FAST"
 """Environment variable: ``1`` selects the notebooks' fast settings."""
 
@@ -84,7 +86,7 @@ def save_results(name: str, results: dict[str, Any], **arrays: Any) -> Path | No
     out.mkdir(parents=True, exist_ok=True)
     report.write_json(out / f"{name}.json", results)
     if arrays:
-        np.savez(out / f"{name}.npz", **{k: np.asarray(v) for k, v in arrays.items()})
+        write_npz(out / f"{name}.npz", {k: np.asarray(v) for k, v in arrays.items()})
     return out / f"{name}.json"
 
 

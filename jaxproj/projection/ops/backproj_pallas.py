@@ -21,6 +21,7 @@ the two may pick different candidates. Both are checked against the float64 refe
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -135,7 +136,7 @@ def back_min(
         fit(bank.offset, (kp, op)),
     )
     kern = functools.partial(_kernel, d_in=d_in, d_out=d_out, m=m, chunks=_chunks(hidden))
-    params = {}
+    params: dict[str, Any] = {}
     if not interpret:
         from jax.experimental.pallas import triton as plgpu
 

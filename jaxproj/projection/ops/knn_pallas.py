@@ -26,6 +26,7 @@ projection's answers identical on all 65,536 poses.
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -140,7 +141,7 @@ def knn(
     pt = jnp.full((c, d, kp), FAR, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
     xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
     kern = functools.partial(_kernel, n=n, d=d, nb=nb, sync=not interpret)
-    params = {}
+    params: dict[str, Any] = {}
     if not interpret:
         from jax.experimental.pallas import triton as plgpu
 

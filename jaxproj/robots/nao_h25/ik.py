@@ -59,6 +59,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
@@ -250,7 +251,7 @@ def bone_index(bones: str | tuple[str, ...]) -> tuple[int, ...]:
 _solve_driven_jit = jit(driven_angles, static_argnames=("bone_index",))
 
 
-def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+def solve_driven(d: ArrayLike, bones: str | tuple[str, ...] = "upper") -> jax.Array:
     """IK of the driven joints only.
 
     Args:
