@@ -1,12 +1,13 @@
 """The test oracle of the projection engine: the paper's algorithm, per query, in float64 NumPy.
 
-``Reference`` re-implements ``jaxproj.projection.objectives`` (relaxed and full objectives) independently:
-NumPy in float64, one query at a time, exact k nearest neighbours from
-``scipy.spatial.cKDTree``, the full objective's gradients written out by hand (no autodiff,
-no optax). It reads the landmarks and kernel banks of a trained ``Projector`` as they are, so
-engine and oracle answer the same question; the tests (``tests/test_testing.py``) and the
-benchmarks (``benchmarks/bench_projection.py``) check the float32 JAX engine against it. It is
-also the benchmarks' speed baseline: the code a Python user would write without JAX.
+``Reference`` re-implements the relaxed and full objectives (``jaxproj.projection.relaxed``,
+``jaxproj.projection.full``) independently: NumPy in float64, one query at a time, exact k
+nearest neighbours from ``scipy.spatial.cKDTree``, the full objective's gradients written out
+by hand (no autodiff, no optax). It reads the landmarks and kernel banks of a trained
+``Projector`` as they are, so engine and oracle answer the same question; the tests
+(``tests/test_testing.py``) and the benchmarks (``benchmarks/bench_projection.py``) check the
+float32 JAX engine against it. It is also the benchmarks' speed baseline: the code a Python user
+would write without JAX.
 
 It needs scipy, which is a test extra (``pip install "jaxproj[test]"``), not a dependency of
 the package: scipy is imported when a ``Reference`` is constructed, not when this module is.

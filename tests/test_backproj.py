@@ -1,4 +1,4 @@
-"""The fused back-projection kernel (``jaxproj.projection.ops.backproj_pallas``), run in Pallas' interpreter.
+"""The fused back-projection kernel (``projection.ops.backproj_pallas``), in Pallas' interpreter.
 
 The kernel serves CUDA GPUs only (``projection.least_deviations_rows``); the interpreter executes
 the same kernel program on the CPU, so its logic (hidden units in power-of-two chunks, padded

@@ -1,4 +1,4 @@
-"""jaxproj.motion.feasible: hard limits, the acceleration bound, ElbowYaw rules, batching, errors."""
+"""jaxproj.motion.feasible: hard limits, acceleration bound, ElbowYaw rules, batching, errors."""
 
 from __future__ import annotations
 

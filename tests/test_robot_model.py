@@ -1,7 +1,8 @@
 """The bundled NAO H25 MJCF against the reference numbers (shared/reference/nao_h25_kinematics.md).
 
 Every expected number below is typed in from the reference document (sections 3, 4, 6, 9), not
-taken from ``jaxproj.robots.nao_h25.robot``, so a wrong constant or a wrong XML value makes a test fail.
+taken from ``jaxproj.robots.nao_h25.robot``, so a wrong constant or a wrong XML value makes a
+test fail.
 """
 
 from __future__ import annotations

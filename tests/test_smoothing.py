@@ -99,8 +99,8 @@ def test_bad_gains_are_config_errors():
 
 def test_step_is_one_frame_of_smooth():
     # smooth scans smoothing.step; a Python loop of the same step (one jitted call per frame,
-    # as jaxproj.motion.streaming runs it) gives the same motion. Separately compiled float32 programs
-    # may round differently: 1e-6 rad (a few ulp of angles up to ~2 rad; measured 1.2e-7).
+    # as jaxproj.motion.streaming runs it) gives the same motion. Separately compiled float32
+    # programs may round differently: 1e-6 rad (a few ulp of angles up to ~2 rad; measured 1.2e-7).
     rng = np.random.default_rng(4)
     y = _motion(rng, 120)
     params = SmoothingParams(0.75, 0.3, 0.15)

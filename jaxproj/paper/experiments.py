@@ -236,7 +236,11 @@ def run_pose_experiments(
 
 
 def _held_out_metrics(
-    model: engine.Model, eval_descriptors: np.ndarray, objective: engine.Objective, n_l: int, n_m: int
+    model: engine.Model,
+    eval_descriptors: np.ndarray,
+    objective: engine.Objective,
+    n_l: int,
+    n_m: int,
 ) -> dict[str, float]:
     bones = model.config.bones
     h = np.asarray(eval_descriptors, np.float32)
