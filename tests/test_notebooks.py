@@ -253,8 +253,11 @@ def xla_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_notebook_runs_in_fast_mode_and_its_results_hold(
     name: str, tmp_path: Path, xla_cache: Path
 ) -> None:
-    env = {notebook.RESULTS_ENV: str(tmp_path), "JAX_COMPILATION_CACHE_DIR": str(xla_cache),
-           "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0"}
+    env = {
+        notebook.RESULTS_ENV: str(tmp_path),
+        "JAX_COMPILATION_CACHE_DIR": str(xla_cache),
+        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
+    }
     # a cell that raises fails the test here (nbclient's CellExecutionError, with its traceback)
     nb = _executor().execute(NOTEBOOK_DIR / f"{name}.ipynb", fast=True, env=env, timeout=600)
     _check_outputs(nb, name, "fast")

@@ -67,8 +67,13 @@ def test_two_processes_split_and_gather(tmp_path: Path) -> None:
     port, out = str(_free_port()), tmp_path / "mh.json"
     cmd = [sys.executable, str(SCRIPTS / "multihost_check.py")]
     procs = [
-        subprocess.Popen([*cmd, str(i), port, str(out)], env=_env(), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)  # fmt: skip
+        subprocess.Popen(
+            [*cmd, str(i), port, str(out)],
+            env=_env(),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
         for i in range(2)
     ]
     errs = [p.communicate(timeout=600)[1] for p in procs]

@@ -70,9 +70,7 @@ def main() -> None:
     moved = np.flatnonzero(diff > 1e-3)[: args.ref_queries]
     if moved.size:
         reference = testing.StackedReference(sp)
-        want = np.stack(
-            [reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in moved]
-        )
+        want = np.stack([reference.project(np.asarray(q[i]), "relaxed", 10, 10)[0] for i in moved])
         e_new = np.degrees(np.abs(r_new[moved] - want)).max(axis=1)
         e_old = np.degrees(np.abs(r_old[moved] - want)).max(axis=1)
         print(

@@ -52,9 +52,9 @@ def main() -> None:
     lay = sp.layout
     x = jnp.concatenate([q, jnp.zeros((BATCH, 1), q.dtype)], axis=1)[:, lay.input_index()]
     cands = jax.jit(
-        lambda s, x: jax.vmap(
-            jax.vmap(candidates, in_axes=(0, 0, None)), in_axes=(None, 0, None)
-        )(s, x, 10)
+        lambda s, x: jax.vmap(jax.vmap(candidates, in_axes=(0, 0, None)), in_axes=(None, 0, None))(
+            s, x, 10
+        )
     )
     with jax.default_matmul_precision("highest"):
         cand = cands(st, x)

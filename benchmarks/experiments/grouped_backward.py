@@ -119,9 +119,9 @@ def main(path, S=65536):
     @jit
     def prep(st, x):
         hidx, _ = nearest_rows(st.human, st.human_sq, x.transpose(1, 0, 2), L)
-        cand = jax.vmap(
-            jax.vmap(lambda p, q, i: predict(p.forward, q, i)), in_axes=(None, 0, 0)
-        )(st, x, hidx.transpose(1, 0, 2))
+        cand = jax.vmap(jax.vmap(lambda p, q, i: predict(p.forward, q, i)), in_axes=(None, 0, 0))(
+            st, x, hidx.transpose(1, 0, 2)
+        )
         c, n = cand.shape[1], cand.shape[3]
         rows = cand.transpose(1, 0, 2, 3).reshape(c, S * L, n)
         ridx, _ = nearest_rows(st.robot, st.robot_sq, rows, M)

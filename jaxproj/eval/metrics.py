@@ -238,9 +238,7 @@ class ArmErrors(NamedTuple):
 def _check_points(x: np.ndarray | jax.Array, name: str) -> np.ndarray:
     a = np.asarray(x, np.float32)
     if a.ndim != 4 or a.shape[2:] != (3, 3):
-        raise ConfigError(
-            f"{name} must have shape (F, n_sides, 3, 3) (arm_points), got {a.shape}"
-        )
+        raise ConfigError(f"{name} must have shape (F, n_sides, 3, 3) (arm_points), got {a.shape}")
     return a
 
 

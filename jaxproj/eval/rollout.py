@@ -177,8 +177,9 @@ def _run_shares(
             setup = jax.device_put(setup, dev)
         return _simulate_jit(setup, jax.device_put(q, dev), jax.device_put(n, dev), substeps)
     bounds = np.linspace(0, len(q), len(devices) + 1).round().astype(int)
-    shares = [(d, lo, hi) for d, lo, hi in zip(devices, bounds[:-1], bounds[1:], strict=True)
-              if hi > lo]  # fmt: skip  (more devices than motions: the extra ones get none)
+    shares = [
+        (d, lo, hi) for d, lo, hi in zip(devices, bounds[:-1], bounds[1:], strict=True) if hi > lo
+    ]  # fmt: skip  (more devices than motions: the extra ones get none)
 
     def run(share: tuple[jax.Device, int, int]) -> RolloutResult:
         dev, lo, hi = share

@@ -51,7 +51,6 @@ DEFAULT_FPS = 15.0
 and for a one-frame motion without ``meta["fps"]``."""
 
 
-
 # --- the motion ------------------------------------------------------------------------------
 
 

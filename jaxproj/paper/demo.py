@@ -42,9 +42,7 @@ def _train_descriptors(model_cfg: engine.BuildConfig) -> np.ndarray:
     return datasets.valid_descriptors(seqs, bones=model_cfg.bones, mirror=model_cfg.mirror)
 
 
-def _rollout_section(
-    data: evaluate.EvalData, ev: dict, n_motions: int, seqs, devices=None
-) -> dict:
+def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs, devices=None) -> dict:
     from jaxproj.eval import rollout
 
     t0 = time.perf_counter()
@@ -63,9 +61,7 @@ def _rollout_section(
             b[row, e - a :] = b[row, e - a - 1]
         batches[name] = b
     times = np.tile(np.arange(t_max) * out["frame_dt"], (len(picks), 1))
-    batches["relaxed_feasible"] = feasible.make_feasible(
-        batches["relaxed"], times, lengths[picks]
-    )
+    batches["relaxed_feasible"] = feasible.make_feasible(batches["relaxed"], times, lengths[picks])
     for name, b in batches.items():
         res = rollout.simulate(b, lengths[picks], devices=devices)
         out[name] = rollout.summarize(res, lengths[picks], b)
@@ -122,9 +118,9 @@ def run_demo(
             if name == "per_chain" and split == "msr_held_out":
                 block = ev["unsmoothed"]
             else:
-                block = evaluate.evaluate(
-                    m, d, evaluate.METHODS, smoothing=None, feasibility=None
-                )["unsmoothed"]
+                block = evaluate.evaluate(m, d, evaluate.METHODS, smoothing=None, feasibility=None)[
+                    "unsmoothed"
+                ]
             comparison.setdefault(name, {})[split] = block
     timings["evaluate_s"] = time.perf_counter() - t0
     _log(
@@ -336,6 +332,7 @@ def _feasibility_md(r: dict) -> list[str]:
         unf = r["summary"].get(name)
         m_avg = f"{err['M_avg']['median']:.2f}"
         no_ey = f"{err['M_max_no_elbow_yaw']['p95']:.1f}"
+
         def hand_p95(block: dict) -> str:
             return ", ".join(
                 f"{block['task_space'][side]['hand_cm']['p95']:.1f}" for side in ("left", "right")

@@ -295,7 +295,6 @@ def render_frames(
     return np.stack(list(_Frames(motion, backend, size, stride, camera)))
 
 
-
 class Rendered(NamedTuple):
     """What ``render_to_file`` wrote."""
 

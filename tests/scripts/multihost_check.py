@@ -14,9 +14,7 @@ import jax
 jax.config.update("jax_cpu_collectives_implementation", "gloo")
 
 pid, port, out_path = int(sys.argv[1]), sys.argv[2], sys.argv[3]
-jax.distributed.initialize(
-    coordinator_address=f"127.0.0.1:{port}", num_processes=2, process_id=pid
-)
+jax.distributed.initialize(coordinator_address=f"127.0.0.1:{port}", num_processes=2, process_id=pid)
 
 import numpy as np  # noqa: E402
 

@@ -69,7 +69,8 @@ def main() -> None:
             flops_one=_flops(one),
             flops_four=_flops(four),
             collectives=[
-                op for op in ("all-gather", "all-reduce", "all-to-all", "collective-permute")
+                op
+                for op in ("all-gather", "all-reduce", "all-to-all", "collective-permute")
                 if op in text
             ],
         )

@@ -60,8 +60,22 @@ def _chunks(hidden: int) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
-def _kernel(r_ref, h_ref, idx_ref, w_ref, inv_ref, bias_ref, out_ref, off_ref, best_ref, *,
-            d_in: int, d_out: int, m: int, chunks: tuple[tuple[int, int], ...]):
+def _kernel(
+    r_ref,
+    h_ref,
+    idx_ref,
+    w_ref,
+    inv_ref,
+    bias_ref,
+    out_ref,
+    off_ref,
+    best_ref,
+    *,
+    d_in: int,
+    d_out: int,
+    m: int,
+    chunks: tuple[tuple[int, int], ...],
+):
     rs = [r_ref[:, j] for j in range(d_in)]  # (ROWS,) per coordinate
     hs = [h_ref[:, o] for o in range(d_out)]
     wx = []  # W r, per chunk of hidden units: (ROWS, width)

@@ -64,8 +64,7 @@ def resolve_joints(robot: Robot, joints: str | Sequence[str]) -> tuple[str, ...]
     if isinstance(joints, str):
         if joints not in sets:
             raise ConfigError(
-                f"joints must be one of {sorted(sets)} or a sequence of joint names, "
-                f"got {joints!r}"
+                f"joints must be one of {sorted(sets)} or a sequence of joint names, got {joints!r}"
             )
         return sets[joints]
     names = tuple(joints)
@@ -156,9 +155,7 @@ def _number_list(path: Path, what: str, value: object) -> np.ndarray:
     return arr
 
 
-def read(
-    robot: Robot, path: Path
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+def read(robot: Robot, path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
     """Read a NAOqi JSON document.
 
     Returns:
