@@ -1,5 +1,6 @@
 """The paper's studies: pose / motion benchmarks, landmark-set size study, efficiency study."""
 
+import dataclasses
 import json
 
 import jax
@@ -149,6 +150,32 @@ def test_landmark_size_study_builds_one_model_per_size(model_with_poses, monkeyp
         assert r["eval_frames"] == len(evald) and len(r["pose8_M_max_frames"]) == 31
     # the same POSE_8 motion for every size
     assert rows[0]["pose8_M_max_frames"] == rows[1]["pose8_M_max_frames"]
+
+
+def test_landmark_size_study_reuses_a_model_the_caller_built(model_with_poses, monkeypatch):
+    # the demo passes its per-chain model: the size with that config is not built again
+    train = _train_descriptors(subjects=(1,))[::50]
+    seen = []
+
+    def fake_build(descriptors, config):
+        seen.append(config.landmarks)
+        return model_with_poses
+
+    monkeypatch.setattr(experiments.engine, "build", fake_build)
+    base = engine.BuildConfig(k=8, hidden=16, seed=3)
+    given = dataclasses.replace(base, landmarks=300)
+    res = experiments.landmark_size_study(
+        train,
+        sizes=(300, 30),
+        key=jax.random.PRNGKey(0),
+        config=base,
+        n_l=5,
+        n_m=5,
+        built={given: (model_with_poses, 12.5)},
+    )
+    assert seen == [30]  # 300 came from ``built``
+    assert [r["build_s"] for r in res["sizes"]][0] == 12.5
+    assert res["sizes"][0]["pose8_M_max"] == res["sizes"][1]["pose8_M_max"]  # the same model
 
 
 def test_efficiency_study_times_and_scores_each_neighbourhood(model_with_poses):

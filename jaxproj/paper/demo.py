@@ -145,7 +145,11 @@ def run_demo(
         data.valid & np.isin(np.repeat(data.actions, np.diff(data.offsets)), datasets.ARM_ACTIONS)
     ]
     sizes = experiments.landmark_size_study(
-        train, sizes=(400, 86) if quick else (1644, 961, 86), key=key, eval_descriptors=held_out
+        train,
+        sizes=(400, 86) if quick else (1644, 961, 86),
+        key=key,
+        eval_descriptors=held_out,
+        built={cfg: (model, timings["build_per_chain_s"])},  # the per-chain model of step 1
     )
     eff = experiments.efficiency_study(
         model, held_out, ls=(10, 30) if quick else (10, 20, 30, 50), batch=1024
