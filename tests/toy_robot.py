@@ -81,16 +81,17 @@ def _unit(v: jax.Array) -> jax.Array:
     return v / jnp.maximum(n, 1e-9)
 
 
-def head_ik(x: np.ndarray) -> np.ndarray:
-    """``(N, 3)`` neck directions -> ``(N, 2)`` (yaw, pitch), clipped to the limits."""
+def _head(x: jax.Array) -> jax.Array:
+    """``(N, 3)`` neck directions -> ``(N, 2)`` (yaw, pitch), clipped (traceable)."""
     n = _unit(jnp.asarray(x, jnp.float32))
     yaw = jnp.clip(jnp.arctan2(n[..., 1], n[..., 2]), LOWER[1], UPPER[1])
     pitch = jnp.clip(jnp.arctan2(n[..., 0], n[..., 2]), LOWER[2], UPPER[2])
-    return np.asarray(jnp.stack([yaw, pitch], axis=-1))
+    return jnp.stack([yaw, pitch], axis=-1)
 
 
-def arm_ik(x: np.ndarray, side: Literal["l", "r"]) -> np.ndarray:
-    """``(N, 6)`` upper arm and forearm directions -> ``(N, 3)`` (pitch, roll, elbow)."""
+def _arm(x: jax.Array, side: Literal["l", "r"]) -> jax.Array:
+    """``(N, 6)`` upper arm and forearm directions -> ``(N, 3)`` (pitch, roll, elbow), clipped
+    (traceable)."""
     x = jnp.asarray(x, jnp.float32)
     u, f = _unit(x[..., :3]), _unit(x[..., 3:])
     pitch = jnp.arctan2(-u[..., 0], -u[..., 2])
@@ -100,7 +101,17 @@ def arm_ik(x: np.ndarray, side: Literal["l", "r"]) -> np.ndarray:
     k = JOINTS.index(f"{side}_shoulder_pitch")
     out = jnp.stack([pitch, roll, elbow], axis=-1)
     lo = jnp.broadcast_to(LOWER[k : k + 3], out.shape)
-    return np.asarray(jnp.clip(out, lo, jnp.broadcast_to(UPPER[k : k + 3], out.shape)))
+    return jnp.clip(out, lo, jnp.broadcast_to(UPPER[k : k + 3], out.shape))
+
+
+def head_ik(x: np.ndarray) -> np.ndarray:
+    """``(N, 3)`` neck directions -> ``(N, 2)`` (yaw, pitch), clipped to the limits."""
+    return np.asarray(_head(x))
+
+
+def arm_ik(x: np.ndarray, side: Literal["l", "r"]) -> np.ndarray:
+    """``(N, 6)`` upper arm and forearm directions -> ``(N, 3)`` (pitch, roll, elbow)."""
+    return np.asarray(_arm(x, side))
 
 
 CHAINS = (
@@ -108,17 +119,21 @@ CHAINS = (
     Chain("left_arm", ("upper_arm_left", "forearm_left"), DRIVEN[2:5], partial(arm_ik, side="l")),
     Chain("right_arm", ("upper_arm_right", "forearm_right"), DRIVEN[5:], partial(arm_ik, side="r")),
 )
+_CORES = (_head, partial(_arm, side="l"), partial(_arm, side="r"))
 
 
 def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
-    """``(N, 3 * n_bones)`` descriptors -> ``(N, 8)`` driven angles (the chains side by side)."""
+    """``(N, 3 * n_bones)`` descriptors -> ``(N, 8)`` driven angles (the chains side by side).
+
+    Pure ``jnp`` (traceable): the toy's IK runs inside the jitted motion pipeline too.
+    """
     names = resolve_bones(bones)
-    d = np.asarray(d, np.float32)
+    d = jnp.asarray(d, jnp.float32)
     parts = []
-    for chain in CHAINS:
+    for chain, core in zip(CHAINS, _CORES, strict=True):
         cols = [3 * names.index(b) + i for b in chain.bones for i in range(3)]
-        parts.append(chain.solve(d[..., cols]))
-    return jnp.asarray(np.concatenate(parts, axis=-1))
+        parts.append(core(d[..., cols]))
+    return jnp.concatenate(parts, axis=-1)
 
 
 def arm_fk(q: np.ndarray) -> np.ndarray:

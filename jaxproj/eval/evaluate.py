@@ -1,11 +1,12 @@
 """Batch offline evaluation: project recorded motions, compare with the IK ground truth.
 
-Metrics (paper section IV), per frame, over ``robot.DRIVEN_JOINTS`` (``n = 10``), in degrees:
-``M_max = max_j |r*_j - r_gt_j|`` and ``M_avg = mean_j |r*_j - r_gt_j|``, where ``r_gt`` is the
-analytic IK of the frame (``jaxproj.robots.nao_h25.ik``). Only valid frames are scored. Besides
-these headline numbers, each method's block says where the error is
+Metrics (paper section IV), per frame, over the robot's ``driven_joints`` (``n = n_driven``), in
+degrees: ``M_max = max_j |r*_j - r_gt_j|`` and ``M_avg = mean_j |r*_j - r_gt_j|``, where ``r_gt``
+is the robot's analytic IK of the frame (``Robot.ik``; ``prepare(..., robot=)``, and
+``evaluate`` scores for the model's robot, ``Model.robot``). Only valid frames are scored.
+Besides these headline numbers, each method's block says where the error is
 (``jaxproj.eval.metrics.summarize_errors``): p50 / p95 per driven joint (``per_joint``),
-``M_max`` without the two ElbowYaw joints (``M_max_no_elbow_yaw``) and task-space errors from
+``M_max`` without the robot's loose joints (``M_max_no_elbow_yaw``) and task-space errors from
 forward kinematics of the MJCF (``task_space``: wrist and elbow position in cm, upper-arm and
 forearm direction in degrees, per side), projected pose against IK pose.
 
@@ -24,6 +25,9 @@ Each motion's per-frame answers go through the motion pipeline's stages after th
 with smoothing, the double exponential smoother and the clip to the joint limits) before
 scoring, and the mean squared joint jerk (third difference at the recording rate, rad/s^3) is
 reported before and after the smoother.
+
+Size: over 500 lines because the report's blocks, the baselines and the one ``evaluate`` that
+assembles them read as one unit (the metrics themselves live in ``jaxproj.eval.metrics``).
 """
 
 from __future__ import annotations
@@ -51,7 +55,7 @@ from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gai
 from jaxproj.projection.api import Model, project
 from jaxproj.projection.objectives import FullConfig, Projector
 from jaxproj.projection.search import nearest
-from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.robots import DEFAULT, Robot, get
 
 METHODS: tuple[str, ...] = ("relaxed", "full", "nearest_landmark", "knn_average", "global_elm")
 GLOBAL_HIDDEN = 1024
@@ -73,6 +77,7 @@ class EvalData:
         (``datasets.sequence_times``: the recording's own time axis, or MSR's assumed 15 fps).
       timed: whether any sequence carried its own times (then the smoother's gains follow each
         frame's time step; otherwise they are the per-frame gains as given).
+      robot: name of the robot whose IK gave ``truth`` (``evaluate`` checks the model's).
     """
 
     descriptors: np.ndarray
@@ -84,19 +89,29 @@ class EvalData:
     subjects: np.ndarray
     times: np.ndarray | None = None
     timed: bool = False
+    robot: str = DEFAULT
 
 
 def prepare(
-    sequences: Sequence[MotionSequence], bones: str = "upper", mirror: bool = False
+    sequences: Sequence[MotionSequence],
+    bones: str = "upper",
+    mirror: bool = False,
+    *,
+    robot: Robot | str | None = None,
 ) -> EvalData:
-    """Descriptors, validity and IK truth of every frame of ``sequences``."""
+    """Descriptors, validity and IK truth of every frame of ``sequences``.
+
+    ``robot`` (a ``Robot`` or registered name; ``None``: the default robot) gives the truth:
+    ``(F, n_driven)`` ``Robot.ik`` of every frame's ``(F, m)`` descriptor.
+    """
+    spec = get(robot)
     if not sequences:
         raise ConfigError("no sequences to evaluate")
     pos = np.concatenate([s.positions for s in sequences])
     ok_in = np.concatenate([s.valid for s in sequences])
     d, ok = descriptor(pos, bones=bones, mirror=mirror)
     d, ok = np.asarray(d), np.asarray(ok) & ok_in
-    truth = np.asarray(ik.solve_driven(d, bones))
+    truth = np.asarray(spec.solve_ik(d, bones))
     lengths = [len(s.valid) for s in sequences]
     return EvalData(
         descriptors=d,
@@ -108,6 +123,7 @@ def prepare(
         subjects=np.array([s.subject for s in sequences]),
         times=np.concatenate([sequence_times(s) for s in sequences]),
         timed=any(s.times is not None for s in sequences),
+        robot=spec.name,
     )
 
 
@@ -273,18 +289,20 @@ def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS
     return total / max(count, 1)
 
 
-def _finish_batch(q: jax.Array, valid: jax.Array, lengths: jax.Array, gains: jax.Array | None):
+def _finish_batch(
+    q: jax.Array, valid: jax.Array, lengths: jax.Array, gains: jax.Array | None, robot: Robot
+):
     """``pipeline.finish`` (``standing="first"``) vmapped over padded motions ``(S, T, n)``."""
     per_motion = 0 if gains is not None and gains.ndim == 3 else None  # (S, T, 3): per motion
-    one = functools.partial(pipeline.finish, standing="first")
+    one = functools.partial(pipeline.finish, standing="first", robot=robot)
     return jax.vmap(one, in_axes=(0, 0, 0, per_motion))(q, valid, lengths, gains)
 
 
-_finish_batch = jit(_finish_batch)
+_finish_batch = jit(_finish_batch, static_argnames=("robot",))
 
 
 def _per_motion(
-    data: EvalData, per_frame: np.ndarray, gains: jax.Array | None = None
+    data: EvalData, per_frame: np.ndarray, gains: jax.Array | None = None, *, robot: Robot
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(V, n)`` answers of the valid frames -> ``(filled, scored, lengths)``: ``(S, T_max, n)``
     motions filled (``pipeline.finish``; no valid frame: standing), the same smoothed and
@@ -303,7 +321,7 @@ def _per_motion(
         valid[s, : b - a] = data.valid[a:b]
     # one padded call (padding frames are invalid, so they never feed a real frame)
     filled, scored = _finish_batch(
-        jnp.asarray(out), jnp.asarray(valid), jnp.asarray(lengths, jnp.int32), gains
+        jnp.asarray(out), jnp.asarray(valid), jnp.asarray(lengths, jnp.int32), gains, robot=robot
     )
     return np.asarray(filled), np.asarray(scored), lengths
 
@@ -323,10 +341,12 @@ def _motion_times(data: EvalData, t_max: int) -> np.ndarray:
     return out
 
 
-def _limits_summary(motions: np.ndarray, times: np.ndarray, lengths: np.ndarray) -> dict:
-    """``feasible.feasibility_report`` of each motion ``(S, T, 26)``, pooled over motions."""
-    reps = [feasible.feasibility_report(m[:n], t[:n]) for m, t, n in zip(motions, times, lengths,
-                                                                        strict=True)]  # fmt: skip
+def _limits_summary(
+    motions: np.ndarray, times: np.ndarray, lengths: np.ndarray, robot: Robot
+) -> dict:
+    """``feasible.feasibility_report`` of each motion ``(S, T, n_joints)``, pooled."""
+    reps = [feasible.feasibility_report(m[:n], t[:n], robot=robot)
+            for m, t, n in zip(motions, times, lengths, strict=True)]  # fmt: skip
     return {
         "motions": len(reps),
         "motions_over_speed_limit": sum(r["speed_violation_frames"] > 0 for r in reps),
@@ -349,16 +369,19 @@ def feasibility_block(
     *,
     times: np.ndarray | None = None,
     before_points: np.ndarray | None = None,
+    robot: Robot | str | None = None,
 ) -> dict:
     """What the feasibility filter buys and costs for one method's motions.
 
     Args:
       data: the evaluated frames.
-      motions: ``(S, T_max, 10)`` driven-joint motions as scored (filled, maybe smoothed).
+      motions: ``(S, T_max, n_driven)`` driven-joint motions as scored (filled, maybe
+        smoothed).
       truth_v, truth_points: IK truth of the valid frames and its ``metrics.arm_points``.
       config: the filter's settings.
       times: ``(S, T_max)`` seconds of the motions' frames (``None``: computed from ``data``).
       before_points: ``metrics.arm_points`` of the motions' valid frames when already computed.
+      robot: the robot (``None``: ``data.robot``, the one the truth is for).
 
     Returns:
       ``{"before": limits, "after": limits, "after_errors": {M_max, M_avg, task_space, ...}
@@ -368,24 +391,25 @@ def feasibility_block(
       per-frame mean joint change (deg) and the wrist displacement (cm, both arms pooled) of
       the filtered motion against the unfiltered one, valid frames.
     """
+    spec = get(data.robot if robot is None else robot)
     lengths = np.diff(data.offsets)
     t_max = motions.shape[1]
     times = _motion_times(data, t_max) if times is None else times
-    full26 = np.tile(robot.STANDING_POSTURE, motions.shape[:2] + (1,)).astype(np.float32)
-    full26[..., robot.DRIVEN_INDEX] = motions
-    safe = feasible.make_feasible(full26, times, lengths, config)
+    full = np.tile(spec.standing, motions.shape[:2] + (1,)).astype(np.float32)
+    full[..., spec.driven_index] = motions
+    safe = feasible.make_feasible(full, times, lengths, config, robot=spec)
     flat = lambda m: np.concatenate([m[s, :n] for s, n in enumerate(lengths)])[data.valid]  # noqa: E731
-    before, after = flat(motions), flat(safe[..., robot.DRIVEN_INDEX])
-    after_points = metrics.arm_points(after)
+    before, after = flat(motions), flat(safe[..., spec.driven_index])
+    after_points = metrics.arm_points(after, robot=spec)
     if before_points is None:
-        before_points = metrics.arm_points(before)
+        before_points = metrics.arm_points(before, robot=spec)
     hand = metrics.arm_errors(after_points, before_points).hand
     return {
         "config": dataclasses.asdict(config),
-        "before": _limits_summary(full26, times, lengths),
-        "after": _limits_summary(safe, times, lengths),
+        "before": _limits_summary(full, times, lengths, spec),
+        "after": _limits_summary(safe, times, lengths, spec),
         "after_errors": summarize_errors(
-            after, truth_v, truth_points=truth_points, pred_points=after_points
+            after, truth_v, truth_points=truth_points, pred_points=after_points, robot=spec
         ),
         "vs_unfiltered": {
             "joint_deg": describe(np.degrees(np.abs(after - before)).mean(axis=1)),
@@ -412,14 +436,22 @@ def evaluate(
     ``devices`` is passed to ``engine.project`` (``None``: the default device); ``progress``
     shows a bar over the methods on a terminal. ``feasibility``: also run each method's scored
     motions (and the IK's) through ``jaxproj.motion.feasible`` and report before / after
-    (``feasibility_block``) under ``"feasibility"``; ``None`` skips it.
+    (``feasibility_block``) under ``"feasibility"``; ``None`` skips it. The robot is the
+    model's (``Model.robot``); ``data`` must hold its IK truth (``prepare(..., robot=)``).
+
+    Raises:
+      ConfigError: ``data`` was prepared for another robot than the model's.
     """
+    spec = model.robot
+    if data.robot != spec.name:
+        raise ConfigError(f"data were prepared for robot {data.robot!r}, the model is for "
+                          f"{spec.name!r}: prepare(..., robot={spec.name!r})")  # fmt: skip
     lengths = np.diff(data.offsets)
     h = data.descriptors[data.valid]
     truth_v = data.truth[data.valid]
-    truth_motion, _, _ = _per_motion(data, truth_v)
+    truth_motion, _, _ = _per_motion(data, truth_v, robot=spec)
     seq_of_frame = np.repeat(np.arange(len(data.names)), lengths)[data.valid]
-    truth_points = metrics.arm_points(truth_v)  # one FK of the IK truth serves every method
+    truth_points = metrics.arm_points(truth_v, robot=spec)  # one FK of the truth serves all
     out: dict = {
         "landmarks": model.n_landmarks,
         "L": n_l,
@@ -427,7 +459,7 @@ def evaluate(
         "frames": int(len(data.valid)),
         "valid_frames": int(data.valid.sum()),
         "sequences": len(data.names),
-        "driven_joints": list(robot.DRIVEN_JOINTS),
+        "driven_joints": list(spec.driven_joints),
         "smoothing": None if smoothing is None else dataclasses.asdict(smoothing),
         "devices": [str(d) for d in (devices or jax.devices()[:1])],
         "summary": {},
@@ -451,18 +483,18 @@ def evaluate(
         out["wall_s"][method] = wall
         out["wall_s"][f"{method}_us_per_frame"] = 1e6 * wall / max(len(h), 1)
         m_max, m_avg = frame_errors(pred, truth_v)
-        scored_points = metrics.arm_points(pred)  # the scored motion's FK, used twice below
+        scored_points = metrics.arm_points(pred, robot=spec)  # the scored FK, used twice below
         out["unsmoothed"][method] = summarize_errors(
-            pred, truth_v, truth_points=truth_points, pred_points=scored_points
+            pred, truth_v, truth_points=truth_points, pred_points=scored_points, robot=spec
         )
-        motions, sm, _ = _per_motion(data, pred, gains)
+        motions, sm, _ = _per_motion(data, pred, gains, robot=spec)
         jerk_raw = mean_squared_jerk(motions, lengths)
         if smoothing is not None:
             flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
             m_max, m_avg = frame_errors(flat, truth_v)
-            scored_points = metrics.arm_points(flat)
+            scored_points = metrics.arm_points(flat, robot=spec)
             out["summary"][method] = summarize_errors(
-                flat, truth_v, truth_points=truth_points, pred_points=scored_points
+                flat, truth_v, truth_points=truth_points, pred_points=scored_points, robot=spec
             )
             out["smoothness"][method] = {
                 "jerk_raw": jerk_raw,
@@ -476,7 +508,7 @@ def evaluate(
         if feasibility is not None:
             out["feasibility"][method] = feasibility_block(
                 data, motions, truth_v, truth_points, feasibility,
-                times=motion_times, before_points=scored_points,
+                times=motion_times, before_points=scored_points, robot=spec,
             )  # fmt: skip
         for a in np.unique(data.actions):
             sel = data.actions[seq_of_frame] == a
@@ -494,7 +526,7 @@ def evaluate(
     if feasibility is not None:  # the IK truth itself, as a trajectory for the robot
         out["feasibility"]["ik"] = feasibility_block(
             data, truth_motion, truth_v, truth_points, feasibility,
-            times=motion_times, before_points=truth_points,
+            times=motion_times, before_points=truth_points, robot=spec,
         )  # fmt: skip
     out["_predictions"] = predictions  # (F, n) per method, dropped before writing JSON
     out["_truth"] = np.concatenate([truth_motion[s, :n] for s, n in enumerate(lengths)])

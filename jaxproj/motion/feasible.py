@@ -1,13 +1,14 @@
 """Robot-feasible trajectories: joint position limits, speed limits and an acceleration bound.
 
 A projected (or IK) motion follows the person frame by frame, and a Kinect skeleton can move a
-joint target by a large angle in one frame (tracking noise, an ill-defined ElbowYaw, a lost
-frame filled by holding the last pose). A NAO cannot follow: its joints have speed limits
-(``robot.VELOCITY_LIMITS``, rad/s). ``make_feasible`` turns a motion into one the robot can play
+joint target by a large angle in one frame (tracking noise, an ill-defined elbow yaw, a lost
+frame filled by holding the last pose). A robot cannot follow: its joints have speed limits
+(``Robot.velocity_limits``, rad/s; every function here takes ``robot=``, default the NAO H25).
+``make_feasible`` turns a motion into one the robot can play
 while staying as close as it can to it:
 
-* positions within ``[robot.LOWER, robot.UPPER]`` on every frame (hard);
-* speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * VELOCITY_LIMITS`` per joint (hard);
+* positions within ``[robot.lower, robot.upper]`` on every frame (hard);
+* speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * velocity_limits`` per joint (hard);
 * acceleration ``|v_t - v_{t-1}| / ((dt_t + dt_{t-1}) / 2) <= accel`` (``v_t`` the speed of
   step ``t``), a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint).
   The NAO's documentation gives no acceleration limit; the bound is ours: full speed in ~0.1 s,
@@ -26,12 +27,13 @@ and averages the two: every constraint above is convex in the trajectory (bounds
 of ``q``), so the average of two feasible trajectories is feasible, and the lag of one pass
 cancels the lead of the other.
 
-ElbowYaw, handled explicitly on the target before the scan step (the ``(Elbow)Yaw`` of each arm):
+The elbow yaw, handled explicitly on the target before the scan step, for each ``(yaw, roll)`` pair
+of ``Robot.elbow_pairs`` (the NAO's two elbows; a robot without pairs gets no such rule):
 
-* nearly straight elbow (``|ElbowRoll| < straight_elbow[1]``): the yaw only turns the forearm
+* nearly straight elbow (``|elbow roll| < straight_elbow[1]``): the yaw only turns the forearm
   about its own axis, so it is ill-defined; the target yaw is blended towards the yaw the filter
-  already holds (weight ``smoothstep(|ElbowRoll|, *straight_elbow)``): the continuous branch.
-* wrap-around: where the person's forearm yaw is near +-180 deg, in the gap of ElbowYaw's range
+  already holds (weight ``smoothstep(|elbow roll|, *straight_elbow)``): the continuous branch.
+* wrap-around: where the person's forearm yaw is near +-180 deg, in the gap of elbow yaw's range
   (+-119.5 deg), the IK clips to one end or the other and noise flips between them (a 239 deg
   jump for no gain: both ends are about equally far from the true yaw). A target at one end
   (within ``wrap_band`` of the limit) while the filter holds the other end keeps the held end
@@ -45,7 +47,7 @@ by linear interpolation. Times on the grid (UTKinect: frame numbers) read back e
 values; between two read-back frames the speed is an average of the grid's speeds and the
 change of speed an average of its accelerations, so the limits hold at any timing.
 
-The filter works on the 26-joint configuration (``robot.JOINT_NAMES``); joints that do not move
+The filter works on the full configuration (``robot.joint_names``); joints that do not move
 are left exactly as they are. ``feasibility_report`` measures a motion against the limits
 (before and after, in ``jaxproj.eval.evaluate``, the demo and ``jaxproj retarget``).
 """
@@ -62,15 +64,18 @@ import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots import NAO_H25, Robot
 
 ACCEL_LIMIT = 80.0
 """rad/s^2: the acceleration bound of ``FeasibleConfig`` on every joint (ours; see module doc)."""
 
-_ARMS = tuple(
-    (robot.JOINT_NAMES.index(f"{s}ElbowYaw"), robot.JOINT_NAMES.index(f"{s}ElbowRoll"))
-    for s in ("L", "R")
-)
+Arms = tuple[tuple[int, int], ...]
+"""Per elbow, ``(yaw, roll)`` joint positions in the configuration (``_arms``; static)."""
+
+
+def _arms(robot: Robot) -> Arms:
+    """The configuration positions of ``robot.elbow_pairs``."""
+    return tuple((robot.index(yaw), robot.index(roll)) for yaw, roll in robot.elbow_pairs)
 
 
 @dataclass(frozen=True)
@@ -78,11 +83,11 @@ class FeasibleConfig:
     """Settings of ``make_feasible`` (validated when constructed; ``ConfigError`` otherwise).
 
     Attributes:
-      speed_fraction: fraction of ``robot.VELOCITY_LIMITS`` (no-load speeds) allowed, in (0, 1].
+      speed_fraction: fraction of ``Robot.velocity_limits`` (no-load speeds) allowed, in (0, 1].
       accel: acceleration bound, rad/s^2, every joint.
-      straight_elbow: ``(lo, hi)`` rad of ``|ElbowRoll|``: below ``lo`` the ElbowYaw target is
+      straight_elbow: ``(lo, hi)`` rad of ``|elbow roll|``: below ``lo`` the elbow yaw target is
         the held yaw, above ``hi`` it is the input's, smoothstep in between.
-      wrap_band: rad from an ElbowYaw limit within which a target counts as "at that end".
+      wrap_band: rad from an elbow yaw limit within which a target counts as "at that end".
       wrap_patience: seconds a target must stay at the opposite end before the filter follows
         it there (shorter visits keep the held end).
       zero_phase: average the forward pass with a backward (time-reversed) pass.
@@ -108,19 +113,27 @@ class FeasibleConfig:
         if not float(self.wrap_patience) >= 0.0:
             raise ConfigError(f"wrap_patience={self.wrap_patience} must be >= 0 s")
 
-    def params(self) -> jax.Array:
-        """``(5, 26)`` float32 rows: lower, upper, speed limit, accel, and (first 4 columns)
-        ``straight_elbow`` lo / hi, ``wrap_band``, ``wrap_patience``: the traced argument of
-        the filter."""
-        extra = np.zeros(len(robot.JOINT_NAMES), np.float32)
+    def params(self, robot: Robot = NAO_H25) -> jax.Array:
+        """``(5, n_joints)`` float32 rows of ``robot``: lower, upper, speed limit, accel, and
+        (first 4 columns) ``straight_elbow`` lo / hi, ``wrap_band``, ``wrap_patience``: the
+        traced argument of the filter.
+
+        Raises:
+          ConfigError: the robot has no velocity limits, or fewer than 4 joints.
+        """
+        vmax = robot.require_velocity_limits()
+        if robot.n_joints < 4:
+            raise ConfigError(f"the feasibility filter needs >= 4 joints, {robot.name} has "
+                              f"{robot.n_joints}")  # fmt: skip
+        extra = np.zeros(robot.n_joints, np.float32)
         extra[:4] = (*self.straight_elbow, self.wrap_band, self.wrap_patience)
         return jnp.asarray(
             np.stack(
                 [
-                    robot.LOWER,
-                    robot.UPPER,
-                    self.speed_fraction * robot.VELOCITY_LIMITS,
-                    np.full(len(robot.JOINT_NAMES), self.accel, np.float32),
+                    robot.lower,
+                    robot.upper,
+                    self.speed_fraction * vmax,
+                    np.full(robot.n_joints, self.accel, np.float32),
                     extra,
                 ]
             ),
@@ -149,13 +162,16 @@ def _stop_speed(dist: jax.Array, accel: jax.Array, dt: jax.Array) -> jax.Array:
 
 
 def _elbow_targets(
-    y: jax.Array, q: jax.Array, away: jax.Array, step: jax.Array, params: jax.Array
+    y: jax.Array, q: jax.Array, away: jax.Array, step: jax.Array, params: jax.Array, arms: Arms
 ) -> tuple[jax.Array, jax.Array]:
-    """The ElbowYaw rules of the module doc for the target ``y`` (26,) given the held ``q`` (26,)
-    and ``away`` (2,): seconds each arm's target has spent at the far end of the yaw range."""
+    """The elbow yaw rules of the module doc for the target ``y`` (n_joints,) given the held
+    ``q`` (n_joints,) and ``away`` (len(arms),): seconds each arm's target has spent at the far
+    end of the yaw range."""
+    if not arms:
+        return y, away
     lo_s, hi_s, band, patience = params[4, 0], params[4, 1], params[4, 2], params[4, 3]
     new_away = []
-    for arm, (yaw_i, roll_i) in enumerate(_ARMS):
+    for arm, (yaw_i, roll_i) in enumerate(arms):
         lim_lo, lim_hi = params[0, yaw_i], params[1, yaw_i]
         target, held = y[yaw_i], q[yaw_i]
         hi_t, lo_t = target > lim_hi - band, target < lim_lo + band
@@ -169,15 +185,16 @@ def _elbow_targets(
     return y, jnp.stack(new_away)
 
 
-def _forward(y: jax.Array, dt: jax.Array, params: jax.Array) -> jax.Array:
-    """One forward pass of the filter over a ``(T, 26)`` motion with steps ``dt`` ``(T,)``."""
+def _forward(y: jax.Array, dt: jax.Array, params: jax.Array, arms: Arms) -> jax.Array:
+    """One forward pass of the filter over a ``(T, n_joints)`` motion with steps ``dt`` ``(T,)``
+    and the elbow pairs ``arms``."""
     lo, hi, vmax, amax = params[0], params[1], params[2], params[3]
     q0 = jnp.clip(y[0], lo, hi)
 
     def body(carry, inp):
         q, v, dt_prev, away = carry
         target, step = inp
-        target, away = _elbow_targets(target, q, away, step, params)
+        target, away = _elbow_targets(target, q, away, step, params, arms)
         target = jnp.clip(target, lo, hi)
         err = target - q
         # the speed that reaches the target this step, capped so that the joint can still stop
@@ -191,48 +208,56 @@ def _forward(y: jax.Array, dt: jax.Array, params: jax.Array) -> jax.Array:
         v_new = (q_new - q) / step
         return (q_new, v_new, step, away), q_new
 
-    init = (q0, jnp.zeros_like(q0), dt[1], jnp.zeros(2, q0.dtype))
+    init = (q0, jnp.zeros_like(q0), dt[1], jnp.zeros(len(arms), q0.dtype))
     _, rest = jax.lax.scan(body, init, (y[1:], dt[1:]))
     return jnp.concatenate([q0[None], rest], axis=0)
 
 
 def feasible_motion(
-    y: jax.Array, dt: jax.Array, length: jax.Array, params: jax.Array, *, zero_phase: bool
+    y: jax.Array,
+    dt: jax.Array,
+    length: jax.Array,
+    params: jax.Array,
+    *,
+    zero_phase: bool,
+    robot: Robot = NAO_H25,
 ) -> jax.Array:
     """The traceable core of ``make_feasible`` for one padded motion (call it inside a jit).
 
     Args:
-      y: ``(T, 26)`` target motion, padded to ``T`` frames.
+      y: ``(T, n_joints)`` target motion, padded to ``T`` frames.
       dt: ``(T,)`` seconds from the previous frame (entry 0 unused); padding entries any
         positive value.
       length: ``()`` int, the true length (>= 1); frames past it are returned as the input.
-      params: ``FeasibleConfig.params()``.
+      params: ``FeasibleConfig.params(robot)``.
       zero_phase: run the backward pass too and average.
+      robot: the robot (its elbow pairs; static).
 
     Returns:
-      ``(T, 26)`` the feasible motion (frames past ``length``: the input).
+      ``(T, n_joints)`` the feasible motion (frames past ``length``: the input).
     """
+    arms = _arms(robot)
     t = jnp.arange(y.shape[0])
     live = t < length
     last = jnp.maximum(length - 1, 0)
     hold = jnp.minimum(t, last)
     dt = jnp.where(live & (t > 0), dt, dt[jnp.minimum(1, last)])
     dt = jnp.where(dt > 0, dt, 1.0)
-    out = _forward(y[hold], dt, params)
+    out = _forward(y[hold], dt, params, arms)
     if zero_phase:
         rev = jnp.where(live, last - t, 0)  # frame s of the reversed motion is frame last - s
         dt_rev = jnp.where(live & (t > 0), dt[jnp.minimum(last - t + 1, last)], dt[1])
-        back = _forward(y[rev], dt_rev, params)[rev]
+        back = _forward(y[rev], dt_rev, params, arms)[rev]
         out = 0.5 * (out + back)
     return jnp.where(live[:, None], out, y)
 
 
-def _feasible_batch(y, dt, lengths, params, *, zero_phase):
-    one = functools.partial(feasible_motion, zero_phase=zero_phase)
+def _feasible_batch(y, dt, lengths, params, *, zero_phase, robot):
+    one = functools.partial(feasible_motion, zero_phase=zero_phase, robot=robot)
     return jax.vmap(one, in_axes=(0, 0, 0, None))(y, dt, lengths, params)
 
 
-_feasible_batch = jit(_feasible_batch, static_argnames=("zero_phase",))
+_feasible_batch = jit(_feasible_batch, static_argnames=("zero_phase", "robot"))
 
 
 def _steps(times: np.ndarray) -> np.ndarray:
@@ -260,20 +285,24 @@ def make_feasible(
     times: np.ndarray,
     lengths: np.ndarray | None = None,
     config: FeasibleConfig = DEFAULT_FEASIBLE,
+    robot: Robot = NAO_H25,
 ) -> np.ndarray:
     """Make motions robot-feasible (see the module doc); one compiled call for a batch.
 
     Args:
-      angles: ``(T, 26)`` or ``(B, T, 26)`` float radians, ``robot.JOINT_NAMES`` order, finite.
+      angles: ``(T, n_joints)`` or ``(B, T, n_joints)`` float radians, ``robot.joint_names``
+        order, finite.
       times: ``(T,)`` or ``(B, T)`` seconds, strictly increasing over each motion's length.
       lengths: ``(B,)`` true lengths of a padded batch (``None``: all ``T``).
       config: the limits and options.
+      robot: the robot (limits, speed limits, elbow pairs).
 
     Returns:
       float32 array of ``angles``' shape (entries past a motion's length: the input).
 
     Raises:
-      ConfigError: shapes that do not match, non-finite values, times not increasing.
+      ConfigError: shapes that do not match, non-finite values, times not increasing, a robot
+        without velocity limits.
     """
     q = np.asarray(angles, np.float32)
     one = q.ndim == 2
@@ -281,8 +310,9 @@ def make_feasible(
         q = q[None]
     t = np.asarray(times, np.float64)
     t = t[None] if t.ndim == 1 else t
-    if q.ndim != 3 or q.shape[-1] != len(robot.JOINT_NAMES) or q.shape[1] < 1:
-        raise ConfigError(f"angles must be (T, 26) or (B, T, 26), got {np.shape(angles)}")
+    nj = robot.n_joints
+    if q.ndim != 3 or q.shape[-1] != nj or q.shape[1] < 1:
+        raise ConfigError(f"angles must be (T, {nj}) or (B, T, {nj}), got {np.shape(angles)}")
     if t.shape != q.shape[:2]:
         raise ConfigError(f"times {np.shape(times)} do not match angles {np.shape(angles)}")
     n = np.full(q.shape[0], q.shape[1]) if lengths is None else np.asarray(lengths, np.int64)
@@ -307,8 +337,8 @@ def make_feasible(
         steps[b] = step
     grid_out = np.asarray(
         _feasible_batch(
-            targets, steps, np.array([g for _, g in grids], np.int32), config.params(),
-            zero_phase=config.zero_phase,
+            targets, steps, np.array([g for _, g in grids], np.int32), config.params(robot),
+            zero_phase=config.zero_phase, robot=robot,
         )  # fmt: skip
     )
     out = q.copy()
@@ -325,29 +355,33 @@ def make_feasible(
 
 
 def feasibility_report(
-    angles: np.ndarray, times: np.ndarray, config: FeasibleConfig = DEFAULT_FEASIBLE
+    angles: np.ndarray,
+    times: np.ndarray,
+    config: FeasibleConfig = DEFAULT_FEASIBLE,
+    robot: Robot = NAO_H25,
 ) -> dict:
-    """How one motion stands against the NAO's limits (JSON-ready numbers).
+    """How one motion stands against a robot's limits (JSON-ready numbers).
 
     Args:
-      angles: ``(T, 26)`` radians; times: ``(T,)`` seconds.
+      angles: ``(T, n_joints)`` radians; times: ``(T,)`` seconds.
       config: the acceleration bound and speed fraction the motion is judged against (the speed
-        figures use the full no-load ``VELOCITY_LIMITS``).
+        figures use the full no-load ``robot.velocity_limits``).
+      robot: the robot (default the NAO H25).
 
     Returns:
       dict: ``frames``; ``speed_violation_frames`` (frames whose step from the previous frame
-      exceeds ``VELOCITY_LIMITS`` on some joint); ``max_speed_ratio`` and ``worst_joint``
+      exceeds ``velocity_limits`` on some joint); ``max_speed_ratio`` and ``worst_joint``
       (largest speed / limit); ``max_step_deg`` and ``max_step_joint`` (largest frame-to-frame
       change); ``steps_over_30deg``; ``accel_violation_frames`` (acceleration above
       ``config.accel`` by more than 1 %); ``max_accel`` (rad/s^2); ``limit_violation_frames``
-      (a joint outside ``[LOWER, UPPER]`` by more than 1e-6 rad).
+      (a joint outside ``[lower, upper]`` by more than 1e-6 rad).
     """
     q = np.asarray(angles, np.float64)
     t = np.asarray(times, np.float64)
-    step = np.diff(q, axis=0)  # (T-1, 26)
+    step = np.diff(q, axis=0)  # (T-1, n_joints)
     dt = np.diff(t)[:, None]
     speed = np.abs(step) / dt
-    ratio = speed / robot.VELOCITY_LIMITS
+    ratio = speed / robot.require_velocity_limits()
     out: dict = {"frames": int(len(q))}
     if len(step):
         wj = int(np.argmax(ratio.max(axis=0)))
@@ -355,9 +389,9 @@ def feasibility_report(
         out.update(
             speed_violation_frames=int((ratio > 1.0 + 1e-6).any(axis=1).sum()),
             max_speed_ratio=float(ratio.max()),
-            worst_joint=robot.JOINT_NAMES[wj],
+            worst_joint=robot.joint_names[wj],
             max_step_deg=float(np.degrees(np.abs(step).max())),
-            max_step_joint=robot.JOINT_NAMES[sj],
+            max_step_joint=robot.joint_names[sj],
             steps_over_30deg=int((np.abs(step) > math.radians(30.0)).any(axis=1).sum()),
         )
     else:
@@ -370,6 +404,6 @@ def feasibility_report(
         out["max_accel"] = float(acc.max())
     else:
         out["accel_violation_frames"], out["max_accel"] = 0, 0.0
-    outside = np.maximum(robot.LOWER - q, q - robot.UPPER)
+    outside = np.maximum(robot.lower - q, q - robot.upper)
     out["limit_violation_frames"] = int((outside > 1e-6).any(axis=1).sum())
     return out

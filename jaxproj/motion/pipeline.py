@@ -1,4 +1,4 @@
-"""The one motion pipeline: skeleton positions -> playable NAO joint angles.
+"""The one motion pipeline: skeleton positions -> playable robot joint angles.
 
 Stages, each a small pure (traceable) function written for ONE motion (``(T, 20, 3)``
 positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
@@ -7,15 +7,17 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     map_frames          (T, m) -> (T, n) driven angles: analytic IK or a projector
     fill_invalid        invalid frames hold the last valid frame, leading ones back-fill
     smooth              the double exponential smoother (``smoothing.smooth_motion``)
-    clip_to_limits      (T, n) -> within ``robot.LOWER`` / ``robot.UPPER``
-    stand_if_lost       a motion with no valid frame -> ``robot.STANDING_POSTURE``
-    feasible            ``feasible.make_feasible`` on the 26-joint motion (host side: it
+    clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``)
+    stand_if_lost       a motion with no valid frame -> the robot's standing posture
+    feasible            ``feasible.make_feasible`` on the full configuration (host side: it
                         resamples irregular times on a grid before its own jitted filter)
 
 ``finish`` composes fill -> smooth -> clip -> stand for one motion, ``motion`` composes the whole
-pipeline for one motion (descriptor -> map -> finish -> 26 joints), ``frame`` is one frame of
-the same stages with the smoother's ``step`` (causal). No function here is jitted: the callers
-jit at their entry points and add the batch axis (``jax.vmap``) where they call it.
+pipeline for one motion (descriptor -> map -> finish -> all ``n_joints``), ``frame`` is one
+frame of the same stages with the smoother's ``step`` (causal). No function here is jitted: the
+callers jit at their entry points and add the batch axis (``jax.vmap``) where they call it.
+Every stage that needs the robot (limits, posture, IK) takes ``robot`` (a ``Robot``, a static
+argument of the callers' jits; default the NAO H25), so ``n`` is its ``n_driven``.
 
 The callers, and the options that keep each one's answers as they were measured:
 
@@ -55,7 +57,7 @@ from jaxproj.motion.smoothing import smooth_motion
 from jaxproj.motion.smoothing import step as smoothing_step
 from jaxproj.projection.api import project_batch
 from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
-from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.robots import NAO_H25, Robot
 
 Standing = Literal["first", "last"]
 """When ``finish`` puts a motion with no valid frame at the standing posture: ``"first"``
@@ -97,15 +99,16 @@ def map_frames(
     n_m: int,
     full: FullConfig,
     bones: str | tuple[str, ...],
+    robot: Robot = NAO_H25,
 ) -> jax.Array:
     """Per-frame mapping: ``(T, m)`` descriptors -> ``(T, n)`` driven angles (rad).
 
-    ``method="ik"``: the analytic IK (``p`` unused; ``bones`` picks its bones); ``"relaxed"`` /
-    ``"full"``: ``projection.api.project_batch`` of ``p`` with ``L = n_l``, ``M = n_m``.
-    Both answer within the joint limits.
+    ``method="ik"``: the robot's analytic IK (``Robot.solve_ik_traced``; ``p`` unused;
+    ``bones`` picks its bones); ``"relaxed"`` / ``"full"``: ``projection.api.project_batch`` of
+    ``p`` with ``L = n_l``, ``M = n_m``. Both answer within the joint limits.
     """
     if method == "ik":
-        return ik.driven_angles(d, ik.bone_index(bones))
+        return robot.solve_ik_traced(d, bones)
     if p is None:
         raise ConfigError(f"method {method!r} needs a projector")
     q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
@@ -132,17 +135,17 @@ def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
     return jnp.where(jnp.isfinite(out), out, 0.0)
 
 
-def clip_to_limits(q: jax.Array) -> jax.Array:
-    """``(..., n)`` driven angles clipped to ``robot.LOWER`` / ``robot.UPPER`` (float32 limits)."""
-    lo = jnp.broadcast_to(robot.LOWER[robot.DRIVEN_INDEX], q.shape)
-    hi = jnp.broadcast_to(robot.UPPER[robot.DRIVEN_INDEX], q.shape)
+def clip_to_limits(q: jax.Array, robot: Robot = NAO_H25) -> jax.Array:
+    """``(..., n_driven)`` driven angles clipped to ``robot``'s limits (float32 limits)."""
+    lo = jnp.broadcast_to(robot.lower_driven, q.shape)
+    hi = jnp.broadcast_to(robot.upper_driven, q.shape)
     return jnp.clip(q, lo, hi)
 
 
-def stand_if_lost(q: jax.Array, valid: jax.Array) -> jax.Array:
-    """``(T, n)`` -> the standing posture's driven joints on every frame if no frame of
+def stand_if_lost(q: jax.Array, valid: jax.Array, robot: Robot = NAO_H25) -> jax.Array:
+    """``(T, n_driven)`` -> the standing posture's driven joints on every frame if no frame of
     ``valid`` ``(T,)`` is true, else ``q`` unchanged."""
-    return jnp.where(jnp.any(valid), q, jnp.asarray(standing_driven(), q.dtype))
+    return jnp.where(jnp.any(valid), q, jnp.asarray(standing_driven(robot), q.dtype))
 
 
 def finish(
@@ -152,6 +155,7 @@ def finish(
     gains: jax.Array | None,
     *,
     standing: Standing,
+    robot: Robot = NAO_H25,
 ) -> tuple[jax.Array, jax.Array]:
     """The stages after the mapping for one motion: fill -> smooth -> clip, and the standing
     posture for a motion with no valid frame (``standing``: before or after the smoother).
@@ -163,6 +167,7 @@ def finish(
       gains: ``(3,)`` or ``(T, 3)`` smoother gains (``smoothing.frame_gains``); ``None``: no
         smoothing and no clip.
       standing: ``"first"`` (evaluate) or ``"last"`` (retarget); see the module doc.
+      robot: the robot (its limits and standing posture).
 
     Returns:
       ``(filled, out)``, each ``(T, n)``: the filled motion (standing posture included with
@@ -170,13 +175,13 @@ def finish(
     """
     q = fill_invalid(q, valid)
     if standing == "first":
-        q = stand_if_lost(q, valid)
+        q = stand_if_lost(q, valid, robot)
     filled = q
     if gains is not None:
         q = smooth_motion(q, length, gains)
-        q = clip_to_limits(q)
+        q = clip_to_limits(q, robot)
     if standing == "last":
-        q = stand_if_lost(q, valid)
+        q = stand_if_lost(q, valid, robot)
     return filled, q
 
 
@@ -194,6 +199,7 @@ def motion(
     bones: str | tuple[str, ...],
     mirror: bool,
     smooth: bool,
+    robot: Robot = NAO_H25,
 ) -> tuple[jax.Array, jax.Array]:
     """The whole pipeline for one padded motion (``retarget``'s compiled call).
 
@@ -206,15 +212,16 @@ def motion(
       method, n_l, n_m, full, bones: ``map_frames``.
       mirror: descriptor option.
       smooth: run the smoother (and the clip).
+      robot: the robot (its IK, limits, posture and joints).
 
     Returns:
-      ``((T, 26) angles, (T,) valid)``: ``robot.JOINT_NAMES`` order, the rest of the body at
-      the standing posture; validity after the descriptor's own check.
+      ``((T, n_joints) angles, (T,) valid)``: ``robot.joint_names`` order, the rest of the body
+      at the standing posture; validity after the descriptor's own check.
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
-    q = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones)
-    _, q = finish(q, ok, length, gains if smooth else None, standing="last")
-    return ik.driven_to_full(q), ok
+    q = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones, robot=robot)
+    _, q = finish(q, ok, length, gains if smooth else None, standing="last", robot=robot)
+    return robot.driven_to_full(q), ok
 
 
 def frame(
@@ -229,6 +236,7 @@ def frame(
     n_m: int,
     bones: str | tuple[str, ...],
     mirror: bool,
+    robot: Robot = NAO_H25,
 ) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
     """One frame of the pipeline, causal (``streaming.update``'s compiled call).
 
@@ -244,6 +252,7 @@ def frame(
       gains: ``(3,)`` smoother gains.
       n_l, n_m: ``L`` and ``M`` of the relaxed projection.
       bones, mirror: descriptor options.
+      robot: the robot (its joint limits).
 
     Returns:
       ``(angles, (level, trend, started))``: ``(n,)`` clipped driven angles and the next state.
@@ -259,10 +268,10 @@ def frame(
     new_level = jnp.where(ok, s_t, level)
     new_trend = jnp.where(ok, b_t, trend)
     new_started = started | ok
-    return clip_to_limits(new_level), (new_level, new_trend, new_started)
+    return clip_to_limits(new_level, robot), (new_level, new_trend, new_started)
 
 
-def standing_driven() -> np.ndarray:
-    """``(n,)`` float32: the standing posture's driven joints (the output before any valid
-    frame, and of a motion without one)."""
-    return robot.STANDING_POSTURE[robot.DRIVEN_INDEX].astype(np.float32)
+def standing_driven(robot: Robot = NAO_H25) -> np.ndarray:
+    """``(n_driven,)`` float32: the standing posture's driven joints (the output before any
+    valid frame, and of a motion without one)."""
+    return robot.standing_driven.astype(np.float32)

@@ -1,18 +1,20 @@
-"""Whole-motion retargeting: skeleton positions -> NAO joint trajectories, in one jitted call.
+"""Whole-motion retargeting: skeleton positions -> robot joint trajectories, in one jitted call.
 
 ``retarget`` takes a recording's ``(T, 20, 3)`` joint positions and a mapping — the analytic IK
 (``model=None``) or a projector ``Model`` with its objective — and runs, inside ONE compiled
 function (``jaxproj.motion.pipeline.motion``, the one pipeline): descriptor -> per-frame mapping
--> fill invalid frames -> smoothing -> clip to the joint limits -> the full 26-joint
-configuration. A recording's length is padded to a bucket (``_bucket``) so recordings of similar
-length share one compilation. Options are checked here, in Python, before tracing.
+-> fill invalid frames -> smoothing -> clip to the joint limits -> the robot's full
+``(T, n_joints)`` configuration. The robot is the model's (``Model.robot``) or, for the IK,
+``robot=`` (default the NAO H25). A recording's length is padded to a bucket (``_bucket``) so
+recordings of similar length share one compilation. Options are checked here, in Python,
+before tracing.
 
 Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
 documented rule, so a motion never dies halfway and never contains NaN:
 
 * an invalid frame holds the last valid frame's angles;
 * leading invalid frames take the first valid frame's angles;
-* a motion with no valid frame at all takes ``robot.STANDING_POSTURE`` throughout.
+* a motion with no valid frame at all takes the robot's standing posture throughout.
 
 Smoothing (``jaxproj.motion.smoothing``) then runs over the driven joints of the filled motion, with
 gains for each frame's own time step, and the result is clipped to the joint limits (the
@@ -40,7 +42,7 @@ from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (it
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
 from jaxproj.projection.api import Model, check_neighbours
 from jaxproj.projection.objectives import FullConfig
-from jaxproj.robots.nao_h25 import ik
+from jaxproj.robots import Robot, get
 
 Method = Literal["ik", "relaxed", "full"]
 METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
@@ -51,10 +53,10 @@ class RetargetResult:
     """A retargeted motion.
 
     Attributes:
-      angles: ``(T, 26)`` float32 radians in ``robot.JOINT_NAMES`` order.
+      angles: ``(T, n_joints)`` float32 radians in the robot's ``joint_names`` order.
       valid: ``(T,)`` bool, false where the input frame was invalid (its angles were filled).
       times: ``(T,)`` float64 seconds of the frames (as given, or ``t / smoothing.rate``).
-      unfiltered: ``(T, 26)`` float32 angles before the feasibility filter when ``retarget``
+      unfiltered: ``(T, n_joints)`` float32 angles before the feasibility filter when ``retarget``
         ran it (``feasible=``), else ``None`` (``angles`` are then the unfiltered ones).
     """
 
@@ -71,7 +73,7 @@ def _bucket(t: int) -> int:
 
 _motion_jit = jit(
     pipeline.motion,
-    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth"),
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth", "robot"),
 )
 
 
@@ -89,6 +91,7 @@ def retarget(
     smoothing: SmoothingParams | None = PAPER_SMOOTHING,
     times: np.ndarray | None = None,
     feasible: FeasibleConfig | None = None,
+    robot: Robot | str | None = None,
 ) -> RetargetResult:
     """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
     then, with ``feasible``, ``feasible.make_feasible``).
@@ -105,12 +108,15 @@ def retarget(
       times: ``(T,)`` seconds of the frames, strictly increasing (``Recording.times``);
         ``None``: frames ``1 / smoothing.rate`` apart (15 fps with the paper's gains).
       feasible: make the output robot-feasible (``jaxproj.motion.feasible``), or ``None`` (default).
+      robot: the robot (a ``Robot`` or a registered name) of the IK method; ``None``: the
+        model's robot (``Model.robot``), else the default robot (the NAO H25).
 
     Returns:
-      ``RetargetResult`` with ``(T, 26)`` angles, ``(T,)`` validity and ``(T,)`` times.
+      ``RetargetResult`` with ``(T, n_joints)`` angles, ``(T,)`` validity and ``(T,)`` times.
 
     Raises:
-      ConfigError: bad shapes, a learned method without a model, bad ``L`` / ``M``, times not
+      ConfigError: bad shapes, a learned method without a model, a ``robot`` other than the
+        model's, an unknown robot, bad ``L`` / ``M``, times not
         increasing by at least ``readers.MIN_STEP_S`` per frame or spanning more than
         ``readers.MAX_DURATION_S``.
     """
@@ -124,6 +130,12 @@ def retarget(
     method = method or ("ik" if model is None else "relaxed")
     if method not in METHODS:
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
+    spec = get(robot)
+    if model is not None:
+        if robot is not None and spec is not model.robot:
+            raise ConfigError(f"robot {spec.name!r} differs from the model's robot "
+                              f"{model.robot.name!r}: leave robot=None with a model")  # fmt: skip
+        spec = model.robot
     p = None
     if method != "ik":
         if model is None:
@@ -132,7 +144,7 @@ def retarget(
         p = model.projector
         bones, mirror = model.config.bones, model.config.mirror
     else:
-        ik.bone_index(bones)  # ConfigError for a subset the IK cannot use
+        spec.check_bones(bones)  # ConfigError for a subset the IK cannot use
     params = smoothing or PAPER_SMOOTHING
     if times is None:
         stamps = np.arange(t, dtype=np.float64) / params.rate
@@ -168,10 +180,11 @@ def retarget(
         bones=bones,
         mirror=mirror,
         smooth=smoothing is not None,
+        robot=spec,
     )
     angles = np.asarray(angles)[:t]
     unfiltered = None
     if feasible is not None:
         unfiltered = angles
-        angles = make_feasible(angles, stamps, config=feasible)
+        angles = make_feasible(angles, stamps, config=feasible, robot=spec)
     return RetargetResult(angles, np.asarray(ok_out)[:t], stamps, unfiltered)

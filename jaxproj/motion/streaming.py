@@ -13,13 +13,14 @@ Usage::
 
     state = streaming.init(model)
     for positions in sensor:                      # (20, 3) metres, Kinect SDK joint order
-        angles, state = streaming.update(model, state, positions)   # (10,) rad, DRIVEN_JOINTS
+        angles, state = streaming.update(model, state, positions)   # (n_driven,) rad
 
 ``update`` is pure: the state (``StreamState``) holds everything carried between frames. A frame
 whose descriptor is invalid (lost tracking, a degenerate bone or body frame, non-finite values)
 leaves the state untouched and repeats the previous output. The first valid frame starts the
 smoother (``s = y``, zero trend), exactly as ``smoothing.smooth`` starts a motion; before it the
-output is the standing posture's driven joints (``robot.STANDING_POSTURE[robot.DRIVEN_INDEX]``).
+output is the standing posture's driven joints (``Robot.standing_driven`` of the model's robot,
+``Model.robot``; a bare projector streams for ``robot=``, default the NAO H25).
 The output is never NaN. On a recording whose frames are all valid, streaming it frame by frame
 gives ``clip(smooth(project(descriptors)))`` of the whole recording (``tests/test_streaming.py``
 states the tolerance).
@@ -44,7 +45,7 @@ from jaxproj.motion.pipeline import AnyProjector
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
 from jaxproj.projection.api import Model, check_neighbours
 from jaxproj.projection.objectives import Projector, StackedProjector
-from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots import Robot, get
 
 
 class StreamState(NamedTuple):
@@ -69,6 +70,17 @@ def _widths(p: AnyProjector) -> tuple[int, int]:
     return p.human.shape[1], p.robot.shape[1]
 
 
+def _robot(model: Model | AnyProjector, robot: Robot | str | None) -> Robot:
+    """The robot streamed for: a model's own (``robot`` must agree), else ``robot`` (default)."""
+    spec = get(robot)
+    if isinstance(model, Model):
+        if robot is not None and spec is not model.robot:
+            raise ConfigError(f"robot {spec.name!r} differs from the model's robot "
+                              f"{model.robot.name!r}: leave robot=None with a model")  # fmt: skip
+        return model.robot
+    return spec
+
+
 def _projector(model: Model | AnyProjector) -> tuple[AnyProjector, str | tuple[str, ...], bool]:
     """The projector and the descriptor options it was built for (a bare ``Projector``: the
     default upper-body bones, direct imitation)."""
@@ -84,22 +96,25 @@ def _projector(model: Model | AnyProjector) -> tuple[AnyProjector, str | tuple[s
     raise ConfigError(f"model must be an engine.Model or a projection.Projector, got {type(model)}")
 
 
-def init(model: Model | AnyProjector) -> StreamState:
+def init(model: Model | AnyProjector, *, robot: Robot | str | None = None) -> StreamState:
     """The state before any frame: nothing seen, output at the standing posture.
 
     Args:
       model: an ``engine.Model`` or a bare ``projection.Projector``.
+      robot: for a bare projector, its robot (``None``: the default robot); a model streams
+        for its own robot (``Model.robot``).
 
     Returns:
       ``StreamState`` with ``(n,)`` level (the standing posture's driven joints), ``(n,)``
       zero trend and ``started = False``.
     """
     p, _, _ = _projector(model)
+    spec = _robot(model, robot)
     _, n = _widths(p)
-    if n != len(robot.DRIVEN_JOINTS):
-        raise ConfigError(f"model drives {n} joints, streaming expects {len(robot.DRIVEN_JOINTS)}")
+    if n != spec.n_driven:
+        raise ConfigError(f"model drives {n} joints, {spec.name} has {spec.n_driven} driven joints")
     return StreamState(
-        level=jnp.asarray(pipeline.standing_driven()),
+        level=jnp.asarray(pipeline.standing_driven(spec)),
         trend=jnp.zeros((n,), jnp.float32),
         started=jnp.zeros((), jnp.bool_),
     )
@@ -115,15 +130,16 @@ def _update(
     n_m: int,
     bones: str | tuple[str, ...],
     mirror: bool,
+    robot: Robot,
 ) -> tuple[jax.Array, StreamState]:
     angles, (level, trend, started) = pipeline.frame(
         p, state.level, state.trend, state.started, positions, gains,
-        n_l=n_l, n_m=n_m, bones=bones, mirror=mirror,
+        n_l=n_l, n_m=n_m, bones=bones, mirror=mirror, robot=robot,
     )  # fmt: skip
     return angles, StreamState(level, trend, started)
 
 
-_update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror"))
+_update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror", "robot"))
 
 
 def update(
@@ -134,6 +150,7 @@ def update(
     n_l: int = 10,
     n_m: int = 10,
     smoothing: SmoothingParams = PAPER_SMOOTHING,
+    robot: Robot | str | None = None,
 ) -> tuple[jax.Array, StreamState]:
     """One frame: joint positions -> smoothed driven-joint angles, and the next state.
 
@@ -148,12 +165,14 @@ def update(
       n_l, n_m: ``L`` human and ``M`` robot neighbours of the relaxed projection (static:
         each new pair compiles once).
       smoothing: smoother gains (traced: new gains do not recompile).
+      robot: as in ``init``.
 
     Returns:
-      ``(angles, state)``: ``(n,)`` float32 driven-joint angles (rad, ``robot.DRIVEN_JOINTS``
-      order, within the joint limits, never NaN) and the next ``StreamState``.
+      ``(angles, state)``: ``(n,)`` float32 driven-joint angles (rad, the robot's
+      ``driven_joints`` order, within its joint limits, never NaN) and the next ``StreamState``.
     """
     p, bones, mirror = _projector(model)
+    spec = _robot(model, robot)
     if isinstance(n_l, bool) or isinstance(n_m, bool):
         raise ConfigError("n_l and n_m must be integers")
     if not isinstance(n_l, int | np.integer) or not isinstance(n_m, int | np.integer):
@@ -182,5 +201,6 @@ def update(
         raise ConfigError(f"positions must be one frame ({N_JOINTS}, 3), got {positions.shape}")
     gains = np.asarray((smoothing.alpha, smoothing.gamma, smoothing.eta), np.float32)
     return _update_jit(
-        p, state, positions, gains, n_l=int(n_l), n_m=int(n_m), bones=bones, mirror=mirror
-    )
+        p, state, positions, gains, n_l=int(n_l), n_m=int(n_m), bones=bones, mirror=mirror,
+        robot=spec,
+    )  # fmt: skip

@@ -1,15 +1,15 @@
 """Building a model: training descriptors -> landmarks -> kernel banks -> a ``Model``.
 
 ``build`` turns training descriptors into a ``Model``: per chain, mean-shift landmarks of the
-human descriptors (``jaxproj.projection.landmarks``), their robot poses by the analytic IK
-(``jaxproj.robots.nao_h25.ik``), and the forward / backward ELM kernel banks
+human descriptors (``jaxproj.projection.landmarks``), their robot poses by the robot's IK
+(``BuildConfig.robot``: a ``jaxproj.robots.Robot``), and the forward / backward ELM kernel banks
 (``jaxproj.projection.elm``), then the chains stacked (``jaxproj.projection.stacked``).
 ``from_landmarks`` / ``build_from_landmarks`` skip the mean shift; ``check_training_data``
 refuses, before any work, a configuration the data cannot serve. ``Model`` lives here, as what
 ``build`` returns; ``model_file`` writes and reads it, ``api.project`` projects with it.
 
 Shapes: human descriptors ``(N, m)`` (``m = 15`` for the default upper-body bones), robot poses
-``(N, n)`` over ``robot.DRIVEN_JOINTS`` (``n = 10``), radians.
+``(N, n)`` over the robot's ``driven_joints`` (``n = n_driven``), radians.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from jaxproj.projection.config import BuildConfig, ChainConfig
 from jaxproj.projection.elm import train_bank
 from jaxproj.projection.projector import Projector, StackedProjector, make_projector
 from jaxproj.projection.stacked import layout_of, stack_projectors
-from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.robots import Robot
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,11 @@ class Model:
     bandwidth: tuple[float, ...]
     counts: tuple[np.ndarray, ...]
     n_train: int
+
+    @property
+    def robot(self) -> Robot:
+        """The robot the model was built for (``config.robot``, from the registry)."""
+        return self.config.robot_spec
 
     @property
     def n_landmarks(self) -> int:
@@ -74,7 +79,7 @@ def build_from_landmarks(
     Each kernel trains on ``min(config.k, K)`` neighbours (see ``BuildConfig.k``); a
     ``BuildConfig`` gives its first chain's kernel settings (``chain_config(0)``). ``key``
     defaults to ``PRNGKey(config.seed)``; ``lower`` / ``upper`` ``(n,)`` are the limits of the
-    joints the robot landmarks hold (default: all of ``robot.DRIVEN_JOINTS``).
+    joints the robot landmarks hold (default: the default robot's driven joints).
     """
     if isinstance(config, BuildConfig):
         config = config.chain_config(0)
@@ -108,7 +113,8 @@ def build(
     d = np.asarray(descriptors, np.float32)
     if d.ndim != 2 or len(d) < 2 or not np.isfinite(d).all():
         raise ConfigError(f"descriptors must be finite (N >= 2, m), got shape {d.shape}")
-    chains = ik.chain_set(config.chains)
+    spec = config.robot_spec
+    chains = spec.chain_set(config.chains)
     whole = len(chains) == 1
     check_training_data(d, config)
     base_key = jax.random.PRNGKey(config.seed)
@@ -121,11 +127,12 @@ def build(
             bandwidth=cc.bandwidth,
             bones=config.bones,
             chain=None if whole else chain,
+            robot=spec,
             **mean_shift,
         )
-        joints = list(ik.chain_joints(chain))
-        lo = robot.LOWER[robot.DRIVEN_INDEX][joints]
-        hi = robot.UPPER[robot.DRIVEN_INDEX][joints]
+        joints = list(spec.chain_joints(chain))
+        lo = spec.lower_driven[joints]
+        hi = spec.upper_driven[joints]
         key = base_key if c == 0 else jax.random.fold_in(base_key, c)
         projectors.append(build_from_landmarks(lm.human, lm.robot, cc, key=key, lower=lo, upper=hi))
         bandwidths.append(float(lm.bandwidth))
@@ -143,12 +150,13 @@ def check_training_data(d: np.ndarray, config: BuildConfig) -> None:
         raise ConfigError(
             f"descriptors have {d.shape[1]} columns, but bones={config.bones!r} gives {m}"
         )
-    chains = ik.chain_set(config.chains)
+    spec = config.robot_spec
+    chains = spec.chain_set(config.chains)
     for c, chain in enumerate(chains):
         target = config.chain_config(c).landmarks
         if target is None:
             continue
-        cols = slice(None) if len(chains) == 1 else list(ik.chain_columns(chain, config.bones))
+        cols = slice(None) if len(chains) == 1 else list(spec.chain_columns(chain, config.bones))
         distinct = len(np.unique(d[:, cols], axis=0))
         if target > distinct:
             raise ConfigError(
@@ -162,25 +170,26 @@ def from_landmarks(
     human: np.ndarray, robot_poses: np.ndarray, config: BuildConfig, n_train: int | None = None
 ) -> Model:
     """A ``Model`` on given landmark pairs (no mean shift): ``(K, m)`` descriptors and their
-    ``(K, 10)`` driven-joint poses. Each chain takes its columns of ``human`` and its joints of
-    ``robot_poses``, rows that repeat in the chain's columns dropped (first kept); its kernels
-    are trained as ``build`` trains them. ``config.landmarks`` / ``bandwidth`` are not used (the
-    model records bandwidth 0)."""
+    ``(K, n_driven)`` driven-joint poses (``config.robot``'s). Each chain takes its columns of
+    ``human`` and its joints of ``robot_poses``, rows that repeat in the chain's columns
+    dropped (first kept); its kernels are trained as ``build`` trains them.
+    ``config.landmarks`` / ``bandwidth`` are not used (the model records bandwidth 0)."""
     human = np.asarray(human, np.float32)
     robot_poses = np.asarray(robot_poses, np.float32)
-    if human.ndim != 2 or robot_poses.shape != (len(human), len(robot.DRIVEN_JOINTS)):
-        raise ConfigError(f"landmarks must be (K, m) and (K, 10), got {human.shape}, "
-                          f"{robot_poses.shape}")  # fmt: skip
-    chains = ik.chain_set(config.chains)
+    spec = config.robot_spec
+    if human.ndim != 2 or robot_poses.shape != (len(human), spec.n_driven):
+        raise ConfigError(f"landmarks must be (K, m) and (K, {spec.n_driven}), got "
+                          f"{human.shape}, {robot_poses.shape}")  # fmt: skip
+    chains = spec.chain_set(config.chains)
     base_key = jax.random.PRNGKey(config.seed)
     projectors, counts = [], []
     for c, chain in enumerate(chains):
         cols = (
             list(range(human.shape[1]))
             if len(chains) == 1
-            else list(ik.chain_columns(chain, config.bones))
+            else list(spec.chain_columns(chain, config.bones))
         )
-        joints = list(ik.chain_joints(chain))
+        joints = list(spec.chain_joints(chain))
         _, first = np.unique(human[:, cols], axis=0, return_index=True)
         rows = np.sort(first)
         key = base_key if c == 0 else jax.random.fold_in(base_key, c)
@@ -190,8 +199,8 @@ def from_landmarks(
                 robot_poses[rows][:, joints],
                 config.chain_config(c),
                 key=key,
-                lower=robot.LOWER[robot.DRIVEN_INDEX][joints],
-                upper=robot.UPPER[robot.DRIVEN_INDEX][joints],
+                lower=spec.lower_driven[joints],
+                upper=spec.upper_driven[joints],
             )
         )
         counts.append(np.ones(len(rows), np.int64))

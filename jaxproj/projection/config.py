@@ -13,8 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from jaxproj import robots
 from jaxproj.errors import ConfigError
-from jaxproj.robots.nao_h25 import ik
+from jaxproj.robots import Robot
 
 HEAD_BANDWIDTH = 0.01125
 """Mean-shift bandwidth of the head chain when ``BuildConfig.landmarks`` is one number (that
@@ -66,13 +67,14 @@ class BuildConfig:
     """How a model is built: which chains, and per chain its landmarks and kernels.
 
     Validated when constructed (``ConfigError`` with what to change). Every per-chain setting
-    is one value for all chains or a tuple with one value per chain (in ``ik.CHAIN_SETS[chains]``
-    order: head, left_arm, right_arm).
+    is one value for all chains or a tuple with one value per chain (in
+    ``robot_spec.chain_set(chains)`` order; the NAO's: head, left_arm, right_arm).
 
     Attributes:
-      chains: ``"upper"`` (default): one projector per kinematic chain (``ik.CHAINS``: head,
-        left arm, right arm), searched and trained in the chain's own bones; ``"whole"``: one
-        projector over the whole descriptor, the paper's formulation.
+      chains: ``"upper"`` (default): one projector per kinematic chain of the robot
+        (``Robot.chains``; the NAO's: head, left arm, right arm), searched and trained in the
+        chain's own bones; ``"whole"``: one projector over the whole descriptor, the paper's
+        formulation (``Robot.whole_chain``).
       landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
         number sets each arm chain (and the whole-body chain); the head then uses
         ``HEAD_BANDWIDTH``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
@@ -89,6 +91,8 @@ class BuildConfig:
       (``k``, ``hidden``, ``lam``, ``input_scale`` left at ``None``: ``DEFAULTS[chains]``.)
       seed: PRNG seed of the random hidden layers (chain 0 uses ``PRNGKey(seed)``, chain ``c``
         ``fold_in(PRNGKey(seed), c)``).
+      robot: the name of a registered robot (``jaxproj.robots.names()``) whose chains, limits
+        and IK the model is built for.
     """
 
     landmarks: int | PerChain | None = None
@@ -101,26 +105,37 @@ class BuildConfig:
     lam: float | PerChain | None = None
     input_scale: float | PerChain | None = None
     seed: int = 0
+    robot: str = robots.DEFAULT
 
     def __post_init__(self) -> None:
         for name in ("landmarks", "bandwidth", "k", "hidden", "lam", "input_scale"):
             if isinstance(getattr(self, name), list):  # from JSON
                 object.__setattr__(self, name, tuple(getattr(self, name)))
-        chains = ik.chain_set(self.chains)
+        if not isinstance(self.robot, str) or self.robot not in robots.names():
+            raise ConfigError(
+                f"robot={self.robot!r} is not a registered robot; use one of {robots.names()} "
+                "(or register it: jaxproj.robots.register)"
+            )
+        chains = self.robot_spec.chain_set(self.chains)
         if not isinstance(self.bones, str):
             object.__setattr__(self, "bones", tuple(self.bones))
-        ik.bone_index(self.bones)  # unknown bone names, or a subset the IK cannot use
+        self.robot_spec.check_bones(self.bones)  # unknown names, or a subset the IK cannot use
         for c in range(len(chains)):
             self.chain_config(c)
 
     @property
+    def robot_spec(self) -> Robot:
+        """The registered ``Robot`` called ``robot``."""
+        return robots.get(self.robot)
+
+    @property
     def chain_names(self) -> tuple[str, ...]:
         """Names of the chains, in order."""
-        return tuple(ch.name for ch in ik.chain_set(self.chains))
+        return tuple(ch.name for ch in self.robot_spec.chain_set(self.chains))
 
     def chain_config(self, c: int) -> ChainConfig:
         """Chain ``c``'s settings (validated; ``ConfigError`` says what to change)."""
-        chains = ik.chain_set(self.chains)
+        chains = self.robot_spec.chain_set(self.chains)
         n, name = len(chains), chains[c].name
 
         defaults = DEFAULTS[self.chains]

@@ -5,7 +5,8 @@ The paper extracts its landmark set from recorded human motion with mean-shift c
 same: the training points are the descriptors (``skeleton.descriptor``, default ``bones="upper"``:
 15 numbers) of the *valid* frames (``datasets.valid_descriptors``), each landmark's human side
 is a mode (``meanshift.mean_shift``; the algorithm, kernels and merge rule are described
-there), its robot side ``ik.solve_driven(mode)``. The landmark count is set through the bandwidth
+there), its robot side the robot's IK of the mode (``Robot.ik``; a chain's: ``Chain.ik``).
+The landmark count is set through the bandwidth
 (``meanshift.find_bandwidth``).
 
 On MSR Action3D subjects 1, 3, 5, 7, 9 (all 20 actions: 292 sequences, 11,280 valid frames) most
@@ -37,7 +38,7 @@ from jaxproj.projection.meanshift import (
     find_bandwidth,
     mean_shift,
 )
-from jaxproj.robots.nao_h25 import ik
+from jaxproj.robots import Chain, Robot, get
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,7 @@ class Landmarks:
     Attributes:
       human: ``(K, 3 * n_bones)`` float32 descriptor modes (``skeleton.descriptor`` layout; mean
         shift averages unit vectors, so each bone vector is slightly shorter than 1).
-      robot: ``(K, 10)`` float32 ``ik.solve_driven(human, bones)`` (``robot.DRIVEN_JOINTS``, rad).
+      robot: ``(K, n)`` float32 IK of ``human`` (the robot's driven joints, or a chain's; rad).
       counts: ``(K,)`` int64 training frames that converged to each landmark.
       bandwidth: mean-shift bandwidth used.
       n_frames: training frames used (valid frames only).
@@ -78,7 +79,8 @@ def build_landmarks(
     bandwidth: float | None = None,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
-    chain: ik.Chain | None = None,
+    chain: Chain | None = None,
+    robot: Robot | str | None = None,
     kernel: Kernel = "gaussian",
     rel_tol: float = 0.05,
     max_iter: int = MAX_ITER,
@@ -95,14 +97,15 @@ def build_landmarks(
       target: wanted number of landmarks.
       bandwidth: mean-shift bandwidth.
       bones, mirror: descriptor options.
-      chain: landmarks of one kinematic chain (``ik.CHAINS``): mean shift runs on the chain's
-        columns of the descriptor only, and the robot side is the chain's joints
-        (``ik.solve_chain``). ``None``: the whole descriptor and all ten driven joints.
+      chain: landmarks of one kinematic chain (``Robot.chains``): mean shift runs on the
+        chain's columns of the descriptor only, and the robot side is the chain's joints
+        (``Chain.ik``). ``None``: the whole descriptor and all driven joints (``Robot.ik``).
+      robot: the robot (a ``Robot`` or a registered name; ``None``: the default robot).
       kernel, rel_tol, max_iter, tol, merge_fraction: as in ``find_bandwidth`` / ``mean_shift``.
 
     Returns:
       ``Landmarks`` with ``human (K, m)`` (the chain's columns, or the whole descriptor),
-      ``robot (K, n)`` its IK (the chain's joints, or ``robot.DRIVEN_JOINTS``), ``counts (K,)``.
+      ``robot (K, n)`` its IK (the chain's joints, or all driven joints), ``counts (K,)``.
 
     Raises:
       ConfigError: both or neither of ``target`` / ``bandwidth``; bad data or options (the
@@ -115,9 +118,10 @@ def build_landmarks(
     check_options(kernel, max_iter, tol, merge_fraction, bandwidth=bandwidth)
     if target is not None and int(target) < 1:
         raise ConfigError(f"target must be >= 1, got {target}")
+    spec = get(robot)
     points = valid_descriptors(sequences_or_points, bones=bones, mirror=mirror)
     if chain is not None:
-        points = np.ascontiguousarray(points[:, list(ik.chain_columns(chain, bones))])
+        points = np.ascontiguousarray(points[:, list(spec.chain_columns(chain, bones))])
     options = dict(kernel=kernel, max_iter=max_iter, tol=tol, merge_fraction=merge_fraction)
     if target is not None:
         h, res = find_bandwidth(points, target, rel_tol=rel_tol, **options)
@@ -125,9 +129,9 @@ def build_landmarks(
         res = mean_shift(points, bandwidth, **options)
         h = res.bandwidth
     if chain is None:
-        robot_pose = np.asarray(ik.solve_driven(jnp.asarray(res.modes), bones), np.float32)
+        robot_pose = np.asarray(spec.solve_ik(jnp.asarray(res.modes), bones), np.float32)
     else:
-        robot_pose = ik.solve_chain(res.modes, chain, bones).astype(np.float32)
+        robot_pose = np.asarray(chain.solve(res.modes), np.float32)
     return Landmarks(
         human=res.modes,
         robot=robot_pose,

@@ -1,9 +1,10 @@
 """The model file: ``save`` / ``load`` a ``Model`` through one ``.npz``, and every check on read.
 
 A file holds every chain's arrays unpadded (``chain<c>.human``, ``chain<c>.forward.out``, ...),
-the ``BuildConfig``, the chain layout and a format version in a JSON ``meta`` entry. ``load``
-refuses (``InputError`` naming the file) anything that is not such a file of this jaxproj's
-format version and chain layout, before an array reaches JAX.
+the ``BuildConfig`` (with the robot's name: a file without one is the NAO's), the chain
+layout, the robot's driven joints and IK constants and a format version in a JSON ``meta``
+entry. ``load`` refuses (``InputError`` naming the file) anything that is not such a file of
+this jaxproj's format version and chain layout, before an array reaches JAX.
 """
 
 from __future__ import annotations
@@ -16,13 +17,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj._internal.atomic import write_npz
-from jaxproj.errors import InputError
+from jaxproj.errors import ConfigError, InputError
 from jaxproj.projection.build import Model
 from jaxproj.projection.config import BuildConfig
 from jaxproj.projection.elm import ELMBank
 from jaxproj.projection.projector import make_projector
 from jaxproj.projection.stacked import chain_inputs, layout_of, stack_projectors
-from jaxproj.robots.nao_h25 import ik, robot
 
 FORMAT = "jaxproj-projector"
 FORMAT_VERSION = 3
@@ -63,6 +63,7 @@ def save(model: Model, path: str | Path) -> None:
     """
     sp = model.projector
     lay = sp.layout
+    spec = model.robot
     arrays: dict[str, np.ndarray] = {}
     for c in range(lay.n_chains):
         p = sp.chain(c)
@@ -79,11 +80,8 @@ def save(model: Model, path: str | Path) -> None:
         "chains": {"names": list(lay.names), "inputs": lay.inputs, "outputs": lay.outputs},
         "bandwidth": list(model.bandwidth),
         "n_train": model.n_train,
-        "driven_joints": list(robot.DRIVEN_JOINTS),
-        "ik": {
-            "head_pitch_neutral": ik.HEAD_PITCH_NEUTRAL,
-            "elbow_yaw_neutral": ik.ELBOW_YAW_NEUTRAL,
-        },
+        "driven_joints": list(spec.driven_joints),
+        "ik": dict(spec.ik_constants),
     }
     arrays = {"meta": np.array(json.dumps(meta)), **arrays}
     write_npz(path, arrays)
@@ -100,8 +98,8 @@ def load(path: str | Path) -> Model:
     Raises:
       InputError: naming the file: missing, a directory, not an npz archive, truncated or
         corrupt, not a jaxproj model, another format version (a newer one: upgrade jaxproj), a
-        chain layout other than this jaxproj's for the model's configuration, a missing,
-        mis-shaped or non-finite array.
+        robot that is not registered, a chain layout other than this jaxproj's for the model's
+        configuration, a missing, mis-shaped or non-finite array.
     """
     path = Path(path)
     if path.is_dir():
@@ -124,9 +122,10 @@ def load(path: str | Path) -> Model:
     meta = _read_meta(path, data)
     try:
         config = BuildConfig(**meta["config"])
-    except (KeyError, TypeError, ValueError) as e:
+    except (KeyError, TypeError, ValueError, ConfigError) as e:
         raise InputError(path, f"invalid model configuration ({_one_line(e)})") from None
-    chains = ik.chain_set(config.chains)
+    spec = config.robot_spec
+    chains = spec.chain_set(config.chains)
     _check_layout(path, meta, config, data)
     try:
         bandwidth = tuple(float(b) for b in meta["bandwidth"])
@@ -137,7 +136,7 @@ def load(path: str | Path) -> Model:
         raise InputError(path, f"corrupt model metadata ({_one_line(e)})") from None
     projectors, counts = [], []
     for c, ch in enumerate(chains):
-        a = _chain_arrays(path, data, c, len(chain_inputs(config, ch)), len(ik.chain_joints(ch)))
+        a = _chain_arrays(path, data, c, len(chain_inputs(config, ch)), len(spec.chain_joints(ch)))
         banks = {}
         for name in ("forward", "backward"):
             f = {f: a[f"{name}.{f}"] for f in _BANK_FIELDS}
@@ -149,15 +148,15 @@ def load(path: str | Path) -> Model:
                 d_out=int(f["out"].shape[1]),
                 k=int(f["neighbours"].shape[1]),
             )
-        joints = list(ik.chain_joints(ch))
+        joints = list(spec.chain_joints(ch))
         projectors.append(
             make_projector(
                 a["human"],
                 a["robot"],
                 banks["forward"],
                 banks["backward"],
-                robot.LOWER[robot.DRIVEN_INDEX][joints],
-                robot.UPPER[robot.DRIVEN_INDEX][joints],
+                spec.lower_driven[joints],
+                spec.upper_driven[joints],
             )
         )
         counts.append(a["counts"])
@@ -202,11 +201,12 @@ def _read_meta(path: Path, data: dict[str, np.ndarray]) -> dict:
 
 def _check_layout(path: Path, meta: dict, config: BuildConfig, data: dict) -> None:
     """``InputError`` unless the file's chains are this jaxproj's chains for its config."""
-    chains = ik.chain_set(config.chains)
+    spec = config.robot_spec
+    chains = spec.chain_set(config.chains)
     want = {
         "names": [ch.name for ch in chains],
         "inputs": [list(chain_inputs(config, ch)) for ch in chains],
-        "outputs": [list(ik.chain_joints(ch)) for ch in chains],
+        "outputs": [list(spec.chain_joints(ch)) for ch in chains],
     }
     got = meta.get("chains")
     got = {k: got.get(k) for k in want} if isinstance(got, dict) else {}
@@ -218,9 +218,9 @@ def _check_layout(path: Path, meta: dict, config: BuildConfig, data: dict) -> No
                 f"chain {key} {got.get(key)} differ from this jaxproj's {value} for "
                 f"chains={config.chains!r}: {rebuild}",
             )
-    if meta.get("driven_joints") != list(robot.DRIVEN_JOINTS):
-        raise InputError(path, f"driven joints {meta.get('driven_joints')} differ from this "
-                               f"jaxproj's {list(robot.DRIVEN_JOINTS)}: {rebuild}")  # fmt: skip
+    if meta.get("driven_joints") != list(spec.driven_joints):
+        raise InputError(path, f"driven joints {meta.get('driven_joints')} differ from "
+                               f"{spec.name}'s {list(spec.driven_joints)}: {rebuild}")  # fmt: skip
     held = {k.split(".", 1)[0] for k in data if k != "meta"}
     extra = sorted(held - {f"chain{c}" for c in range(len(chains))})
     if extra:

@@ -18,7 +18,7 @@ import numpy as np
 
 from jaxproj.projection.elm import ELMBank, predict
 from jaxproj.projection.search import nearest, sq_norms
-from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots import Robot, get
 
 
 @jax.tree_util.register_dataclass
@@ -53,18 +53,20 @@ def make_projector(
     backward: ELMBank,
     lower: jax.Array | None = None,
     upper: jax.Array | None = None,
+    robot: Robot | str | None = None,
 ) -> Projector:
     """Assemble a ``Projector`` from landmarks ``(K, m)``, ``(K, n)`` and the two banks.
 
     ``lower`` / ``upper`` ``(n,)`` are the limits of the ``n`` joints the robot landmarks hold
-    (default: ``robot.DRIVEN_JOINTS``'s, for ``n = 10``).
+    (default: all driven joints of ``robot``, a ``Robot`` or registered name; ``None``: the
+    default robot).
     """
     human = jnp.asarray(human, jnp.float32)
     robot_poses = jnp.asarray(robot_poses, jnp.float32)
     if lower is None:
-        lower = robot.LOWER[robot.DRIVEN_INDEX]
+        lower = get(robot).lower_driven
     if upper is None:
-        upper = robot.UPPER[robot.DRIVEN_INDEX]
+        upper = get(robot).upper_driven
     return Projector(
         human=human,
         robot=robot_poses,
@@ -100,9 +102,9 @@ class ChainLayout:
     """How chains split a descriptor and fill the driven joints (static, hashable).
 
     Attributes:
-      names: chain names (``ik.Chain.name``), in stacking order.
+      names: chain names (``Chain.name``), in stacking order.
       inputs: per chain, the descriptor columns it reads (``3 * n_bones`` each).
-      outputs: per chain, the positions in ``robot.DRIVEN_JOINTS`` it writes.
+      outputs: per chain, the positions in the robot's ``driven_joints`` it writes.
       landmarks: per chain, its landmark count ``K_c`` (before padding to the largest).
       hidden: per chain, hidden units of its forward and backward kernels.
       k: per chain, training neighbours of its kernels.

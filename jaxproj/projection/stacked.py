@@ -22,7 +22,7 @@ from jaxproj.projection.elm import ELMBank
 from jaxproj.projection.full import project_full_one
 from jaxproj.projection.projector import ChainLayout, Projector, StackedProjector
 from jaxproj.projection.relaxed import project_relaxed_one
-from jaxproj.robots.nao_h25 import ik
+from jaxproj.robots import Chain
 
 
 def _pad(a: jax.Array, shape: tuple[int, ...], value: float = 0.0) -> np.ndarray:
@@ -80,21 +80,23 @@ def stack_projectors(chains: Sequence[Projector], layout: ChainLayout) -> Stacke
     return StackedProjector(stack=stack, layout=layout)
 
 
-def chain_inputs(config: BuildConfig, chain: ik.Chain) -> tuple[int, ...]:
+def chain_inputs(config: BuildConfig, chain: Chain) -> tuple[int, ...]:
     """Descriptor columns a chain of ``config`` reads: the whole descriptor for the one-chain
-    (whole-body) set, else the chain's bones' columns (``ik.chain_columns``)."""
-    if len(ik.chain_set(config.chains)) == 1:
+    (whole-body) set, else the chain's bones' columns (``Robot.chain_columns``)."""
+    spec = config.robot_spec
+    if len(spec.chain_set(config.chains)) == 1:
         return tuple(range(3 * len(resolve_bones(config.bones))))
-    return tuple(ik.chain_columns(chain, config.bones))
+    return tuple(spec.chain_columns(chain, config.bones))
 
 
 def layout_of(config: BuildConfig, projectors: Sequence[Projector]) -> ChainLayout:
     """The ``ChainLayout`` of ``config``'s chains holding these per-chain projectors."""
-    chains = ik.chain_set(config.chains)
+    spec = config.robot_spec
+    chains = spec.chain_set(config.chains)
     return ChainLayout(
         names=tuple(ch.name for ch in chains),
         inputs=tuple(chain_inputs(config, ch) for ch in chains),
-        outputs=tuple(ik.chain_joints(ch) for ch in chains),
+        outputs=tuple(spec.chain_joints(ch) for ch in chains),
         landmarks=tuple(p.n_landmarks for p in projectors),
         hidden=tuple(p.forward.hidden for p in projectors),
         k=tuple(p.forward.k for p in projectors),

@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import BONE_NAMES
+from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
 
 ChainIK = Callable[[np.ndarray], np.ndarray]
 """IK of one chain: ``(N, 3 * len(bones))`` bone directions (the chain's descriptor columns,
@@ -40,6 +40,23 @@ bone after bone, body frame) -> ``(N, len(joints))`` float32 angles, rad."""
 DescriptorIK = Callable[..., jax.Array]
 """IK of all driven joints: ``(d, bones)`` with ``d`` ``(..., 3 * n_bones)`` descriptors of the
 bone subset ``bones`` -> ``(..., n_driven)`` float32 angles, rad (within limits, finite)."""
+
+CHAIN_SETS: tuple[str, ...] = ("upper", "whole")
+"""Names of ``Robot.chain_set``: ``"upper"``, one projector per chain (``Robot.chains``);
+``"whole"``, one chain over all driven joints (``Robot.whole_chain``)."""
+
+
+def chain_columns(chain: Chain, bones: str | tuple[str, ...] = "upper") -> tuple[int, ...]:
+    """The columns of a ``bones`` descriptor that hold ``chain``'s bones (3 per bone).
+
+    Raises:
+      ConfigError: a bone of the chain is not in ``bones``.
+    """
+    names = resolve_bones(bones)
+    missing = [b for b in chain.bones if b not in names]
+    if missing:
+        raise ConfigError(f"chain {chain.name!r} needs the bones {missing}, absent from {bones!r}")
+    return tuple(3 * names.index(b) + i for b in chain.bones for i in range(3))
 
 
 @dataclass(frozen=True)
@@ -194,6 +211,13 @@ class Robot:
         ``jaxproj.eval.metrics.m_max_without`` by default).
       mjcf: the MuJoCo model (``Mjcf``), or ``None``.
       exports: controller documents by file suffix (``Export``), e.g. ``{".json": naoqi}``.
+      traced_ik: the IK of all driven joints as a traceable function (``DescriptorIK``, called
+        inside the jitted motion pipeline), or ``None`` when ``ik`` itself is traceable.
+      whole_chain: the ``"whole"`` chain set's one chain (all driven joints), or ``None``: a
+        chain over every bone of ``chains`` (in chain order) solved by ``ik``.
+      elbow_pairs: ``(yaw, roll)`` joint pairs of elbows whose yaw is ill-defined when the
+        elbow is straight (``jaxproj.motion.feasible``'s elbow rules); none: no such rule.
+      ik_constants: constants of the IK that model files record (meta ``"ik"``); JSON numbers.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -215,6 +239,10 @@ class Robot:
     loose_joints: tuple[str, ...] = ()
     mjcf: Mjcf | None = None
     exports: Mapping[str, Export] = field(default_factory=dict)
+    traced_ik: DescriptorIK | None = None
+    whole_chain: Chain | None = None
+    elbow_pairs: tuple[tuple[str, str], ...] = ()
+    ik_constants: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -255,6 +283,15 @@ class Robot:
             ok = isinstance(export, Export) and suffix == export.suffix
             if not (ok and suffix.startswith(".")):
                 raise ConfigError(f"exports[{suffix!r}] must be an Export with that suffix")
+        for pair in self.elbow_pairs:
+            if len(pair) != 2 or any(j not in index for j in pair):
+                raise ConfigError(f"elbow_pairs: {pair!r} is not a (yaw, roll) pair of joints")
+        whole = self.whole_chain
+        if whole is None:
+            bones = tuple(dict.fromkeys(b for c in self.chains for b in c.bones))
+            whole = Chain("whole", bones, driven)
+        if not isinstance(whole, Chain) or tuple(whole.joints) != driven:
+            raise ConfigError("whole_chain must be a Chain over all driven_joints, in order")
         if self.mjcf is not None and not isinstance(self.mjcf, Mjcf):
             raise ConfigError(f"mjcf must be an Mjcf or None, got {type(self.mjcf).__name__}")
         set_ = object.__setattr__
@@ -267,6 +304,9 @@ class Robot:
         set_(self, "loose_joints", loose)
         set_(self, "coupled_joints", tuple((a, b) for a, b in self.coupled_joints))
         set_(self, "exports", dict(self.exports))
+        set_(self, "whole_chain", whole)
+        set_(self, "elbow_pairs", tuple((a, b) for a, b in self.elbow_pairs))
+        set_(self, "ik_constants", dict(self.ik_constants))
         for what, value in limits.items():
             set_(self, what, value)
         set_(self, "_index", index)
@@ -329,6 +369,74 @@ class Robot:
                 return c
         known = [c.name for c in self.chains]
         raise ConfigError(f"{self.name} has no chain {name!r}; chains: {known}")
+
+    def chain_set(self, name: str) -> tuple[Chain, ...]:
+        """The chains of a ``BuildConfig.chains`` name (``CHAIN_SETS``): ``"upper"``, ``chains``;
+        ``"whole"``, ``(whole_chain,)``. ConfigError for an unknown name."""
+        if name == "upper":
+            return self.chains
+        if name == "whole":
+            return (self.whole_chain,)  # type: ignore[return-value]
+        raise ConfigError(f"unknown chain set {name!r}; use one of {sorted(CHAIN_SETS)}")
+
+    def chain_joints(self, chain: Chain) -> tuple[int, ...]:
+        """Positions of ``chain.joints`` in ``driven_joints``."""
+        return tuple(self.driven_joints.index(j) for j in chain.joints)
+
+    def chain_columns(
+        self, chain: Chain, bones: str | tuple[str, ...] = "upper"
+    ) -> tuple[int, ...]:
+        """The columns of a ``bones`` descriptor holding ``chain``'s bones (``chain_columns``)."""
+        return chain_columns(chain, bones)
+
+    @property
+    def ik_bones(self) -> tuple[str, ...]:
+        """Every bone the IK reads: the chains' bones, in chain order."""
+        return tuple(dict.fromkeys(b for c in self.chains for b in c.bones))
+
+    def check_bones(self, bones: str | tuple[str, ...]) -> None:
+        """ConfigError unless a ``bones`` descriptor holds every bone the IK reads."""
+        names = resolve_bones(bones)
+        missing = [b for b in self.ik_bones if b not in names]
+        if missing:
+            raise ConfigError(
+                f"the IK needs the bones {self.ik_bones}; the descriptor lacks {missing}"
+            )
+
+    def solve_ik(self, d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+        """``ik``: ``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` angles, rad."""
+        if self.ik is None:
+            raise ConfigError(f"robot {self.name!r} has no IK function")
+        return self.ik(d, bones)
+
+    def solve_ik_traced(self, d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+        """``traced_ik`` (or ``ik``), inside a trace: ``(..., 3 * n_bones)`` descriptors ->
+        ``(..., n_driven)`` angles."""
+        fn = self.traced_ik if self.traced_ik is not None else self.ik
+        if fn is None:
+            raise ConfigError(f"robot {self.name!r} has no IK function")
+        return fn(d, bones)
+
+    @property
+    def lower_driven(self) -> np.ndarray:
+        """``(n_driven,)`` float32 lower limits of the driven joints."""
+        return self.lower[self.driven_index]
+
+    @property
+    def upper_driven(self) -> np.ndarray:
+        """``(n_driven,)`` float32 upper limits of the driven joints."""
+        return self.upper[self.driven_index]
+
+    @property
+    def standing_driven(self) -> np.ndarray:
+        """``(n_driven,)`` float32 standing posture of the driven joints."""
+        return self.standing[self.driven_index]
+
+    def require_velocity_limits(self) -> np.ndarray:
+        """``velocity_limits``, or ConfigError naming the robot when it has none."""
+        if self.velocity_limits is None:
+            raise ConfigError(f"robot {self.name!r} has no velocity limits (needed here)")
+        return self.velocity_limits
 
     def driven_to_full(self, q_driven: jax.Array) -> jax.Array:
         """``(..., n_driven)`` driven angles -> ``(..., n_joints)`` float32; the rest standing."""

@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+import jax
+
 from jaxproj.robots.base import Mjcf, Robot
 from jaxproj.robots.nao_h25 import ik, naoqi, robot
 
@@ -23,6 +25,24 @@ LOOSE_JOINTS: tuple[str, str] = ("LElbowYaw", "RElbowYaw")
 
 HEAD_ROOT = "Neck"
 """The body the head turns about."""
+
+ELBOW_PAIRS: tuple[tuple[str, str], ...] = (
+    ("LElbowYaw", "LElbowRoll"),
+    ("RElbowYaw", "RElbowRoll"),
+)
+"""(yaw, roll) of each elbow: the ElbowYaw rules of ``jaxproj.motion.feasible``."""
+
+IK_CONSTANTS: dict[str, float] = {
+    "head_pitch_neutral": ik.HEAD_PITCH_NEUTRAL,
+    "elbow_yaw_neutral": ik.ELBOW_YAW_NEUTRAL,
+}
+"""The IK's constants a model file records (meta ``"ik"``)."""
+
+
+def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+    """``ik.driven_angles`` for a ``bones`` descriptor: the IK inside a trace (no nested jit)."""
+    return ik.driven_angles(d, ik.bone_index(bones))
+
 
 MJCF = Mjcf(
     path=robot.mjcf_path(),
@@ -50,5 +70,9 @@ NAO_H25 = Robot(
     loose_joints=LOOSE_JOINTS,
     mjcf=MJCF,
     exports={naoqi.EXPORT.suffix: naoqi.EXPORT},
+    traced_ik=traced_ik,
+    whole_chain=ik.WHOLE_BODY,
+    elbow_pairs=ELBOW_PAIRS,
+    ik_constants=IK_CONSTANTS,
 )
 """The NAO H25 V5: 26 joints, 10 driven (head, arms to the elbow), three chains, NAOqi JSON."""
