@@ -35,7 +35,7 @@ import numpy as np
 from jaxproj.eval import evaluate, metrics
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 from jaxproj.robots.nao_h25 import ik
 
 OBJECTIVES = {

@@ -34,7 +34,7 @@ from benchmarks.bench_projection import (
 )
 from benchmarks.harness import header
 from jaxproj.projection import api as engine
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 from jaxproj.robots.nao_h25 import robot
 
 COLLECTIVES = ("all-gather", "all-reduce", "all-to-all", "collective-permute", "reduce-scatter")

@@ -94,7 +94,8 @@ from jaxproj.io import datasets
 from jaxproj.motion import streaming as jaxproj_streaming
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
 from jaxproj.projection import api as engine
-from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
+from jaxproj.projection.config import FullConfig
+from jaxproj.projection.projector import Projector, StackedProjector
 from jaxproj.robots.nao_h25 import ik
 from jaxproj.testing import Reference, StackedReference
 from jaxproj.timing import compile_timed

@@ -27,7 +27,7 @@ import jax
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 from jaxproj.timing import Timing, time_calls
 
 SYNTHETIC_N = 8192

@@ -71,8 +71,8 @@ from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import landmarks
+from jaxproj.projection.config import FullConfig
 from jaxproj.projection.meanshift import find_bandwidth
-from jaxproj.projection.objectives import FullConfig
 from jaxproj.robots.nao_h25 import ik, robot
 
 TRAIN_SUBJECTS = (1, 3, 5, 7, 9)

@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
+from jaxproj.projection.config import FullConfig
+from jaxproj.projection.projector import Projector, StackedProjector
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:

@@ -389,9 +389,7 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
 
     r, v = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="xla"))(sp, h)
     one = jit(
-        lambda p, x: jax.vmap(lambda q: project_stacked_one(p, q, "relaxed", 5, 5, FullConfig()))(
-            x
-        )
+        lambda p, x: jax.vmap(lambda q: project_stacked_one(p, q, "relaxed", 5, 5, FullConfig()))(x)
     )
     r1, v1 = one(sp, h)
     np.testing.assert_array_equal(np.asarray(r), np.asarray(r1))

@@ -112,9 +112,7 @@ def test_streaming_the_toy(toy: Robot, model: engine.Model, held_out: list) -> N
         streaming.init(model, robot="nao_h25")
 
 
-def test_the_model_file_records_the_robot(
-    toy: Robot, model: engine.Model, tmp_path: Path
-) -> None:
+def test_the_model_file_records_the_robot(toy: Robot, model: engine.Model, tmp_path: Path) -> None:
     path = tmp_path / "toy.npz"
     engine.save(model, path)
     with np.load(path) as z:

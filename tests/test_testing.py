@@ -20,8 +20,8 @@ from optax.projections import projection_simplex
 from jaxproj.errors import ConfigError
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection import objectives as projection
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection import projector as projection
+from jaxproj.projection.config import FullConfig
 from jaxproj.projection.search import nearest
 from jaxproj.testing import Reference, simplex_projection
 

@@ -69,7 +69,8 @@ MJCF_XML = f"""<mujoco model="toy">
         <joint name="head_pitch" axis="0 1 0" range="-0.6 0.6"/>
         <geom type="sphere" size="0.04" mass="0.2" contype="0" conaffinity="0"/>
       </body>{_ARM.format(s="l", y=SHOULDER_Y, rlo=-0.3, rhi=1.3, L=LINK)}{
-      _ARM.format(s="r", y=-SHOULDER_Y, rlo=-1.3, rhi=0.3, L=LINK)}
+    _ARM.format(s="r", y=-SHOULDER_Y, rlo=-1.3, rhi=0.3, L=LINK)
+}
     </body>
   </worldbody>
 </mujoco>

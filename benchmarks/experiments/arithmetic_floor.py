@@ -40,7 +40,7 @@ import numpy as np
 
 from benchmarks.bench_projection import TRAIN_SUBJECTS, descriptors  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
-from jaxproj.projection.objectives import ChainLayout  # noqa: E402
+from jaxproj.projection.projector import ChainLayout  # noqa: E402
 from jaxproj.timing import time_calls  # noqa: E402
 
 CHAIN = 64

@@ -28,7 +28,7 @@ import numpy as np
 
 from benchmarks.bench_projection import TEST_SUBJECTS, descriptors, shuffled  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
-from jaxproj.projection.objectives import FullConfig  # noqa: E402
+from jaxproj.projection.config import FullConfig  # noqa: E402
 from jaxproj.robots.nao_h25 import ik  # noqa: E402
 
 

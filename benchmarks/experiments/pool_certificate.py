@@ -26,7 +26,7 @@ import numpy as np
 
 from benchmarks.bench_projection import TEST_SUBJECTS, TRAIN_SUBJECTS, descriptors, shuffled  # noqa: E402
 from jaxproj.projection import api as engine  # noqa: E402
-from jaxproj.projection.objectives import candidates  # noqa: E402
+from jaxproj.projection.projector import candidates  # noqa: E402
 from jaxproj.projection.search import nearest  # noqa: E402
 
 

@@ -151,7 +151,9 @@ def evaluate(args: argparse.Namespace) -> int:
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
     seqs, contents = options.load_data(args.data, args.subjects, "test", args.strict, args.bvh_map)
-    data = evaluate.prepare(seqs, bones=model.config.bones, mirror=model.config.mirror)
+    data = evaluate.prepare(
+        seqs, bones=model.config.bones, mirror=model.config.mirror, robot=model.robot
+    )
     out = evaluate.evaluate(
         model,
         data,

@@ -12,7 +12,8 @@ forearm direction in degrees, per side), projected pose against IK pose.
 
 Methods, all on the same landmarks:
 
-* ``relaxed`` / ``full``: the paper's projection (``jaxproj.projection.objectives``);
+* ``relaxed`` / ``full``: the paper's projection (``jaxproj.projection.relaxed``,
+  ``jaxproj.projection.full``);
 Baselines run per chain on a per-chain model (each chain's landmarks, in its own bones):
 
 * ``nearest_landmark``: the robot pose of the nearest human landmark;
@@ -53,7 +54,8 @@ from jaxproj.io.datasets import ACTION_NAMES, MotionSequence, sequence_times
 from jaxproj.motion import feasible, pipeline
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
 from jaxproj.projection.api import Model, project
-from jaxproj.projection.objectives import FullConfig, Projector
+from jaxproj.projection.config import FullConfig
+from jaxproj.projection.projector import Projector
 from jaxproj.projection.search import nearest
 from jaxproj.robots import DEFAULT, Robot, get
 
@@ -329,8 +331,10 @@ def _per_motion(
 def _motion_times(data: EvalData, t_max: int) -> np.ndarray:
     """``(S, T_max)`` seconds of each motion's frames; padding continues at the last step."""
     lengths = np.diff(data.offsets)
-    times = data.times if data.times is not None else np.concatenate(
-        [np.arange(n, dtype=np.float64) / FPS for n in lengths]
+    times = (
+        data.times
+        if data.times is not None
+        else np.concatenate([np.arange(n, dtype=np.float64) / FPS for n in lengths])
     )
     out = np.zeros((len(lengths), t_max))
     for s, n in enumerate(lengths):

@@ -337,8 +337,12 @@ def make_feasible(
         steps[b] = step
     grid_out = np.asarray(
         _feasible_batch(
-            targets, steps, np.array([g for _, g in grids], np.int32), config.params(robot),
-            zero_phase=config.zero_phase, robot=robot,
+            targets,
+            steps,
+            np.array([g for _, g in grids], np.int32),
+            config.params(robot),
+            zero_phase=config.zero_phase,
+            robot=robot,
         )  # fmt: skip
     )
     out = q.copy()

@@ -56,7 +56,8 @@ from jaxproj.human.skeleton import descriptor
 from jaxproj.motion.smoothing import smooth_motion
 from jaxproj.motion.smoothing import step as smoothing_step
 from jaxproj.projection.api import project_batch
-from jaxproj.projection.objectives import FullConfig, Projector, StackedProjector
+from jaxproj.projection.config import FullConfig
+from jaxproj.projection.projector import Projector, StackedProjector
 from jaxproj.robots import NAO_H25, Robot
 
 Standing = Literal["first", "last"]

@@ -41,7 +41,7 @@ from jaxproj.motion.feasible import FeasibleConfig, make_feasible
 from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (its old home)
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
 from jaxproj.projection.api import Model, check_neighbours
-from jaxproj.projection.objectives import FullConfig
+from jaxproj.projection.config import FullConfig
 from jaxproj.robots import Robot, get
 
 Method = Literal["ik", "relaxed", "full"]

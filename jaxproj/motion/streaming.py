@@ -44,7 +44,7 @@ from jaxproj.motion import pipeline
 from jaxproj.motion.pipeline import AnyProjector
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
 from jaxproj.projection.api import Model, check_neighbours
-from jaxproj.projection.objectives import Projector, StackedProjector
+from jaxproj.projection.projector import Projector, StackedProjector
 from jaxproj.robots import Robot, get
 
 

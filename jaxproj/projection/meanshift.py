@@ -1,6 +1,6 @@
 """Mean-shift clustering (Comaniciu & Meer 2002) in JAX, and the search for a bandwidth.
 
-Over 500 lines on purpose: one algorithm, whose jitted iteration, merge, host wrapper and
+Size: over 500 lines on purpose: one algorithm, whose jitted iteration, merge, host wrapper and
 bandwidth search share the private data preparation (``_prepare`` / ``_run``).
 
 Generic: points are ``(N, m)`` float32 arrays; nothing here knows about skeletons, robots or IK

@@ -65,6 +65,7 @@ from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import UPPER_BODY, resolve_bones
 from jaxproj.robots.base import Chain
+from jaxproj.robots.base import chain_columns as base_chain_columns
 from jaxproj.robots.base import driven_to_full as _driven_to_full
 from jaxproj.robots.nao_h25 import robot
 
@@ -132,12 +133,8 @@ def chain_set(name: str) -> tuple[Chain, ...]:
 
 
 def chain_columns(chain: Chain, bones: str | tuple[str, ...] = "upper") -> tuple[int, ...]:
-    """The columns of a ``bones`` descriptor that hold ``chain``'s bones (3 per bone)."""
-    names = resolve_bones(bones)
-    missing = [b for b in chain.bones if b not in names]
-    if missing:
-        raise ConfigError(f"chain {chain.name!r} needs the bones {missing}, absent from {bones!r}")
-    return tuple(3 * names.index(b) + i for b in chain.bones for i in range(3))
+    """The columns of a ``bones`` descriptor holding ``chain``'s bones (``base.chain_columns``)."""
+    return base_chain_columns(chain, bones)
 
 
 def chain_joints(chain: Chain) -> tuple[int, ...]:
