@@ -110,7 +110,7 @@ class Reference:
         smallest warm-start values are optimised. Returns (pose ``(n,)``, objective value).
         Only ``solver="adam"`` is re-implemented (``ConfigError`` otherwise): the Newton solver
         is checked against its own long solves and against Adam's objective values
-        (``tests/test_projection.py``, ``benchmarks/experiments/full_newton.py``).
+        (``tests/projection/test_projection.py``, ``benchmarks/experiments/full_newton.py``).
         """
         if cfg.solver != "adam":
             raise ConfigError(

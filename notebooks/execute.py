@@ -10,9 +10,9 @@ notebooks by file name or prefix (``01``, ``02_paper_experiments``); default: al
 
 Each executed notebook records in its metadata (``metadata.jaxproj``) the run mode, the wall
 time, the ``jaxproj`` version it ran and a hash of its code cells (``source_sha256``);
-``tests/test_notebooks.py`` uses the hash to tell whether the code was edited after the run and
-the version to tell whether the outputs belong to the current release. Running this script in
-full mode is part of cutting a release (``docs/development.md``), not of every commit.
+``tests/integration/test_notebooks.py`` uses the hash to tell whether the code was edited after
+the run and the version to tell whether the outputs belong to the current release. Running this
+script in full mode is part of cutting a release (``docs/development.md``), not of every commit.
 """
 
 from __future__ import annotations

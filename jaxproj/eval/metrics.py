@@ -44,7 +44,8 @@ count. It runs on a copy of the MJCF with the bodies of ``robot.mjcf.fk_without`
 and leg subtrees) and the actuators, equality and contact excludes (which kinematics never reads)
 removed (``arm_model``): those bodies cannot move an arm site (the arms hang off the torso), and
 without them the program compiles in half the time and runs ~4x faster (``jaxproj.eval.fk``).
-``tests/test_metrics.py`` checks it against CPU MuJoCo on the whole fixed-mount model to 1e-5 m.
+``tests/eval/test_metrics.py`` checks it against CPU MuJoCo on the whole fixed-mount model to
+1e-5 m.
 Measured on this project's shared 2-core CPU (25,000 random configurations, median of 5): arm model
 3.2 s compile, then 0.025 s per 10,000 frames; the whole model 7.0 s compile, 0.094 s per 10,000;
 CPU ``mj_kinematics`` in a Python loop, no compile, 0.087 s per 10,000. So the one compile per

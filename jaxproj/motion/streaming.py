@@ -22,8 +22,8 @@ smoother (``s = y``, zero trend), exactly as ``smoothing.smooth`` starts a motio
 output is the standing posture's driven joints (``Robot.standing_driven`` of the model's robot,
 ``Model.robot``; a bare projector streams for ``robot=``, default the NAO H25).
 The output is never NaN. On a recording whose frames are all valid, streaming it frame by frame
-gives ``clip(smooth(project(descriptors)))`` of the whole recording (``tests/test_streaming.py``
-states the tolerance).
+gives ``clip(smooth(project(descriptors)))`` of the whole recording
+(``tests/motion/test_streaming.py`` states the tolerance).
 
 The jitted function compiles once per (model shapes, ``L``, ``M``, descriptor options); new
 smoothing gains or new frames do not recompile (the gains are traced).

@@ -5,10 +5,11 @@
   from.
 * ``header()``: the first line a notebook prints: the ``jaxproj`` version, the run mode and the
   machine. Committed outputs are tied to a release: ``notebooks/execute.py`` records the version
-  and a hash of the notebook's code cells in its metadata, and ``tests/test_notebooks.py`` checks
-  that the hash matches the cells and the version is the current one. A library edit between
-  releases does not stale the notebooks (the tests still execute all four in fast mode and check
-  their results); cutting a release includes ``python notebooks/execute.py``.
+  and a hash of the notebook's code cells in its metadata, and
+  ``tests/integration/test_notebooks.py`` checks that the hash matches the cells and the version
+  is the current one. A library edit between releases does not stale the notebooks (the tests
+  still execute all four in fast mode and check their results); cutting a release includes
+  ``python notebooks/execute.py``.
 * ``save_results(name, results, **arrays)``: with ``JAXPROJ_NOTEBOOK_RESULTS`` set to a folder,
   a notebook writes its key results there (``name.json`` and, given arrays, ``name.npz``) for the
   tests to check; without it, nothing is written.
@@ -40,7 +41,7 @@ def fast_mode() -> bool:
 
 def header(fast: bool | None = None) -> str:
     """The first line a notebook prints: library version, run mode, JAX and MuJoCo versions and
-    the device. ``tests/test_notebooks.py`` reads the version and the mode from it."""
+    the device. ``tests/integration/test_notebooks.py`` reads the version and the mode from it."""
     import jax
     import mujoco
 

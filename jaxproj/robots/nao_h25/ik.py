@@ -109,7 +109,7 @@ CHAINS: tuple[Chain, ...] = (
 )
 """How the IK factorises: the head angles depend only on the neck bone, each arm's four angles
 only on that arm's upper arm and forearm (``_solve_driven`` computes them from exactly these
-bones; ``tests/test_ik.py`` perturbs one chain's bones and checks the others' outputs are
+bones; ``tests/robots/test_ik.py`` perturbs one chain's bones and checks the others' outputs are
 bit-identical). Together the chains cover ``robot.DRIVEN_JOINTS`` once each."""
 
 WHOLE_BODY = Chain("whole", UPPER_BODY, robot.DRIVEN_JOINTS, partial(_chain_ik, name="whole"))

@@ -43,7 +43,7 @@ def _motions() -> tuple[np.ndarray, np.ndarray]:
     hold = np.tile(STAND, (T, 1))
     step = hold.copy()
     step[STEP_FRAME:] = _pose(LShoulderPitch=0.4)
-    # tests/test_robot_model.py: left arm hanging, rolled inward, elbow fully flexed with
+    # tests/robots/test_robot_model.py: left arm hanging, rolled inward, elbow fully flexed with
     # ElbowYaw = 0 swings the forearm through the torso
     collide = hold.copy()
     collide[2:] = _pose(LShoulderRoll=-0.3142, LElbowYaw=0.0, LElbowRoll=-1.5446)

@@ -1,4 +1,4 @@
-"""Run by tests/test_sharding.py: one of two processes of a CPU ``jax.distributed`` job.
+"""Run by tests/projection/test_sharding.py: one of two processes of a CPU ``jax.distributed`` job.
 
     python multihost_check.py PROCESS_ID PORT OUT_JSON
 

@@ -17,7 +17,7 @@ import jaxproj
 from jaxproj.io import datasets
 from jaxproj.robots.nao_h25 import robot
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 MAX_LINES = 150
 """The README's length limit (issue 28): what, install, the two commands, the example, links."""
 

@@ -17,7 +17,7 @@ import pytest
 
 from jaxproj import cli
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 FULL_TOL_DEG = 1.0
 """``benchmarks.harness.FULL_TOL_DEG``: the full objective's agreement with the reference."""

@@ -27,7 +27,7 @@ from jaxproj.motion.retarget import retarget
 from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import ik, robot
 
-DATA = Path(__file__).with_name("data") / "cmu_bvh"
+DATA = Path(__file__).resolve().parents[1] / "data" / "cmu_bvh"
 CLIPS = ("131_01_every6.bvh", "131_03_every6.bvh")
 
 BONE_LENGTHS_M = {  # tests/data/cmu_bvh/SOURCE.md
@@ -493,7 +493,7 @@ def test_a_folder_of_bvh_files_is_what_build_and_evaluate_read(tmp_path, capsys)
     """``--data FOLDER`` (build, evaluate) reads through ``cli._load`` -> ``load_folder``; what
     follows is format-blind (tested on Kinect folders in test_cli; evaluated on the full CMU clips
     by hand, see the README)."""
-    from jaxproj.cli.main import _load
+    from jaxproj.cli.options import load_data as _load
 
     contents = datasets.load_folder(DATA)
     assert [s.name for s in contents.sequences] == [Path(c).stem for c in CLIPS]

@@ -23,7 +23,7 @@ from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import ik, robot
 from jaxproj.viz import notebook
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK_DIR = ROOT / "notebooks"
 NAMES = ("01_quickstart", "02_paper_experiments", "03_generalisation", "04_mjx_rollout")
 MAX_BYTES = 1_500_000

@@ -27,7 +27,8 @@ frames of angles up to ~2 rad (measured ~1e-6)."""
 BATCH_TOL_RAD = 2e-5
 """The same relaxed projection in differently shaped batches (one frame, the padded motion, the
 valid frames of a dataset) and the descriptor eager or fused into a jitted call: a few float32
-ulp, up to ~1.5e-5 rad after the kernels (``tests/test_retarget.py``, ``test_streaming.py``)."""
+ulp, up to ~1.5e-5 rad after the kernels (``tests/motion/test_retarget.py``,
+``test_streaming.py``)."""
 
 
 def _fill_loop(q: np.ndarray, valid: np.ndarray) -> np.ndarray:

@@ -193,7 +193,7 @@ _TRUNCATED_ROW = "\n".join(_LINES[:6] + [" ".join(_LINES[6].split()[:3])] + _LIN
 _BVH_HIERARCHY = (
     "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
     "  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\n"
-)  # 10 lines: a one-joint BVH skeleton (BVH: tests/test_bvh.py)
+)  # 10 lines: a one-joint BVH skeleton (BVH: tests/io/test_bvh.py)
 
 
 def _truncated_npz() -> bytes:

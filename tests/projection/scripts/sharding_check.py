@@ -1,4 +1,4 @@
-"""Run by tests/test_sharding.py in a fresh process with 4 forced host devices.
+"""Run by tests/projection/test_sharding.py in a fresh process with 4 forced host devices.
 
 Projects the same queries on one device and sharded over 4 (``engine.project(..., devices=)``),
 and inspects the compiled per-device programs; prints one JSON object.

@@ -322,7 +322,7 @@ def test_cli_render(tmp_path, capsys, no_sigint_fork):
     m = _motion([robot.STANDING_POSTURE, _arm_up(), robot.STANDING_POSTURE])
     src = save_motion(tmp_path / "wave.npz", m)
     out = tmp_path / "videos" / "wave.gif"
-    out.parent.mkdir()  # the command creates no folder (tests/test_cli.py)
+    out.parent.mkdir()  # the command creates no folder (tests/integration/test_cli.py)
     code, stdout, err = _cli(
         capsys, "render", str(src), "--out", str(out), "--backend", "matplotlib", "--size", "120x90"
     )
