@@ -111,8 +111,8 @@ def prepare(
         raise ConfigError("no sequences to evaluate")
     pos = np.concatenate([s.positions for s in sequences])
     ok_in = np.concatenate([s.valid for s in sequences])
-    d, ok = descriptor(pos, bones=bones, mirror=mirror)
-    d, ok = np.asarray(d), np.asarray(ok) & ok_in
+    d_raw, ok_raw = descriptor(pos, bones=bones, mirror=mirror)
+    d, ok = np.asarray(d_raw), np.asarray(ok_raw) & ok_in
     truth = np.asarray(spec.solve_ik(d, bones))
     lengths = [len(s.valid) for s in sequences]
     return EvalData(
@@ -259,9 +259,9 @@ def _predict(model, method, h, *, n_l, n_m, full, seed, devices) -> np.ndarray:
         x = np.ascontiguousarray(h[:, list(lay.inputs[c])])
         n = len(lay.outputs[c])
         if method == "nearest_landmark":
-            pred = _batched(lambda q, p=p: _nearest_landmark_jit(p, q), x, n)
+            pred = _batched(functools.partial(_nearest_landmark_jit, p), x, n)
         elif method == "knn_average":
-            pred = _batched(lambda q, p=p: _knn_average_jit(p, q, n_l=n_l), x, n)
+            pred = _batched(functools.partial(_knn_average_jit, p, n_l=n_l), x, n)
         else:  # global_elm
             elm = fit_global_elm(p, base_key if c == 0 else jax.random.fold_in(base_key, c))
             pred = np.clip(_batched(elm, x, n), np.asarray(p.lower), np.asarray(p.upper))

@@ -15,6 +15,7 @@ Shapes: human descriptors ``(N, m)`` (``m = 15`` for the default upper-body bone
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypedDict
 
 import jax
 import numpy as np
@@ -27,6 +28,15 @@ from jaxproj.projection.elm import train_bank
 from jaxproj.projection.projector import Projector, StackedProjector, make_projector
 from jaxproj.projection.stacked import layout_of, stack_projectors
 from jaxproj.robots import Robot
+
+
+class _BankOptions(TypedDict):
+    """The ``train_bank`` options ``build_from_landmarks`` gives both directions."""
+
+    k: int
+    hidden: int
+    lam: float
+    input_scale: float
 
 
 @dataclass(frozen=True)
@@ -88,7 +98,7 @@ def build_from_landmarks(
     if config.k < 2 or len(human) < 2:
         raise ConfigError(f"k={config.k} and the number of landmarks={len(human)} must be >= 2")
     k = min(config.k, len(human))
-    opts = dict(k=k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
+    opts = _BankOptions(k=k, hidden=config.hidden, lam=config.lam, input_scale=config.input_scale)
     forward = train_bank(human, robot_poses, k_fwd, **opts)
     backward = train_bank(robot_poses, human, k_bwd, **opts)
     return make_projector(human, robot_poses, forward, backward, lower, upper)

@@ -11,7 +11,7 @@ builder and the projection read one definition without importing each other.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 from jaxproj import robots
 from jaxproj.errors import ConfigError
@@ -141,7 +141,8 @@ class BuildConfig:
         defaults = DEFAULTS[self.chains]
         sizes_given = self.landmarks is not None or self.bandwidth is not None
 
-        def get(field_name: str) -> object:
+        # Any: the type depends on field_name (int or float per field; None for an unset size)
+        def get(field_name: str) -> Any:
             value = getattr(self, field_name)
             if value is None and (field_name not in ("landmarks", "bandwidth") or not sizes_given):
                 value = defaults.get(field_name)

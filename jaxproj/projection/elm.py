@@ -69,12 +69,12 @@ class ELMBank:
       n_kernels, hidden, d_in, d_out, k: static sizes.
     """
 
-    w: jax.Array
-    inv_scale: jax.Array
-    bias: jax.Array
-    out: jax.Array
-    offset: jax.Array
-    neighbours: jax.Array
+    w: jax.Array | np.ndarray
+    inv_scale: jax.Array | np.ndarray
+    bias: jax.Array | np.ndarray
+    out: jax.Array | np.ndarray
+    offset: jax.Array | np.ndarray
+    neighbours: jax.Array | np.ndarray
     n_kernels: int = field(metadata=dict(static=True))
     hidden: int = field(metadata=dict(static=True))
     d_in: int = field(metadata=dict(static=True))
@@ -174,8 +174,8 @@ def _train_one(
 
 
 def train_bank(
-    inputs: jax.Array,
-    targets: jax.Array,
+    inputs: jax.typing.ArrayLike,
+    targets: jax.typing.ArrayLike,
     key: jax.Array,
     *,
     k: int = 16,

@@ -22,7 +22,7 @@ give the whole build with the IK): section "Mean shift / landmark build times" o
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 import jax.numpy as jnp
 import numpy as np
@@ -39,6 +39,15 @@ from jaxproj.projection.meanshift import (
     mean_shift,
 )
 from jaxproj.robots import Chain, Robot, get
+
+
+class _MeanShiftOptions(TypedDict):
+    """The options ``build_landmarks`` passes on to ``find_bandwidth`` / ``mean_shift``."""
+
+    kernel: Kernel
+    max_iter: int
+    tol: float
+    merge_fraction: float
 
 
 @dataclass(frozen=True)
@@ -122,10 +131,13 @@ def build_landmarks(
     points = valid_descriptors(sequences_or_points, bones=bones, mirror=mirror)
     if chain is not None:
         points = np.ascontiguousarray(points[:, list(spec.chain_columns(chain, bones))])
-    options = dict(kernel=kernel, max_iter=max_iter, tol=tol, merge_fraction=merge_fraction)
+    options = _MeanShiftOptions(
+        kernel=kernel, max_iter=max_iter, tol=tol, merge_fraction=merge_fraction
+    )
     if target is not None:
         h, res = find_bandwidth(points, target, rel_tol=rel_tol, **options)
     else:
+        assert bandwidth is not None  # checked above: exactly one of target / bandwidth
         res = mean_shift(points, bandwidth, **options)
         h = res.bandwidth
     if chain is None:

@@ -35,24 +35,24 @@ class Projector:
       lower, upper: ``(n,)`` joint limits the outputs are clipped to.
     """
 
-    human: jax.Array
-    robot: jax.Array
-    human_sq: jax.Array
-    robot_sq: jax.Array
+    human: jax.Array | np.ndarray
+    robot: jax.Array | np.ndarray
+    human_sq: jax.Array | np.ndarray
+    robot_sq: jax.Array | np.ndarray
     forward: ELMBank
     backward: ELMBank
-    lower: jax.Array
-    upper: jax.Array
+    lower: jax.Array | np.ndarray
+    upper: jax.Array | np.ndarray
     n_landmarks: int = field(metadata=dict(static=True))
 
 
 def make_projector(
-    human: jax.Array,
-    robot_poses: jax.Array,
+    human: jax.typing.ArrayLike,
+    robot_poses: jax.typing.ArrayLike,
     forward: ELMBank,
     backward: ELMBank,
-    lower: jax.Array | None = None,
-    upper: jax.Array | None = None,
+    lower: jax.typing.ArrayLike | None = None,
+    upper: jax.typing.ArrayLike | None = None,
     robot: Robot | str | None = None,
 ) -> Projector:
     """Assemble a ``Projector`` from landmarks ``(K, m)``, ``(K, n)`` and the two banks.

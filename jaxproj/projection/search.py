@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxproj.projection.ops import Impl, ImplLike, pallas_interpret, resolve_impl
 from jaxproj.projection.ops import knn_pallas as _knn_pallas
@@ -46,7 +47,7 @@ def sq_norms(points: jax.Array) -> jax.Array:
 
 
 def nearest(
-    points: jax.Array, points_sq: jax.Array, x: jax.Array, n: int
+    points: jax.Array | np.ndarray, points_sq: jax.Array | np.ndarray, x: jax.Array, n: int
 ) -> tuple[jax.Array, jax.Array]:
     """The ``n`` landmarks nearest to one point, exact.
 
@@ -82,7 +83,11 @@ def nearest(
 
 
 def nearest_rows(
-    points: jax.Array, points_sq: jax.Array, x: jax.Array, n: int, impl: ImplLike = Impl.AUTO
+    points: jax.Array | np.ndarray,
+    points_sq: jax.Array | np.ndarray,
+    x: jax.Array,
+    n: int,
+    impl: ImplLike = Impl.AUTO,
 ) -> tuple[jax.Array, jax.Array]:
     """The ``n`` nearest landmarks of many rows, per landmark set, exact.
 
@@ -103,7 +108,9 @@ def nearest_rows(
       (``jaxproj.projection.ops.knn_pallas``).
     """
 
-    def xla(points: jax.Array, points_sq: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
+    def xla(
+        points: jax.Array | np.ndarray, points_sq: jax.Array | np.ndarray, x: jax.Array
+    ) -> tuple[jax.Array, jax.Array]:
         return jax.vmap(lambda p, s, q: nearest(p, s, q, n))(points, points_sq, x)
 
     if n > _knn_pallas.SLOTS or resolve_impl(impl) is Impl.XLA:

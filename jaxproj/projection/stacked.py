@@ -25,7 +25,7 @@ from jaxproj.projection.relaxed import project_relaxed_one
 from jaxproj.robots import Chain
 
 
-def _pad(a: jax.Array, shape: tuple[int, ...], value: float = 0.0) -> np.ndarray:
+def _pad(a: jax.typing.ArrayLike, shape: tuple[int, ...], value: float = 0.0) -> np.ndarray:
     a = np.asarray(a)
     return np.pad(
         a, [(0, t - s) for s, t in zip(a.shape, shape, strict=True)], constant_values=value
@@ -53,9 +53,9 @@ def stack_projectors(chains: Sequence[Projector], layout: ChainLayout) -> Stacke
     if len(chains) != layout.n_chains or not chains:
         raise ConfigError(f"{len(chains)} projectors for {layout.n_chains} chains")
     for c, p in enumerate(chains):
-        want = (layout.landmarks[c], len(layout.inputs[c]), len(layout.outputs[c]))
+        want: tuple[int, ...] = (layout.landmarks[c], len(layout.inputs[c]), len(layout.outputs[c]))
         want += (layout.hidden[c], layout.hidden[c], layout.k[c], layout.k[c])
-        got = (p.n_landmarks, p.human.shape[1], p.robot.shape[1], p.forward.hidden)
+        got: tuple[int, ...] = (p.n_landmarks, p.human.shape[1], p.robot.shape[1], p.forward.hidden)
         got += (p.backward.hidden, p.forward.k, p.backward.k)
         if got != want:
             raise ConfigError(f"chain {layout.names[c]}: projector {got} does not match {want}")

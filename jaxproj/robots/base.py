@@ -349,7 +349,7 @@ class Robot:
     @property
     def driven_index(self) -> np.ndarray:
         """``(n_driven,)`` int32 positions of ``driven_joints`` in ``joint_names`` (read-only)."""
-        return self._driven_index  # type: ignore[attr-defined,no-any-return]
+        return self._driven_index  # type: ignore[attr-defined]
 
     def index(self, name: str) -> int:
         """Position of joint ``name`` in ``joint_names``; ConfigError for an unknown name."""
@@ -403,7 +403,9 @@ class Robot:
                 f"the IK needs the bones {self.ik_bones}; the descriptor lacks {missing}"
             )
 
-    def solve_ik(self, d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+    def solve_ik(
+        self, d: jax.typing.ArrayLike, bones: str | tuple[str, ...] = "upper"
+    ) -> jax.Array:
         """``ik``: ``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` angles, rad."""
         if self.ik is None:
             raise ConfigError(f"robot {self.name!r} has no IK function")

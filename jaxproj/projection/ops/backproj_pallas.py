@@ -25,6 +25,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.experimental import pallas as pl
 
 from jaxproj.projection.elm import ELMBank
@@ -132,7 +133,7 @@ def back_min(
     kp, hp = _pow2(bank.inv_scale.shape[0]), _pow2(hidden)
     ip, op, mp = _pow2(d_in), _pow2(d_out), _pow2(m)
 
-    def fit(a: jax.Array, shape: tuple[int, ...]) -> jax.Array:
+    def fit(a: jax.Array | np.ndarray, shape: tuple[int, ...]) -> jax.Array:
         """Cut ``a`` to at most ``shape`` and zero-pad it to exactly ``shape``."""
         a = a[tuple(slice(0, min(s, t)) for s, t in zip(a.shape, shape, strict=True))]
         return jnp.pad(a, [(0, t - s) for s, t in zip(a.shape, shape, strict=True)])

@@ -30,6 +30,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.experimental import pallas as pl
 
 ROWS = 16
@@ -113,7 +114,11 @@ def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb:
 
 
 def knn(
-    points: jax.Array, valid: jax.Array, x: jax.Array, n: int, interpret: bool = False
+    points: jax.Array | np.ndarray,
+    valid: jax.Array,
+    x: jax.Array,
+    n: int,
+    interpret: bool = False,
 ) -> tuple[jax.Array, jax.Array]:
     """Exact ``n`` nearest landmarks of every row, per landmark set (traceable).
 
