@@ -98,7 +98,7 @@ def add_bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> Non
         default="auto",
         help="BVH input: joint map, Kinect joint -> BVH joint: auto (the built-in map that fits "
         "the hierarchy), cmu (CMU 3dsMax-friendly release), cmu-mb (CMU MotionBuilder-friendly) "
-        "or a JSON / TOML file of {Kinect joint: BVH joint} (jaxproj.io.bvh)",
+        "or a JSON / TOML file of {Kinect joint: BVH joint} (jaxproj.io.formats.bvh)",
     )
     if scale:
         parser.add_argument(

@@ -95,8 +95,8 @@ def load_sequences(
         name are kept.
       progress: optional wrapper of the file iterable (e.g. a progress bar).
       strict: folders only: ``True`` raises at an unreadable recording, ``False`` leaves it out.
-      bvh_map: folders only: the joint map of the BVH files in it (``jaxproj.io.bvh``; default
-        ``"auto"``: a built-in map detected per file).
+      bvh_map: folders only: the joint map of the BVH files in it (``jaxproj.io.formats.bvh``;
+        default ``"auto"``: a built-in map detected per file).
 
     Raises:
       InputError: ``data`` is none of the names above nor a folder, the folder holds no

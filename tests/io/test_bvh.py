@@ -1,4 +1,4 @@
-"""BVH input (jaxproj.io.bvh, readers.read_skeleton(format="bvh")): parsing, forward kinematics
+"""BVH input (jaxproj.io.formats.bvh, read_skeleton(format="bvh")): parsing, forward kinematics
 against an independent rotation library, joint maps, the real CMU excerpts through the
 descriptor, the IK and a projector, resampling, bad files and the CLI.
 
