@@ -162,14 +162,14 @@ def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int)
     caps (100 / 50) and, for frictionless contacts, against the same config with friction."""
     q = motions(batch, frames, seed)
     ref = dataclasses.replace(cfg, solver_iterations=100, ls_iterations=50)
-    a = rollout.simulate(q, config=cfg)
+    a = rollout.simulate(q, config=cfg, backend="mjx")
     qa = np.asarray(a.qpos)
     out = {
         "motions": batch,
-        "max_dq_rad": float(np.abs(qa - rollout.simulate(q, config=ref).qpos).max()),
+        "max_dq_rad": float(np.abs(qa - rollout.simulate(q, config=ref, backend="mjx").qpos).max()),
     }
     if cfg.split_legs:
-        w = rollout.simulate(q, config=dataclasses.replace(cfg, split_legs=False))
+        w = rollout.simulate(q, config=dataclasses.replace(cfg, split_legs=False), backend="mjx")
         out["vs_whole"] = {
             "max_dq_rad": float(np.abs(qa - np.asarray(w.qpos)).max()),
             "max_dqvel_rad_s": float(np.abs(np.asarray(a.qvel) - np.asarray(w.qvel)).max()),
@@ -179,7 +179,9 @@ def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int)
             "motions_with_contact": int((np.asarray(w.contact_frames).sum(axis=1) > 0).sum()),
         }
     if not cfg.contact_friction:
-        f = rollout.simulate(q, config=dataclasses.replace(cfg, contact_friction=True))
+        f = rollout.simulate(
+            q, config=dataclasses.replace(cfg, contact_friction=True), backend="mjx"
+        )
         dq = np.abs(qa - np.asarray(f.qpos)).max(axis=(1, 2))
         touched = np.asarray(f.contact_frames).sum(axis=1) > 0
         out["vs_friction"] = {
@@ -205,12 +207,12 @@ def bench(
     q = motions(batch, frames, seed)
     n = np.full(batch, frames, dtype=np.int32)
     t0 = time.perf_counter()
-    res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices))
+    res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices, backend="mjx"))
     first = time.perf_counter() - t0
     runs = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices))
+        res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices, backend="mjx"))
         runs.append(time.perf_counter() - t0)
     run = min(runs)
     qpos = np.asarray(res.qpos)

@@ -7,12 +7,23 @@ and a process may hold at most ``vm.max_map_count`` of them (65,530 here). The M
 tests alone leave ~14,400 maps behind (one rollout program ~3,500), and the whole suite in one
 process crossed the limit: a later compile crashed with a segmentation fault inside XLA
 (``tests/test_testing.py``, in CI). ``jax.clear_caches()`` after a module releases them (one
-rollout program: 4,618 -> 1,097 maps)."""
+rollout program: 4,618 -> 1,097 maps).
+
+One persistent XLA compilation cache for the whole run (``pytest_configure``): the clearing above
+would otherwise make every module compile again the programs an earlier module compiled (the
+same model shapes, FK, MJX steps), and the child processes the tests start (the CLI, the
+benchmarks, the notebooks' kernels) inherit it through ``JAX_COMPILATION_CACHE_DIR``. A cached
+program is the same executable XLA would compile again, so no answer changes; the cache is a
+fresh temporary folder per run (removed at the end), or ``$JAXPROJ_TEST_XLA_CACHE`` (or JAX's
+own ``$JAX_COMPILATION_CACHE_DIR``) to keep one across local runs."""
 
 from __future__ import annotations
 
 import contextlib
 import gc
+import os
+import shutil
+import tempfile
 from collections import Counter
 from collections.abc import Callable, Iterator
 
@@ -23,6 +34,31 @@ BACKEND_COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 """The ``jax.monitoring`` duration event JAX records once per XLA compilation (also when the
 executable comes from the persistent compilation cache), with the ``fun_name`` keyword set to
 ``"jit(<name of the jitted function>)"``."""
+
+
+_CACHE_ENV = {
+    "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
+    "JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES": "0",
+}
+_TEMP_CACHE: list[str] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Turn on the run's persistent compilation cache, here and in every child process."""
+    # an xdist worker inherits its controller's folder through the environment
+    folder = os.environ.get("JAXPROJ_TEST_XLA_CACHE") or os.environ.get("JAX_COMPILATION_CACHE_DIR")
+    if not folder:
+        folder = tempfile.mkdtemp(prefix="jaxproj-test-xla-")
+        _TEMP_CACHE.append(folder)
+    os.environ.update({"JAX_COMPILATION_CACHE_DIR": folder, **_CACHE_ENV})
+    jax.config.update("jax_compilation_cache_dir", folder)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    for folder in _TEMP_CACHE:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.fixture(autouse=True, scope="module")

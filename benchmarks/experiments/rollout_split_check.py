@@ -45,7 +45,7 @@ def main() -> None:
         ),
         "split_100_50": dataclasses.replace(base, solver_iterations=100, ls_iterations=50),
     }
-    res = {k: rollout.simulate(q, config=c) for k, c in configs.items()}
+    res = {k: rollout.simulate(q, config=c, backend="mjx") for k, c in configs.items()}
     qpos = {k: np.asarray(r.qpos, np.float64) for k, r in res.items()}
     touched = np.asarray(res["whole_100_50"].contact_frames).sum(axis=1) > 0
     dev = jax.devices()[0]

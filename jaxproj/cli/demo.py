@@ -17,8 +17,13 @@ def add_parsers(sub: Any) -> None:
         default="jaxproj-report",
         help="report folder, created if missing (its parent folder must exist)",
     )
-    p.add_argument("--quick", action="store_true", help="fewer rollouts and sweep points")
-    options.add_devices_option(p, "for the evaluation and the MJX rollout")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke run: fewer training frames, held-out recordings, landmarks, rollouts and "
+        "sweep points",
+    )
+    options.add_devices_option(p, "for the evaluation and the rollout (then in MJX)")
     p.set_defaults(func=run)
 
 

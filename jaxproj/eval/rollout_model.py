@@ -312,11 +312,28 @@ def _check_config(config: RolloutConfig) -> None:
         raise ConfigError(f"config must be a RolloutConfig, got {type(config).__name__}")
 
 
+class _Tables(NamedTuple):
+    """The host-side model of one part and its index tables (``_Setup`` without MJX; the C
+    backend, ``rollout_cpu``, runs on these)."""
+
+    model: mujoco.MjModel
+    substeps: int
+    joints: np.ndarray  # (n,) int32 index into joint_names of each joint of the part, ascending
+    qidx: np.ndarray  # (n,) int32 qpos address of each joint
+    didx: np.ndarray  # (n,) int32 dof address of each joint
+    q0_src: np.ndarray  # (n,) int32 joint whose target starts each joint (a follower: leader)
+    act_src: np.ndarray  # (nu,) int32 index into joint_names of the joint each actuator drives
+    ctrl_lo: np.ndarray  # (nu,) float32
+    ctrl_hi: np.ndarray  # (nu,) float32
+    q_lo: np.ndarray  # (n,) float32 joint range, for the initial pose
+    q_hi: np.ndarray  # (n,) float32
+    pair_group: np.ndarray  # (ngeom, ngeom) int32: index into CONTACT_GROUPS, -1 not reported
+
+
 @functools.lru_cache(maxsize=8)
-def _setup(
-    config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25
-) -> tuple[_Setup, int]:
-    """Model of ``part`` on device, its index tables for ``config``, and steps per frame."""
+def _tables(config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25) -> _Tables:
+    """The MjModel of ``part`` for ``config``, checked for what the protocol assumes, with its
+    index tables and physics steps per frame."""
     model = _fixed_model(config, part, robot)
     substeps = _substeps(config, float(model.opt.timestep))
     if model.opt.integrator != mujoco.mjtIntegrator.mjINT_IMPLICITFAST:
@@ -325,33 +342,53 @@ def _setup(
         model.actuator_biastype != mujoco.mjtBias.mjBIAS_AFFINE
     ):
         raise ConfigError("the rollout step assumes position actuators (fixed gain, affine bias)")
-    mx = mjx.put_model(model, impl="jax")
-    d0 = mjx.make_data(mx, impl="jax")
     jids = _part_joints(model, robot)
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in jids]
-    joints = np.array([robot.index(n) for n in names], dtype=np.int32)
     leader = {follower: lead for lead, follower in robot.coupled_joints}
-    q0_src = np.array([robot.index(leader.get(n, n)) for n in names], np.int32)
     pair_group = _pair_group(model)
     if part == "legs" and np.any(pair_group >= 0):
         raise ConfigError("split_legs: a reported contact group involves the legs")
-    guard_geom, guard_radius, guard_center = _guard(model, part, robot)
+    return _Tables(
+        model=model,
+        substeps=substeps,
+        joints=np.array([robot.index(n) for n in names], dtype=np.int32),
+        qidx=model.jnt_qposadr[jids].astype(np.int32),
+        didx=model.jnt_dofadr[jids].astype(np.int32),
+        q0_src=np.array([robot.index(leader.get(n, n)) for n in names], np.int32),
+        act_src=_actuated_joint(model, robot).astype(np.int32),
+        ctrl_lo=model.actuator_ctrlrange[:, 0].astype(np.float32),
+        ctrl_hi=model.actuator_ctrlrange[:, 1].astype(np.float32),
+        q_lo=model.jnt_range[jids, 0].astype(np.float32),
+        q_hi=model.jnt_range[jids, 1].astype(np.float32),
+        pair_group=pair_group,
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _setup(
+    config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25
+) -> tuple[_Setup, int]:
+    """Model of ``part`` on device, its index tables for ``config``, and steps per frame."""
+    t = _tables(config, part, robot)
+    mx = mjx.put_model(t.model, impl="jax")
+    d0 = mjx.make_data(mx, impl="jax")
+    guard_geom, guard_radius, guard_center = _guard(t.model, part, robot)
     setup = _Setup(
         mx=mx,
         d0=d0,
-        joints=jnp.asarray(joints),
-        qidx=jnp.asarray(model.jnt_qposadr[jids], dtype=jnp.int32),
-        didx=jnp.asarray(model.jnt_dofadr[jids], dtype=jnp.int32),
-        q0_src=jnp.asarray(q0_src),
-        act_src=jnp.asarray(_actuated_joint(model, robot), dtype=jnp.int32),
-        ctrl_lo=jnp.asarray(model.actuator_ctrlrange[:, 0], dtype=jnp.float32),
-        ctrl_hi=jnp.asarray(model.actuator_ctrlrange[:, 1], dtype=jnp.float32),
-        q_lo=jnp.asarray(model.jnt_range[jids, 0], dtype=jnp.float32),
-        q_hi=jnp.asarray(model.jnt_range[jids, 1], dtype=jnp.float32),
-        pair_group=jnp.asarray(pair_group),
-        force_limited=jnp.asarray(model.actuator_forcelimited, dtype=bool),
+        joints=jnp.asarray(t.joints),
+        qidx=jnp.asarray(t.qidx),
+        didx=jnp.asarray(t.didx),
+        q0_src=jnp.asarray(t.q0_src),
+        act_src=jnp.asarray(t.act_src),
+        ctrl_lo=jnp.asarray(t.ctrl_lo),
+        ctrl_hi=jnp.asarray(t.ctrl_hi),
+        q_lo=jnp.asarray(t.q_lo),
+        q_hi=jnp.asarray(t.q_hi),
+        pair_group=jnp.asarray(t.pair_group),
+        force_limited=jnp.asarray(t.model.actuator_forcelimited, dtype=bool),
         guard_geom=jnp.asarray(guard_geom),
         guard_radius=jnp.asarray(guard_radius),
         guard_center=jnp.asarray(guard_center),
     )
-    return setup, substeps
+    return setup, t.substeps

@@ -4,7 +4,8 @@
    landmarks per arm chain / for the whole body);
 2. evaluate every method on subjects 2,4,6,8,10 with and without smoothing, and both models
    side by side on them and on the UTKinect-Action3D upper-body segments (cross-dataset);
-3. roll out held-out arm motions in MuJoCo MJX: the robot-feasible relaxed projection (what
+3. roll out held-out arm motions in MuJoCo (MJX on accelerators, CPU MuJoCo on a CPU-only
+   machine: ``rollout.simulate``'s default backend): the robot-feasible relaxed projection (what
    ``jaxproj retarget`` writes for a robot, ``jaxproj.motion.feasible``) beside the raw relaxed
    projection and the IK;
 4. the paper's experiments: eight basic poses and motions, landmark-set sizes, L = M sweep;
@@ -32,6 +33,13 @@ from jaxproj.viz import report
 TRAIN_SUBJECTS = datasets.TRAIN_SUBJECTS
 TEST_SUBJECTS = datasets.TEST_SUBJECTS
 
+QUICK_TRAIN_STRIDE = 4
+"""``run_demo(quick=True)``: every 4th training frame feeds the builds."""
+QUICK_TEST_STRIDE = 3
+"""``run_demo(quick=True)``: every 3rd held-out MSR recording is evaluated."""
+QUICK_LANDMARKS = 200
+"""``run_demo(quick=True)``: landmarks per arm chain and for the whole body."""
+
 
 def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
@@ -50,7 +58,11 @@ def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs, de
     arm = np.flatnonzero(np.isin(data.actions, datasets.ARM_ACTIONS))
     picks = arm[np.linspace(0, len(arm) - 1, n_motions).round().astype(int)]
     t_max = int(lengths[picks].max())
-    out: dict = {"motions": [data.names[i] for i in picks], "frame_dt": 1.0 / 15.0}
+    out: dict = {
+        "motions": [data.names[i] for i in picks],
+        "frame_dt": 1.0 / 15.0,
+        "backend": rollout.resolve_backend("auto", devices),
+    }
     traj = {"ik": ev["_truth"], "relaxed": ev["_predictions"]["relaxed"]}
     batches = {}
     for name, per_frame in traj.items():
@@ -78,17 +90,21 @@ def run_demo(
 ) -> dict:
     """Run the whole demo and write the report; returns the report dict.
 
-    ``quick`` (the tests' setting) uses 400 landmarks per arm chain (and for the whole body)
-    instead of the paper's 1644, a two-point landmark-size study (400, 86), fewer rollouts and
-    sweep points. ``progress`` shows progress bars on a terminal (stage lines always go to
+    ``quick`` (the tests' setting, a smoke run of every stage in a few minutes on 2 cores)
+    builds from every ``QUICK_TRAIN_STRIDE``-th training frame with ``QUICK_LANDMARKS``
+    landmarks per arm chain (and for the whole body) instead of the paper's 1644, evaluates
+    every ``QUICK_TEST_STRIDE``-th held-out MSR recording (UTKinect whole), and runs a
+    two-point landmark-size study (``QUICK_LANDMARKS``, 86), fewer rollouts and sweep points;
+    its numbers are not the report's (``report.json`` says ``quick``). ``progress`` shows
+    progress bars on a terminal (stage lines always go to
     stderr). ``devices`` (several JAX devices, or ``None`` for the default one) shard the
-    held-out evaluation's projections and the MJX rollout (``engine.resolve_devices``).
+    held-out evaluation's projections and the rollout (then MJX; ``engine.resolve_devices``).
     """
     t_start = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
-    cfg = engine.BuildConfig(landmarks=400 if quick else 1644)  # one projector per chain
-    train = _train_descriptors(cfg)
+    cfg = engine.BuildConfig(landmarks=QUICK_LANDMARKS if quick else 1644)  # per chain
+    train = _train_descriptors(cfg)[:: QUICK_TRAIN_STRIDE if quick else 1]
     models = {}
     for name, c in (("per_chain", cfg), ("whole_body", replace(cfg, chains="whole"))):
         t0 = time.perf_counter()
@@ -103,7 +119,7 @@ def run_demo(
     engine.save(models["whole_body"], out_dir / "projector_whole_body.npz")
 
     t0 = time.perf_counter()
-    test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS)
+    test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS)[:: QUICK_TEST_STRIDE if quick else 1]
     data = evaluate.prepare(test_seqs)
     ev = evaluate.evaluate(model, data, evaluate.METHODS, progress=progress, devices=devices)
     splits = {
@@ -132,7 +148,7 @@ def run_demo(
     rollout_out = _rollout_section(data, ev, 8 if quick else 32, test_seqs, devices)
     timings["rollout_s"] = rollout_out["wall_s"]
     _log(
-        f"[3/5] MJX rollout of {len(rollout_out['motions'])} motions "
+        f"[3/5] {rollout_out['backend']} rollout of {len(rollout_out['motions'])} motions "
         f"in {timings['rollout_s']:.1f} s"
     )
 
@@ -146,7 +162,7 @@ def run_demo(
     ]
     sizes = experiments.landmark_size_study(
         train,
-        sizes=(400, 86) if quick else (1644, 961, 86),
+        sizes=(QUICK_LANDMARKS, 86) if quick else (1644, 961, 86),
         key=key,
         eval_descriptors=held_out,
         built={cfg: (model, timings["build_per_chain_s"])},  # the per-chain model of step 1
@@ -169,6 +185,7 @@ def run_demo(
             "train_frames": len(train),
             "config": vars(model.config).copy(),
         },
+        "quick": quick,
         "train_subjects": list(TRAIN_SUBJECTS),
         "test_subjects": list(TEST_SUBJECTS),
     }
@@ -284,13 +301,13 @@ def _where_md(r: dict) -> list[str]:
 
 
 def _rollout_md(ro: dict) -> list[str]:
-    lines = ["", "## MJX rollout (torso fixed, position actuators, gravity on)", ""]
+    lines = ["", "## MuJoCo rollout (torso fixed, position actuators, gravity on)", ""]
     lines.append(
-        f"{len(ro['motions'])} held-out arm motions tracked in MuJoCo MJX "
-        f"({ro['wall_s']:.1f} s): the IK trajectories, the relaxed projections and the "
-        "relaxed projections made robot-feasible (`relaxed_feasible`, what `jaxproj retarget` "
-        "writes for a robot). Tracking is against each trajectory's own targets; the peak "
-        "speed is the simulated robot's."
+        f"{len(ro['motions'])} held-out arm motions tracked in MuJoCo "
+        f"(backend `{ro['backend']}`, {ro['wall_s']:.1f} s): the IK trajectories, the relaxed "
+        "projections and the relaxed projections made robot-feasible (`relaxed_feasible`, what "
+        "`jaxproj retarget` writes for a robot). Tracking is against each trajectory's own "
+        "targets; the peak speed is the simulated robot's."
     )
     lines += [
         "",
@@ -410,6 +427,16 @@ def _markdown(r: dict) -> str:
     lines = [
         "# jaxproj demo report",
         "",
+        *(
+            [
+                f"**Quick run** (`--quick`, a smoke test): every {QUICK_TRAIN_STRIDE}th training "
+                f"frame, every {QUICK_TEST_STRIDE}rd held-out MSR recording, "
+                f"{QUICK_LANDMARKS} landmarks per arm chain; not the report's numbers.",
+                "",
+            ]
+            if r.get("quick")
+            else []
+        ),
         f"Landmarks per chain: {r['build']['landmarks']} (mean shift, bandwidths "
         f"{r['build']['bandwidth']}) from {r['build']['train_frames']} valid frames of "
         f"subjects {r['train_subjects']}; "

@@ -1,4 +1,5 @@
-"""MJX rollouts of retargeted motions (jaxproj.eval.rollout) against CPU MuJoCo and known answers.
+"""Rollouts of retargeted motions (jaxproj.eval.rollout): MJX against CPU MuJoCo (the protocol
+written out here, and the ``backend="mujoco"`` rollout) and known answers.
 
 MJX compiles are slow on CPU (~15 s for one rollout program on 2 cores), so every ``simulate``
 test reads one module-scoped batch of six 10-frame motions, compiled once; ``hand_error_cm`` is
@@ -63,7 +64,7 @@ def _motions() -> tuple[np.ndarray, np.ndarray]:
 def batch() -> tuple[np.ndarray, np.ndarray, rollout.RolloutResult]:
     targets, lengths = _motions()
     with jax.numpy_dtype_promotion("strict"), jax.numpy_rank_promotion("raise"):
-        result = rollout.simulate(targets, lengths)
+        result = rollout.simulate(targets, lengths, backend="mjx")
     result = rollout.RolloutResult(*(np.asarray(x) for x in result))
     return targets, lengths, result
 
@@ -169,7 +170,7 @@ def test_frictionless_contacts(batch) -> None:
     targets, lengths, r = batch
     rows = [STANDING, STEP, COLLIDE]
     cfg = rollout.RolloutConfig(contact_friction=False)
-    f = rollout.simulate(targets[rows], lengths[rows], cfg)
+    f = rollout.simulate(targets[rows], lengths[rows], cfg, backend="mjx")
     np.testing.assert_array_equal(np.asarray(f.qpos)[:2], r.qpos[[STANDING, STEP]])
     assert np.asarray(f.contact_frames)[2, ARM_TORSO] > 0
     assert np.asarray(f.contact_frames)[:2].sum() == 0
@@ -205,13 +206,81 @@ def test_padding_is_ignored(batch, fixed: mujoco.MjModel) -> None:
     assert s_pad["frames"] == 2 * PAD_LEN and s_pad["joint_limit_violations"]["target_frames"] == 0
 
 
+# --- the CPU MuJoCo backend -----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def cpu_batch(batch) -> rollout.RolloutResult:
+    targets, lengths, _ = batch
+    result = rollout.simulate(targets, lengths, backend="mujoco", threads=2)
+    return rollout.RolloutResult(*(np.asarray(x) for x in result))
+
+
+@pytest.mark.parametrize("row", [STANDING, STEP, COLLIDE])
+def test_mujoco_backend_is_the_written_out_protocol(
+    batch, cpu_batch: rollout.RolloutResult, fixed: mujoco.MjModel, row: int
+) -> None:
+    # the same float64 physics as _cpu_rollout: equal up to the float32 results' rounding
+    targets, _, _ = batch
+    cpu = _cpu_rollout(fixed, targets[row])
+    np.testing.assert_allclose(cpu_batch.qpos[row], cpu["qpos"], atol=1e-6)
+    np.testing.assert_allclose(cpu_batch.max_speed[row], cpu["max_speed"], atol=1e-5)
+    np.testing.assert_array_equal(
+        cpu_batch.contact[row, :, ARM_TORSO], cpu["contact"][:, ARM_TORSO]
+    )
+
+
+def test_mujoco_backend_matches_mjx(batch, cpu_batch: rollout.RolloutResult) -> None:
+    # every row, padding included: float64 C MuJoCo vs float32 MJX
+    targets, lengths, r = batch
+    c = cpu_batch
+    assert [x.shape for x in c] == [x.shape for x in r]
+    assert [x.dtype for x in c] == [x.dtype for x in r]
+    valid = np.arange(T)[None, :] < lengths[:, None]
+    free = [STANDING, STEP, PAD_NAN, PAD_WILD]  # no self-contact in their valid frames
+    assert r.contact_frames[free].sum() == 0 and c.contact_frames[free].sum() == 0
+    ok = valid[free]
+    np.testing.assert_allclose(c.qpos[free][ok], r.qpos[free][ok], atol=1e-4)
+    np.testing.assert_allclose(c.max_speed[free], r.max_speed[free], atol=1e-2)
+    np.testing.assert_allclose(c.tracking_rms[free], r.tracking_rms[free], atol=1e-4)
+    # in contact the two constraint solvers part (MJX's own Newton solver in float32, both
+    # capped at RolloutConfig's 8 iterations): measured up to 0.058 rad on COLLIDE
+    touch = [COLLIDE, JUMP]
+    assert np.abs(c.qpos[touch] - r.qpos[touch]).max() < 0.1
+    # contact at the threshold may flip in one frame (as MJX against _cpu_rollout)
+    assert np.abs(c.contact_frames - r.contact_frames).max() <= 1
+    assert c.contact_frames[COLLIDE, ARM_TORSO] > 0 and c.contact_frames[STANDING].sum() == 0
+    np.testing.assert_allclose(c.penetration, r.penetration, atol=1e-3)
+    assert not c.contact[~valid].any() and np.all(c.penetration[~valid] == 0)
+    s_c, s_r = (rollout.summarize(x, lengths, targets) for x in (c, r))
+    assert (
+        s_c["frames"] == s_r["frames"]
+        and s_c["speed"]["worst_joint"] == s_r["speed"]["worst_joint"]
+    )
+
+
+def test_backend_choice(monkeypatch) -> None:
+    assert rollout.resolve_backend("auto") == "mujoco"  # the tests run on a CPU
+    assert rollout.resolve_backend("auto", jax.devices("cpu")) == "mjx"  # devices: MJX shards
+    assert rollout.resolve_backend("mjx") == "mjx"
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert rollout.resolve_backend("auto") == "mjx"
+    with pytest.raises(ConfigError, match="unknown rollout backend 'physx'"):
+        rollout.resolve_backend("physx")
+    q = np.tile(STAND, (1, 2, 1)).astype(np.float32)
+    with pytest.raises(ConfigError, match="devices must be None"):
+        rollout.simulate(q, backend="mujoco", devices=jax.devices("cpu"))
+
+
 # --- split_legs: head-and-arms and legs as two models --------------------------------------------
 
 
 @pytest.fixture(scope="module")
 def whole(batch) -> rollout.RolloutResult:
     targets, lengths, _ = batch
-    result = rollout.simulate(targets, lengths, rollout.RolloutConfig(split_legs=False))
+    result = rollout.simulate(
+        targets, lengths, rollout.RolloutConfig(split_legs=False), backend="mjx"
+    )
     return rollout.RolloutResult(*(np.asarray(x) for x in result))
 
 
@@ -241,18 +310,18 @@ def test_split_with_moving_legs(batch, whole: rollout.RolloutResult) -> None:
     rows, inverse = rollout._leg_motions(moved, lengths, legs)
     assert rows.shape == (2, T, 12) and len(set(inverse.tolist())) == 2
     assert inverse[STEP] != inverse[STANDING] and len(set(inverse[[0, 2, 3, 4, 5]].tolist())) == 1
-    r = rollout.simulate(moved, lengths)
+    r = rollout.simulate(moved, lengths, backend="mjx")
     q = np.asarray(r.qpos)
     assert abs(q[STEP, -1, knee] - 1.0) < 0.05 and abs(q[STANDING, -1, knee] - STAND[knee]) < 0.05
     # the motions whose legs stand still are unchanged: their arms and head to the last bit,
     # their legs to float32 rounding (a leg batch of 2 compiles to another program than 1)
     keep = [STANDING, COLLIDE, JUMP, PAD_NAN, PAD_WILD]
-    split = np.asarray(rollout.simulate(targets, lengths).qpos)
+    split = np.asarray(rollout.simulate(targets, lengths, backend="mjx").qpos)
     legs_mask = np.isin(np.arange(26), legs)
     np.testing.assert_array_equal(q[keep][..., ~legs_mask], split[keep][..., ~legs_mask])
     np.testing.assert_allclose(q[keep][..., legs_mask], split[keep][..., legs_mask], atol=1e-6)
     # and the moving-leg motion against the whole model
-    w = rollout.simulate(moved, lengths, rollout.RolloutConfig(split_legs=False))
+    w = rollout.simulate(moved, lengths, rollout.RolloutConfig(split_legs=False), backend="mjx")
     np.testing.assert_allclose(q, np.asarray(w.qpos), atol=1e-4)
     np.testing.assert_allclose(np.asarray(r.tracking_rms), np.asarray(w.tracking_rms), atol=1e-4)
 
@@ -296,7 +365,7 @@ def test_split_guard_falls_back(batch, whole: rollout.RolloutResult, monkeypatch
     rollout._setup.cache_clear()
     monkeypatch.setattr(rollout_model, "_head_ball", lambda robot: (center, 0.3, margin, names))
     try:
-        r = rollout.simulate(targets, lengths)
+        r = rollout.simulate(targets, lengths, backend="mjx")
     finally:
         monkeypatch.undo()
         rollout._setup.cache_clear()

@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from jaxproj.paper import demo
 from jaxproj.paper.demo import run_demo
 
 
@@ -16,7 +17,7 @@ def test_demo_quick_writes_the_report(tmp_path):
     for p in out.glob("*.png"):
         assert p.stat().st_size > 10_000
     md = (out / "report.md").read_text()
-    assert "## MJX rollout" in md and "### Landmark-set size" in md
+    assert "## MuJoCo rollout" in md and "### Landmark-set size" in md
     r = json.loads((out / "report.json").read_text())
     s = r["summary"]
     for stat in ("mean", "median", "p95", "max"):
@@ -26,8 +27,9 @@ def test_demo_quick_writes_the_report(tmp_path):
         assert s[method]["M_avg"]["median"] < s["nearest_landmark"]["M_avg"]["median"]
         assert s[method]["M_max"]["p95"] < s["nearest_landmark"]["M_max"]["p95"]
     assert r["rollout"]["relaxed"]["motions"] == 8
+    assert r["rollout"]["backend"] == "mujoco"  # auto, on a CPU-only machine: CPU MuJoCo
     sizes = r["experiments"]["landmark_size"]["sizes"]
-    assert [row["target"] for row in sizes] == [400, 86]  # quick: two sizes
+    assert [row["target"] for row in sizes] == [demo.QUICK_LANDMARKS, 86]  # quick: two sizes
     for row in sizes:  # each arm chain reaches its target within the bisection's 5 %
         arms = [row["landmarks_per_chain"][c] for c in ("left_arm", "right_arm")]
         assert all(abs(k - row["target"]) <= 0.05 * row["target"] for k in arms), row
@@ -42,3 +44,4 @@ def test_demo_quick_writes_the_report(tmp_path):
         assert a < b
     assert "## Whole-body vs per-chain" in md
     assert r["timings"]["total_s"] > 0
+    assert r["quick"] is True and "**Quick run**" in md
