@@ -409,11 +409,13 @@ def bench_public(
 def bench_rollout(
     quick: bool, device: jax.Device, frames: int = 30, devices: list | None = None
 ) -> list[dict]:
-    """MJX rollout steps/s (``benchmarks.bench_rollout.bench``: synthetic arm motions,
-    15 frames/s, 33 physics steps per frame), one record per batch size; motion 0 is checked
-    against CPU MuJoCo ``mj_step`` (``mjx_vs_cpu_max_dq_rad``); a ``skipped`` record when MuJoCo
-    MJX cannot be imported."""
-    rec = record("rollout", objective="rollout", device=device.platform)
+    """Rollout steps/s (``benchmarks.bench_rollout.bench``: synthetic arm motions, 15 frames/s,
+    33 physics steps per frame) with the backend ``rollout.simulate`` picks by default for
+    ``device`` (``backend``: MJX on an accelerator, CPU MuJoCo on a CPU), one record per batch
+    size; motion 0 is checked against the written-out CPU MuJoCo ``mj_step`` loop
+    (``vs_cpu_max_dq_rad``); a ``skipped`` record when MuJoCo MJX cannot be imported."""
+    backend = "mujoco" if device.platform == "cpu" and not devices else "mjx"
+    rec = record("rollout", objective="rollout", device=device.platform, backend=backend)
     try:
         from benchmarks import bench_rollout as mod  # imports jaxproj.eval.rollout, MJX
     except ImportError as e:
@@ -431,7 +433,9 @@ def bench_rollout(
         cpu_q, cpu_ncon, _ = mod.cpu_rollout(ref, substeps)
         with jax.default_device(device):
             for b in batches:
-                r = mod.bench(b, frames, 0, 1 if quick else 3, substeps, devices=devices)
+                r = mod.bench(
+                    b, frames, 0, 1 if quick else 3, substeps, devices=devices, backend=backend
+                )
                 dq = float(np.abs(np.asarray(r.pop("qpos0")) - cpu_q).max())
                 out.append(
                     rec
@@ -445,7 +449,7 @@ def bench_rollout(
                         frames=frames,
                         substeps=substeps,
                         finite=r["finite"],
-                        mjx_vs_cpu_max_dq_rad=dq,
+                        vs_cpu_max_dq_rad=dq,
                         cpu_contacts=int(cpu_ncon),
                     )
                 )

@@ -36,6 +36,12 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--batch", default="1,64,1024", help="comma-separated batch sizes")
     ap.add_argument("--frames", type=int, default=30, help="frames per motion (15 frames/s)")
     ap.add_argument("--device", choices=sorted(PLATFORMS), default="cpu")
+    ap.add_argument(
+        "--backend",
+        choices=("mjx", "mujoco"),
+        default="mjx",
+        help="rollout.simulate's backend: MJX (default) or CPU MuJoCo (threads = cores)",
+    )
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per batch size (best kept)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
@@ -200,19 +206,21 @@ def bench(
     substeps: int,
     cfg: rollout.RolloutConfig | None = None,
     devices: list | None = None,
+    backend: str = "mjx",
 ) -> dict:
     """Time ``rollout.simulate`` on ``batch`` benchmark motions (``cfg`` None: the defaults;
-    ``devices``: several to shard the motions over, see ``rollout.simulate``)."""
+    ``devices``: several to shard the motions over, see ``rollout.simulate``; ``backend``: its
+    backend, MJX by default, ``"mujoco"`` for CPU MuJoCo)."""
     cfg = cfg or rollout.RolloutConfig()
     q = motions(batch, frames, seed)
     n = np.full(batch, frames, dtype=np.int32)
     t0 = time.perf_counter()
-    res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices, backend="mjx"))
+    res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices, backend=backend))
     first = time.perf_counter() - t0
     runs = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices, backend="mjx"))
+        res = jax.block_until_ready(rollout.simulate(q, n, cfg, devices=devices, backend=backend))
         runs.append(time.perf_counter() - t0)
     run = min(runs)
     qpos = np.asarray(res.qpos)
@@ -265,7 +273,7 @@ def main(args: argparse.Namespace) -> int:
 
     rows, ok = [], True
     for b in args.batch:
-        r = bench(b, args.frames, args.seed, args.repeat, substeps, cfg)
+        r = bench(b, args.frames, args.seed, args.repeat, substeps, cfg, backend=args.backend)
         dq = float(np.abs(r.pop("qpos0") - cpu_q).max())
         r["mjx_vs_cpu_max_dq_rad"] = dq
         r["speedup_vs_cpu_mj_step"] = r["steps_per_s"] * cpu_s / cpu_steps

@@ -478,13 +478,13 @@ def format_table(records: list[dict]) -> str:
             )
         if r["kind"] == "rollout":
             if r.get("skipped"):
-                lines.append(f"\nMJX rollout: skipped ({r['skipped']})")
+                lines.append(f"\nrollout: skipped ({r['skipped']})")
             else:
                 lines.append(
-                    f"\nMJX rollout (batch {r.get('batch')}): "
+                    f"\n{r.get('backend')} rollout (batch {r.get('batch')}): "
                     f"{_fmt(r.get('steps_per_s'), '.4g')} NAO steps/s, compile "
                     f"{_fmt(r.get('compile_s'), '.1f')} s, motion 0 vs CPU MuJoCo max |dq| "
-                    f"{_fmt(r.get('mjx_vs_cpu_max_dq_rad'), '.1e')} rad"
+                    f"{_fmt(r.get('vs_cpu_max_dq_rad'), '.1e')} rad"
                 )
     targets = [r for r in records if r["kind"] == "target"]
     if targets:

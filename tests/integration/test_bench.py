@@ -37,7 +37,8 @@ KEYS = (
     "speedup",
 )
 
-# one tiny run: N = 86 (subsampled, no mean shift), batches 16 and 64, a 2-frame MJX rollout
+# one tiny run: N = 86 (subsampled, no mean shift), batches 16 and 64, a 2-frame rollout (CPU
+# MuJoCo: the default backend on a CPU device)
 SMOKE = ["--quick", "--smoke", "--device", "cpu", "--landmarks", "86", "--batches", "16,64"]
 SMOKE += ["--configs", "relaxed:10:10,full:4:4", "--repeats", "2", "--ref-queries", "64"]
 
@@ -135,7 +136,8 @@ def test_rollout_record(records):
     (rec,) = [r for r in records if r["kind"] == "rollout"]
     assert rec.get("skipped") is None, rec.get("skipped")
     assert rec["batch"] == 64 and rec["steps"] == 64 * 2 * 33 and rec["steps_per_s"] > 0
-    assert rec["mjx_vs_cpu_max_dq_rad"] < 1e-3
+    assert rec["backend"] == "mujoco"  # a CPU device: the backend rollout.simulate picks there
+    assert rec["vs_cpu_max_dq_rad"] < 1e-3
 
 
 def test_help_lists_the_options():
