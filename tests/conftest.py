@@ -63,8 +63,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The files holding ``slow`` tests (the quick demo, the notebooks) run first, the rest in
-    their usual order: with whole files per xdist worker, a long file that starts last leaves
-    the other worker idle until it ends (measured: the quick demo alone for its last ~2 min)."""
+    their usual order: with whole files per xdist worker (handed out in this order:
+    ``--no-loadscope-reorder`` in pyproject.toml), a long file that starts last leaves the other
+    worker idle until it ends (measured: the quick demo alone for its last ~4 min)."""
     slow_files = {item.path for item in items if item.get_closest_marker("slow")}
     items.sort(key=lambda item: item.path not in slow_files)  # stable: file order kept
 

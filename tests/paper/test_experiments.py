@@ -152,6 +152,21 @@ def test_landmark_size_study_builds_one_model_per_size(model_with_poses, monkeyp
     assert rows[0]["pose8_M_max_frames"] == rows[1]["pose8_M_max_frames"]
 
 
+def test_landmark_size_rows_count_the_chains_the_target_drove():
+    # the per-chain model keeps the head at its fixed bandwidth (799 landmarks on the training
+    # people): a size row's x value is the arms' count, not the largest chain's (the report once
+    # drew 86, 961 and 1644 all at 799)
+    per_chain = {"head": 799, "left_arm": 86, "right_arm": 90}
+    assert experiments._targeted_landmarks(engine.BuildConfig(landmarks=86), per_chain) == 88
+    whole = engine.BuildConfig(landmarks=400, chains="whole")
+    assert experiments._targeted_landmarks(whole, {"whole": 402}) == 402
+    # explicit per-chain targets: every chain counts
+    three = engine.BuildConfig(landmarks=(50, 60, 70))
+    assert (
+        experiments._targeted_landmarks(three, {"head": 50, "left_arm": 60, "right_arm": 70}) == 60
+    )
+
+
 def test_landmark_size_study_reuses_a_model_the_caller_built(model_with_poses, monkeypatch):
     # the demo passes its per-chain model: the size with that config is not built again
     train = _train_descriptors(subjects=(1,))[::50]
