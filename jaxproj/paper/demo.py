@@ -33,8 +33,8 @@ from jaxproj.viz import report
 TRAIN_SUBJECTS = datasets.TRAIN_SUBJECTS
 TEST_SUBJECTS = datasets.TEST_SUBJECTS
 
-QUICK_TRAIN_STRIDE = 4
-"""``run_demo(quick=True)``: every 4th training frame feeds the builds."""
+QUICK_TRAIN_STRIDE = 8
+"""``run_demo(quick=True)``: every 8th training frame feeds the builds."""
 QUICK_TEST_STRIDE = 8
 """``run_demo(quick=True)``: every 8th held-out MSR recording (and every 2nd UTKinect one) is
 evaluated."""

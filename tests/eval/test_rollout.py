@@ -305,26 +305,25 @@ def test_split_matches_whole_model(batch, whole: rollout.RolloutResult) -> None:
 
 
 def test_split_with_moving_legs(batch, whole: rollout.RolloutResult) -> None:
-    # motions whose legs move get their own leg rollout: bend the left knee in STEP from frame 4
+    # motions whose legs move get a leg rollout of their own: bend the left knee from frame 4 in
+    # every motion, so the batch still has one distinct leg motion and runs the programs the
+    # module's batch compiled (a second distinct leg motion compiles a leg program of 2, ~60 s
+    # on 2 cores; the routing of several leg motions: test_leg_motions_dedup)
     targets, lengths, _ = batch
     moved = targets.copy()
     knee = IDX["LKneePitch"]
-    moved[STEP, 4:, knee] = 1.0
+    moved[:, 4:, knee] = 1.0
     legs = np.asarray(rollout._setup(rollout.RolloutConfig(), "legs")[0].joints)
     rows, inverse = rollout._leg_motions(moved, lengths, legs)
-    assert rows.shape == (2, T, 12) and len(set(inverse.tolist())) == 2
-    assert inverse[STEP] != inverse[STANDING] and len(set(inverse[[0, 2, 3, 4, 5]].tolist())) == 1
+    assert rows.shape == (1, T, 12) and set(inverse.tolist()) == {0}
+    assert rows[0, -1, list(legs).index(knee)] == 1.0
     r = rollout.simulate(moved, lengths, backend="mjx")
     q = np.asarray(r.qpos)
-    assert abs(q[STEP, -1, knee] - 1.0) < 0.05 and abs(q[STANDING, -1, knee] - STAND[knee]) < 0.05
-    # the motions whose legs stand still are unchanged: their arms and head to the last bit,
-    # their legs to float32 rounding (a leg batch of 2 compiles to another program than 1)
-    keep = [STANDING, COLLIDE, JUMP, PAD_NAN, PAD_WILD]
-    split = np.asarray(rollout.simulate(targets, lengths, backend="mjx").qpos)
+    assert abs(q[STEP, -1, knee] - 1.0) < 0.05 and abs(q[STANDING, -1, knee] - 1.0) < 0.05
+    # the arms and head do not feel the legs (the parts share no degree of freedom): to the bit
     legs_mask = np.isin(np.arange(26), legs)
-    np.testing.assert_array_equal(q[keep][..., ~legs_mask], split[keep][..., ~legs_mask])
-    np.testing.assert_allclose(q[keep][..., legs_mask], split[keep][..., legs_mask], atol=1e-6)
-    # and the moving-leg motion against the whole model
+    np.testing.assert_array_equal(q[..., ~legs_mask], np.asarray(batch[2].qpos)[..., ~legs_mask])
+    # and the moving legs against the whole model
     w = rollout.simulate(moved, lengths, rollout.RolloutConfig(split_legs=False), backend="mjx")
     np.testing.assert_allclose(q, np.asarray(w.qpos), atol=1e-4)
     np.testing.assert_allclose(np.asarray(r.tracking_rms), np.asarray(w.tracking_rms), atol=1e-4)
