@@ -241,23 +241,11 @@ RESULT_CHECKS: dict[str, Callable[[Path], None]] = {
 """Each notebook's checks of the results it wrote in fast mode."""
 
 
-@pytest.fixture(scope="module")
-def xla_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One persistent XLA compilation cache for the four kernels: programs that several notebooks
-    compile (the same model build, projection, FK) are compiled once."""
-    return tmp_path_factory.mktemp("xla-cache")
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
-def test_notebook_runs_in_fast_mode_and_its_results_hold(
-    name: str, tmp_path: Path, xla_cache: Path
-) -> None:
-    env = {
-        notebook.RESULTS_ENV: str(tmp_path),
-        "JAX_COMPILATION_CACHE_DIR": str(xla_cache),
-        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
-    }
+def test_notebook_runs_in_fast_mode_and_its_results_hold(name: str, tmp_path: Path) -> None:
+    # the kernels inherit the run's persistent XLA compilation cache (tests/conftest.py)
+    env = {notebook.RESULTS_ENV: str(tmp_path)}
     # a cell that raises fails the test here (nbclient's CellExecutionError, with its traceback)
     nb = _executor().execute(NOTEBOOK_DIR / f"{name}.ipynb", fast=True, env=env, timeout=600)
     _check_outputs(nb, name, "fast")
