@@ -54,6 +54,11 @@ def pytest_configure(config: pytest.Config) -> None:
     jax.config.update("jax_compilation_cache_dir", folder)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    # strict numerics for the whole process, module and session fixtures included: the rules
+    # are part of JAX's jit cache key, so a program a fixture compiled under other rules than
+    # its test would compile again (one MJX rollout: ~25 s on 2 cores)
+    jax.config.update("jax_numpy_dtype_promotion", "strict")
+    jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
@@ -76,12 +81,6 @@ def _release_executables() -> Iterator[None]:
     yield
     jax.clear_caches()
     gc.collect()
-
-
-@pytest.fixture(autouse=True)
-def _strict_jax():
-    with jax.numpy_dtype_promotion("strict"), jax.numpy_rank_promotion("raise"):
-        yield
 
 
 @contextlib.contextmanager
