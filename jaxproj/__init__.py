@@ -24,6 +24,7 @@ from jaxproj.io.motion_files import Motion, load_motion, save_motion
 from jaxproj.io.readers import Recording
 from jaxproj.io.readers import read_skeleton as read
 from jaxproj.motion import streaming
+from jaxproj.motion.offline import OfflineSmoothing
 from jaxproj.motion.retarget import RetargetResult, retarget
 from jaxproj.motion.smoothing import SmoothingParams, smooth, smooth_batch
 from jaxproj.projection.api import BuildConfig, Model, build, load, project, save
@@ -34,6 +35,7 @@ __all__ = [
     "FullConfig",
     "Model",
     "Motion",
+    "OfflineSmoothing",
     "Recording",
     "RetargetResult",
     "SmoothingParams",

@@ -70,12 +70,7 @@ def _add_evaluate(sub: Any) -> None:
         help="projection objective(s); the baselines always run",
     )
     options.add_neighbour_options(pe)
-    pe.add_argument(
-        "--smooth",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="score the smoothed motions (unsmoothed figures are reported too)",
-    )
+    options.add_smoother_option(pe, "the scored motions (unsmoothed figures are reported too)")
     options.add_devices_option(
         pe, "to shard the queries over (shard_map, one device program per shard)"
     )
@@ -139,7 +134,6 @@ def evaluate(args: argparse.Namespace) -> int:
 
     import_mjx()  # before jaxproj.eval imports it: without Warp's notice
     from jaxproj.eval import evaluate
-    from jaxproj.motion.smoothing import PAPER_SMOOTHING
     from jaxproj.projection import api as engine
     from jaxproj.viz import report
 
@@ -160,7 +154,7 @@ def evaluate(args: argparse.Namespace) -> int:
         methods,
         n_l=args.L,
         n_m=args.M,
-        smoothing=PAPER_SMOOTHING if args.smooth else None,
+        smoothing=options.smoothing(args.smoother),
         devices=devices,
         progress=True,
     )

@@ -51,13 +51,7 @@ def add_parsers(sub: Any) -> None:
         default=None,
         help="mirror imitation: human left drives robot right (None: off, or the model's)",
     )
-    pr.add_argument(
-        "--smooth",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="double exponential smoothing (alpha 0.75, gamma 0.3, eta 0.15 per frame at 15 fps; "
-        "scaled to each frame's time step)",
-    )
+    options.add_smoother_option(pr, "the projected motion")
     pr.add_argument(
         "--fps",
         type=float,
@@ -95,7 +89,6 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.io.readers import read_skeleton
     from jaxproj.motion import feasible
     from jaxproj.motion.retarget import retarget
-    from jaxproj.motion.smoothing import PAPER_SMOOTHING
     from jaxproj.projection import api as engine
 
     model = None
@@ -128,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         n_m=args.M,
         bones=bones,
         mirror=mirror,
-        smoothing=PAPER_SMOOTHING if args.smooth else None,
+        smoothing=options.smoothing(args.smoother),
         times=rec.times,
         feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
     )
@@ -138,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
     after = feasible.feasibility_report(angles, result.times)
     meta = {
         "method": args.method,
-        "smoothed": bool(args.smooth),
+        "smoothed": args.smoother != "none",
+        "smoother": args.smoother,
         "feasible": bool(args.feasible),
         "source": str(args.input),
         "time_source": rec.time_source,

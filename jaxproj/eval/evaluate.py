@@ -23,9 +23,12 @@ Baselines run per chain on a per-chain model (each chain's landmarks, in its own
 
 Each motion's per-frame answers go through the motion pipeline's stages after the mapping
 (``jaxproj.motion.pipeline.finish``: invalid frames filled as in ``jaxproj.motion.retarget``;
-with smoothing, the double exponential smoother and the clip to the joint limits) before
-scoring, and the mean squared joint jerk (third difference at the recording rate, rad/s^3) is
-reported before and after the smoother.
+with smoothing, the smoother — by default the zero-lag offline one, ``jaxproj.motion.offline``;
+the paper's double exponential smoother with ``smoothing=PAPER_SMOOTHING`` — and the clip to
+the joint limits) before
+scoring, and the mean squared joint jerk (third difference at the recording rate, rad/s^3) and
+the lag against the IK's motion (``metrics.lag_frames``, frames) are reported before and after
+the smoother (``"smoothness"``; the IK's own jerk under ``"ik"``).
 
 Size: over 500 lines because the report's blocks, the baselines and the one ``evaluate`` that
 assembles them read as one unit (the metrics themselves live in ``jaxproj.eval.metrics``).
@@ -52,7 +55,8 @@ from jaxproj.eval.metrics import describe, frame_errors, summarize_errors
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io.datasets import ACTION_NAMES, MotionSequence, sequence_times
 from jaxproj.motion import feasible, pipeline
-from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
+from jaxproj.motion.offline import OFFLINE_SMOOTHING
+from jaxproj.motion.smoothing import Smoothing, frame_gains
 from jaxproj.projection.api import Model, project
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector
@@ -292,24 +296,34 @@ def mean_squared_jerk(motions: np.ndarray, lengths: np.ndarray, fps: float = FPS
 
 
 def _finish_batch(
-    q: jax.Array, valid: jax.Array, lengths: jax.Array, gains: jax.Array | None, robot: Robot
+    q: jax.Array,
+    valid: jax.Array,
+    lengths: jax.Array,
+    gains: jax.Array | None,
+    robot: Robot,
+    smoother: str = "offline",
 ):
     """``pipeline.finish`` (``standing="first"``) vmapped over padded motions ``(S, T, n)``."""
     per_motion = 0 if gains is not None and gains.ndim == 3 else None  # (S, T, 3): per motion
-    one = functools.partial(pipeline.finish, standing="first", robot=robot)
+    one = functools.partial(pipeline.finish, standing="first", robot=robot, smoother=smoother)
     return jax.vmap(one, in_axes=(0, 0, 0, per_motion))(q, valid, lengths, gains)
 
 
-_finish_batch = jit(_finish_batch, static_argnames=("robot",))
+_finish_batch = jit(_finish_batch, static_argnames=("robot", "smoother"))
 
 
 def _per_motion(
-    data: EvalData, per_frame: np.ndarray, gains: jax.Array | None = None, *, robot: Robot
+    data: EvalData,
+    per_frame: np.ndarray,
+    gains: jax.Array | None = None,
+    *,
+    robot: Robot,
+    smoother: str = "offline",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(V, n)`` answers of the valid frames -> ``(filled, scored, lengths)``: ``(S, T_max, n)``
     motions filled (``pipeline.finish``; no valid frame: standing), the same smoothed and
-    clipped with ``gains`` (``smoothing.frame_gains``; ``None``: ``filled``), ``(S,)``
-    lengths. Frames past a motion's length are padding."""
+    clipped with ``gains`` (``smoothing.frame_gains`` of settings of kind ``smoother``;
+    ``None``: ``filled``), ``(S,)`` lengths. Frames past a motion's length are padding."""
     n_seq = len(data.names)
     lengths = np.diff(data.offsets)
     t_max = int(lengths.max())
@@ -323,8 +337,9 @@ def _per_motion(
         valid[s, : b - a] = data.valid[a:b]
     # one padded call (padding frames are invalid, so they never feed a real frame)
     filled, scored = _finish_batch(
-        jnp.asarray(out), jnp.asarray(valid), jnp.asarray(lengths, jnp.int32), gains, robot=robot
-    )
+        jnp.asarray(out), jnp.asarray(valid), jnp.asarray(lengths, jnp.int32), gains,
+        robot=robot, smoother=smoother,
+    )  # fmt: skip
     return np.asarray(filled), np.asarray(scored), lengths
 
 
@@ -429,7 +444,7 @@ def evaluate(
     *,
     n_l: int = 10,
     n_m: int = 10,
-    smoothing: SmoothingParams | None = PAPER_SMOOTHING,
+    smoothing: Smoothing | None = OFFLINE_SMOOTHING,
     full: FullConfig | None = None,
     devices: Sequence[jax.Device] | None = None,
     progress: bool = False,
@@ -454,6 +469,9 @@ def evaluate(
     h = data.descriptors[data.valid]
     truth_v = data.truth[data.valid]
     truth_motion, _, _ = _per_motion(data, truth_v, robot=spec)
+    padded_valid = np.zeros(truth_motion.shape[:2], bool)
+    for s_, n in enumerate(lengths):
+        padded_valid[s_, :n] = data.valid[data.offsets[s_] : data.offsets[s_ + 1]]
     seq_of_frame = np.repeat(np.arange(len(data.names)), lengths)[data.valid]
     truth_points = metrics.arm_points(truth_v, robot=spec)  # one FK of the truth serves all
     out: dict = {
@@ -464,7 +482,9 @@ def evaluate(
         "valid_frames": int(data.valid.sum()),
         "sequences": len(data.names),
         "driven_joints": list(spec.driven_joints),
-        "smoothing": None if smoothing is None else dataclasses.asdict(smoothing),
+        "smoothing": None
+        if smoothing is None
+        else {"kind": smoothing.kind, **dataclasses.asdict(smoothing)},
         "devices": [str(d) for d in (devices or jax.devices()[:1])],
         "summary": {},
         "unsmoothed": {},
@@ -491,8 +511,10 @@ def evaluate(
         out["unsmoothed"][method] = summarize_errors(
             pred, truth_v, truth_points=truth_points, pred_points=scored_points, robot=spec
         )
-        motions, sm, _ = _per_motion(data, pred, gains, robot=spec)
+        kind = "offline" if smoothing is None else smoothing.kind
+        motions, sm, _ = _per_motion(data, pred, gains, robot=spec, smoother=kind)
         jerk_raw = mean_squared_jerk(motions, lengths)
+        lag_raw = metrics.lag_frames(motions, truth_motion, lengths, padded_valid)
         if smoothing is not None:
             flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
             m_max, m_avg = frame_errors(flat, truth_v)
@@ -503,11 +525,13 @@ def evaluate(
             out["smoothness"][method] = {
                 "jerk_raw": jerk_raw,
                 "jerk_smoothed": mean_squared_jerk(sm, lengths),
+                "lag_frames_raw": lag_raw,
+                "lag_frames_smoothed": metrics.lag_frames(sm, truth_motion, lengths, padded_valid),
             }
             motions = sm
         else:
             out["summary"][method] = copy.deepcopy(out["unsmoothed"][method])
-            out["smoothness"][method] = {"jerk_raw": jerk_raw}
+            out["smoothness"][method] = {"jerk_raw": jerk_raw, "lag_frames_raw": lag_raw}
         predictions[method] = np.concatenate([motions[s, :n] for s, n in enumerate(lengths)])
         if feasibility is not None:
             out["feasibility"][method] = feasibility_block(
@@ -527,6 +551,7 @@ def evaluate(
                 "M_max_mean": float(m_max[sel].mean()) if sel.any() else 0.0,
                 "M_avg_mean": float(m_avg[sel].mean()) if sel.any() else 0.0,
             }
+    out["smoothness"]["ik"] = {"jerk_raw": mean_squared_jerk(truth_motion, lengths)}
     if feasibility is not None:  # the IK truth itself, as a trajectory for the robot
         out["feasibility"]["ik"] = feasibility_block(
             data, truth_motion, truth_v, truth_points, feasibility,

@@ -10,6 +10,7 @@ Joint space, in degrees over ``robot.driven_joints``, against the robot's analyt
   ``M_avg = mean_j |r*_j - r_gt_j|`` (section IV): the headline numbers, summarised by
   ``describe`` (mean / median / p95 / max);
 * ``joint_percentiles``: p50 / p95 of ``|r*_j - r_gt_j|`` per driven joint;
+* ``lag_frames``: how many frames a motion trails the IK's (best cross-correlation shift);
 * ``m_max_without``: ``M_max`` over the driven joints minus some, by default the robot's
   ``loose_joints`` (NAO: the two elbow-yaw joints). With a near-straight arm the elbow's yaw turns
   the forearm about its own length: the IK truth's elbow yaw is then ill-conditioned (set by
@@ -103,6 +104,55 @@ def frame_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.nd
     """
     err = np.degrees(np.abs(np.asarray(pred, np.float64) - np.asarray(truth, np.float64)))
     return err.max(axis=1), err.mean(axis=1)
+
+
+def lag_frames(
+    pred: np.ndarray,
+    truth: np.ndarray,
+    lengths: np.ndarray,
+    valid: np.ndarray | None = None,
+    max_shift: int = 5,
+) -> float:
+    """How many frames ``pred`` trails ``truth``: the shift of best cross-correlation, pooled.
+
+    For each whole shift ``k`` in ``[-max_shift, max_shift]`` the mean over every motion's
+    frames ``t`` (both ``t`` and ``t + k`` within its length and valid) of
+    ``|pred[t + k] - truth[t]|^2`` (all joints); the least one's ``k``, refined to a fraction of
+    a frame by the parabola through it and its neighbours. Positive: ``pred`` is late (a
+    causal smoother); 0: no lag.
+
+    Args:
+      pred, truth: ``(S, T, n)`` padded motions (rad).
+      lengths: ``(S,)`` true lengths.
+      valid: optional ``(S, T)`` bool; ``None``: every frame within its length.
+      max_shift: the largest shift tried, frames.
+
+    Returns:
+      The lag in frames (float); 0.0 when no motion is long enough to shift.
+    """
+    pred, truth = np.asarray(pred, np.float64), np.asarray(truth, np.float64)
+    n_t = pred.shape[1]
+    ok = np.arange(n_t)[None, :] < np.asarray(lengths)[:, None]
+    if valid is not None:
+        ok = ok & np.asarray(valid, bool)
+    shifts = np.arange(-max_shift, max_shift + 1)
+    cost = np.full(len(shifts), np.inf)
+    for i, k in enumerate(shifts.tolist()):
+        lo, hi = max(0, -k), min(n_t, n_t - k)
+        if hi <= lo:
+            continue
+        both = ok[:, lo:hi] & ok[:, lo + k : hi + k]
+        if both.any():
+            d = pred[:, lo + k : hi + k] - truth[:, lo:hi]
+            cost[i] = float(np.sum(d[both] ** 2) / both.sum())
+    if not np.isfinite(cost).any():
+        return 0.0
+    i = int(np.argmin(cost))
+    if 0 < i < len(shifts) - 1 and np.isfinite(cost[i - 1]) and np.isfinite(cost[i + 1]):
+        curve = cost[i - 1] - 2 * cost[i] + cost[i + 1]
+        if curve > 0:
+            return float(shifts[i] + 0.5 * (cost[i - 1] - cost[i + 1]) / curve)
+    return float(shifts[i])
 
 
 def describe(x: np.ndarray) -> dict[str, float]:

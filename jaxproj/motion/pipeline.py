@@ -6,7 +6,9 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     frame_descriptors   (T, 20, 3) positions -> (T, m) descriptors, (T,) valid
     map_frames          (T, m) -> (T, n) driven angles: analytic IK or a projector
     fill_invalid        invalid frames hold the last valid frame, leading ones back-fill
-    smooth              the double exponential smoother (``smoothing.smooth_motion``)
+    smooth              the zero-lag offline smoother (``offline.rts_motion``: invalid frames'
+                        values skipped, gaps bridged) or the paper's causal double exponential
+                        smoother (``smoothing.smooth_motion``, on the filled motion)
     clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``)
     stand_if_lost       a motion with no valid frame -> the robot's standing posture
     feasible            ``feasible.make_feasible`` on the full configuration (host side: it
@@ -53,7 +55,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import descriptor
-from jaxproj.motion.smoothing import smooth_motion
+from jaxproj.motion.smoothing import smooth_any
 from jaxproj.motion.smoothing import step as smoothing_step
 from jaxproj.projection.api import project_batch
 from jaxproj.projection.config import FullConfig
@@ -157,6 +159,7 @@ def finish(
     *,
     standing: Standing,
     robot: Robot = NAO_H25,
+    smoother: str = "paper",
 ) -> tuple[jax.Array, jax.Array]:
     """The stages after the mapping for one motion: fill -> smooth -> clip, and the standing
     posture for a motion with no valid frame (``standing``: before or after the smoother).
@@ -169,6 +172,7 @@ def finish(
         smoothing and no clip.
       standing: ``"first"`` (evaluate) or ``"last"`` (retarget); see the module doc.
       robot: the robot (its limits and standing posture).
+      smoother: the ``kind`` of the settings ``gains`` came from: ``"paper"`` or ``"offline"``.
 
     Returns:
       ``(filled, out)``, each ``(T, n)``: the filled motion (standing posture included with
@@ -179,7 +183,7 @@ def finish(
         q = stand_if_lost(q, valid, robot)
     filled = q
     if gains is not None:
-        q = smooth_motion(q, length, gains)
+        q = smooth_any(q, valid, length, gains, smoother)
         q = clip_to_limits(q, robot)
     if standing == "last":
         q = stand_if_lost(q, valid, robot)
@@ -199,7 +203,7 @@ def motion(
     full: FullConfig,
     bones: str | tuple[str, ...],
     mirror: bool,
-    smooth: bool,
+    smoother: str | None,
     robot: Robot = NAO_H25,
 ) -> tuple[jax.Array, jax.Array]:
     """The whole pipeline for one padded motion (``retarget``'s compiled call).
@@ -209,10 +213,11 @@ def motion(
       positions: ``(T, 20, 3)`` joint positions, padded to ``T`` frames.
       valid: ``(T,)`` bool from the reader (padding false).
       length: ``()`` int, the true length.
-      gains: ``(3,)`` or ``(T, 3)`` smoother gains (unused unless ``smooth``).
+      gains: ``(3,)`` or ``(T, 3)`` smoother gains (unused without ``smoother``).
       method, n_l, n_m, full, bones: ``map_frames``.
       mirror: descriptor option.
-      smooth: run the smoother (and the clip).
+      smoother: the smoother's ``kind`` (``"offline"`` or ``"paper"``; with the clip), or
+        ``None``: neither.
       robot: the robot (its IK, limits, posture and joints).
 
     Returns:
@@ -221,7 +226,8 @@ def motion(
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
     q = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones, robot=robot)
-    _, q = finish(q, ok, length, gains if smooth else None, standing="last", robot=robot)
+    _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,
+                  smoother=smoother or "paper")  # fmt: skip
     return robot.driven_to_full(q), ok
 
 

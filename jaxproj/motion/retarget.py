@@ -12,15 +12,20 @@ before tracing.
 Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
 documented rule, so a motion never dies halfway and never contains NaN:
 
-* an invalid frame holds the last valid frame's angles;
-* leading invalid frames take the first valid frame's angles;
+* an invalid frame holds the last valid frame's angles (unsmoothed output, and the paper's
+  smoother's input); the default offline smoother instead skips its value and bridges the gap
+  from the valid frames on both sides;
+* leading invalid frames take the first valid frame's angles (trailing ones the last's);
 * a motion with no valid frame at all takes the robot's standing posture throughout.
 
-Smoothing (``jaxproj.motion.smoothing``) then runs over the driven joints of the filled motion, with
-gains for each frame's own time step, and the result is clipped to the joint limits (the
-smoother's trend term can overshoot them). With ``feasible`` (off by default here; on by default
-for what ``jaxproj retarget`` writes for the robot) the motion last goes through
-``jaxproj.motion.feasible``: joint limits, speed limits and an acceleration bound.
+Smoothing then runs over the driven joints: by default the zero-lag offline smoother
+(``jaxproj.motion.offline``, an RTS smoother of a constant-velocity model: the whole motion is
+known here, so it need not lag), or the paper's causal double exponential smoother
+(``jaxproj.motion.smoothing``, ``smoothing=PAPER_SMOOTHING``), with each frame's own time step;
+the result is clipped to the joint limits (a smoother can overshoot them). With ``feasible``
+(off by default here; on by default for what ``jaxproj retarget`` writes for the robot) the
+motion last goes through ``jaxproj.motion.feasible``: joint limits, speed limits and an
+acceleration bound.
 
 Time: ``times`` (seconds per frame, e.g. ``Recording.times``) drive the smoother's gains and the
 feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apart.
@@ -38,8 +43,9 @@ from jaxproj.errors import ConfigError
 from jaxproj.io.readers import MAX_DURATION_S, MIN_STEP_S
 from jaxproj.motion import pipeline
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
+from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (its old home)
-from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
+from jaxproj.motion.smoothing import Smoothing, frame_gains
 from jaxproj.projection.api import Model, check_neighbours
 from jaxproj.projection.config import FullConfig
 from jaxproj.robots import Robot, get
@@ -73,7 +79,7 @@ def _bucket(t: int) -> int:
 
 _motion_jit = jit(
     pipeline.motion,
-    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smooth", "robot"),
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smoother", "robot"),
 )
 
 
@@ -88,7 +94,7 @@ def retarget(
     full: FullConfig | None = None,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
-    smoothing: SmoothingParams | None = PAPER_SMOOTHING,
+    smoothing: Smoothing | None = OFFLINE_SMOOTHING,
     times: np.ndarray | None = None,
     feasible: FeasibleConfig | None = None,
     robot: Robot | str | None = None,
@@ -104,9 +110,11 @@ def retarget(
       n_l, n_m: ``L`` and ``M`` of the projection.
       full: settings of the full objective (default ``FullConfig()``).
       bones, mirror: descriptor options for the IK; a model fixes its own (its config's).
-      smoothing: smoother gains, or ``None`` for no smoothing.
+      smoothing: the zero-lag offline smoother (``offline.OfflineSmoothing``, default
+        ``OFFLINE_SMOOTHING``), the paper's causal one (``smoothing.PAPER_SMOOTHING``: it lags),
+        or ``None`` for no smoothing.
       times: ``(T,)`` seconds of the frames, strictly increasing (``Recording.times``);
-        ``None``: frames ``1 / smoothing.rate`` apart (15 fps with the paper's gains).
+        ``None``: frames ``1 / smoothing.rate`` apart (15 fps by default).
       feasible: make the output robot-feasible (``jaxproj.motion.feasible``), or ``None`` (default).
       robot: the robot (a ``Robot`` or a registered name) of the IK method; ``None``: the
         model's robot (``Model.robot``), else the default robot (the NAO H25).
@@ -145,7 +153,10 @@ def retarget(
         bones, mirror = model.config.bones, model.config.mirror
     else:
         spec.check_bones(bones)  # ConfigError for a subset the IK cannot use
-    params = smoothing or PAPER_SMOOTHING
+    params = smoothing or OFFLINE_SMOOTHING
+    if not isinstance(params, Smoothing):
+        raise ConfigError(f"smoothing must be an OfflineSmoothing, a SmoothingParams or None, "
+                          f"got {type(params).__name__}")  # fmt: skip
     if times is None:
         stamps = np.arange(t, dtype=np.float64) / params.rate
     else:
@@ -179,7 +190,7 @@ def retarget(
         full=full or FullConfig(),
         bones=bones,
         mirror=mirror,
-        smooth=smoothing is not None,
+        smoother=None if smoothing is None else params.kind,
         robot=spec,
     )
     angles = np.asarray(angles)[:t]

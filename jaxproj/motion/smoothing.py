@@ -37,7 +37,9 @@ are returned as the input. ``step`` is one frame of the update: the scan's body,
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -46,6 +48,7 @@ from jax.typing import ArrayLike
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
+from jaxproj.motion.offline import OfflineSmoothing, rts_motion
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,9 @@ class SmoothingParams:
     eta: float = 0.15
     rate: float = 15.0
     """Frames per second at which ``alpha``, ``gamma``, ``eta`` are per-frame values."""
+    kind: ClassVar[str] = "paper"
+    """The pipeline's name of this smoother (``jaxproj.motion.offline.OfflineSmoothing``:
+    ``"offline"``)."""
 
     def __post_init__(self) -> None:
         for name in ("alpha", "gamma"):
@@ -162,24 +168,48 @@ def smooth_motion(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Arra
     return jnp.concatenate([s0[None], rest], axis=0)
 
 
-def _smooth_batch(y: jax.Array, lengths: jax.Array, gains: jax.Array) -> jax.Array:
+def smooth_any(
+    y: jax.Array, valid: jax.Array, length: jax.Array, gains: jax.Array, kind: str
+) -> jax.Array:
+    """``smooth_motion`` (``kind="paper"``, which does not read ``valid``: fill invalid frames
+    first) or ``offline.rts_motion`` (``"offline"``) of one padded ``(T, n)`` motion."""
+    if kind == "paper":
+        return smooth_motion(y, length, gains)
+    if kind == "offline":
+        return rts_motion(y, valid, length, gains)
+    raise ConfigError(f"unknown smoother kind {kind!r}: 'paper' or 'offline'")
+
+
+def _smooth_batch(
+    y: jax.Array, valid: jax.Array, lengths: jax.Array, gains: jax.Array, kind: str
+) -> jax.Array:
     per_motion = 0 if gains.ndim == 3 else None  # (B, T, 3) gains of each motion's frames
-    return jax.vmap(smooth_motion, in_axes=(0, 0, per_motion))(y, lengths, gains)
+    one = functools.partial(smooth_any, kind=kind)
+    return jax.vmap(one, in_axes=(0, 0, 0, per_motion))(y, valid, lengths, gains)
 
 
-_smooth_batch = jit(_smooth_batch)
+_smooth_batch = jit(_smooth_batch, static_argnames=("kind",))
+
+Smoothing = SmoothingParams | OfflineSmoothing
+"""Either smoother's settings: the paper's causal one or the zero-lag offline one."""
 
 
 def smooth(
-    y: jax.Array, params: SmoothingParams = PAPER_SMOOTHING, times: np.ndarray | None = None
+    y: jax.Array,
+    params: Smoothing = PAPER_SMOOTHING,
+    times: np.ndarray | None = None,
+    valid: np.ndarray | None = None,
 ) -> jax.Array:
     """Smooth one motion.
 
     Args:
       y: ``(T, n)`` joint angles over time (T >= 1).
-      params: gains; defaults are the paper's.
+      params: the paper's smoother (``SmoothingParams``, default, its gains) or the offline
+        one (``offline.OfflineSmoothing``).
       times: optional ``(T,)`` seconds of the frames: the gains follow each frame's time step
-        (``SmoothingParams.gains(dt)``); ``None``: frames ``1 / params.rate`` apart.
+        (``params.gains(dt)``); ``None``: frames ``1 / params.rate`` apart.
+      valid: optional ``(T,)`` bool, frames to use (the offline smoother skips the others'
+        values; the paper's reads every frame: fill invalid frames before); ``None``: all.
 
     Returns:
       ``(T, n)`` smoothed motion, same dtype.
@@ -189,25 +219,32 @@ def smooth(
         raise ConfigError(f"smooth expects a (T, n) motion with T >= 1, got shape {y.shape}")
     if times is not None and np.shape(times) != (y.shape[0],):
         raise ConfigError(f"times must be ({y.shape[0]},) seconds, got shape {np.shape(times)}")
+    kind = _kind(params)
     gains = frame_gains(params, times, y.shape[0])
-    return _smooth_batch(y[None], jnp.asarray([y.shape[0]], jnp.int32), gains)[0]
+    ok = np.ones(y.shape[0], bool) if valid is None else np.asarray(valid, bool)
+    if ok.shape != (y.shape[0],):
+        raise ConfigError(f"valid must be ({y.shape[0]},) bool, got shape {ok.shape}")
+    lengths = jnp.asarray([y.shape[0]], jnp.int32)
+    return _smooth_batch(y[None], jnp.asarray(ok[None]), lengths, gains, kind=kind)[0]
 
 
 def smooth_batch(
     y: jax.Array,
     lengths: ArrayLike,
-    params: SmoothingParams = PAPER_SMOOTHING,
+    params: Smoothing = PAPER_SMOOTHING,
     times: np.ndarray | None = None,
+    valid: np.ndarray | None = None,
 ) -> jax.Array:
     """Smooth a padded batch of motions in one call.
 
     Args:
       y: ``(B, T, n)`` motions padded to a common ``T``.
       lengths: ``(B,)`` int, the true length of each motion (1..T).
-      params: gains.
+      params: either smoother's settings (``smooth``).
       times: optional ``(B, T)`` seconds of each motion's frames (increasing over its length;
         padding entries are not used): gains per frame time step; ``None``: frames
         ``1 / params.rate`` apart.
+      valid: optional ``(B, T)`` bool (``smooth``); ``None``: all frames.
 
     Returns:
       ``(B, T, n)``; entries past a motion's length are the input, unchanged.
@@ -218,12 +255,23 @@ def smooth_batch(
     lengths = np.asarray(lengths, np.int64)
     if times is not None and np.shape(times) != y.shape[:2]:
         raise ConfigError(f"times must be {y.shape[:2]} seconds, got shape {np.shape(times)}")
+    kind = _kind(params)
     gains = frame_gains(params, times, lengths)
-    return _smooth_batch(y, jnp.asarray(lengths, jnp.int32), gains)
+    ok = np.ones(y.shape[:2], bool) if valid is None else np.asarray(valid, bool)
+    if ok.shape != y.shape[:2]:
+        raise ConfigError(f"valid must be {y.shape[:2]} bool, got shape {ok.shape}")
+    return _smooth_batch(y, jnp.asarray(ok), jnp.asarray(lengths, jnp.int32), gains, kind=kind)
+
+
+def _kind(params: object) -> str:
+    if not isinstance(params, SmoothingParams | OfflineSmoothing):
+        got = type(params).__name__
+        raise ConfigError(f"smoothing must be a SmoothingParams or an OfflineSmoothing, got {got}")
+    return params.kind
 
 
 def frame_gains(
-    params: SmoothingParams, times: np.ndarray | None, lengths: np.ndarray | jax.Array | int
+    params: Smoothing, times: np.ndarray | None, lengths: np.ndarray | jax.Array | int
 ) -> jax.Array:
     """The smoother's gains for padded motions (the ``gains`` of ``smooth_motion``).
 
