@@ -139,7 +139,8 @@ def run(args: argparse.Namespace) -> int:
         "fps": round(rec.fps, 6),
         "format": rec.format,
     }
-    motion = Motion(angles, result.times, result.valid, rec.positions, meta)
+    motion = Motion(angles, result.times, result.valid, rec.positions, meta,
+                    confidence=result.confidence)  # fmt: skip
     save_motion(out, motion, joints=args.joints)
     n, nv = len(result.valid), int(result.valid.sum())
     print(
@@ -153,6 +154,13 @@ def run(args: argparse.Namespace) -> int:
         f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
         f"{after['max_accel']:.0f} rad/s^2 [{label}]"
     )
+    if args.method != "ik":
+        from jaxproj.projection.confidence import LOW_CONFIDENCE
+
+        print(
+            f"  low-confidence frames (confidence < {LOW_CONFIDENCE:.2f}, the least trusted "
+            f"tenth on people the model never saw): {100 * result.low_confidence_share:.1f} %"
+        )
     if plot is not None:
         _plot(plot, args, rec, angles, result, bones, mirror)
     return 0

@@ -28,7 +28,9 @@ the paper's double exponential smoother with ``smoothing=PAPER_SMOOTHING`` — a
 the joint limits) before
 scoring, and the mean squared joint jerk (third difference at the recording rate, rad/s^3) and
 the lag against the IK's motion (``metrics.lag_frames``, frames) are reported before and after
-the smoother (``"smoothness"``; the IK's own jerk under ``"ik"``).
+the smoother (``"smoothness"``; the IK's own jerk under ``"ik"``). For the projections, the
+per-frame confidence (``jaxproj.projection.confidence``) is set against their unsmoothed error
+by decile (``"confidence"``, ``metrics.confidence_deciles``).
 
 Size: over 500 lines because the report's blocks, the baselines and the one ``evaluate`` that
 assembles them read as one unit (the metrics themselves live in ``jaxproj.eval.metrics``).
@@ -42,6 +44,7 @@ import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -58,6 +61,7 @@ from jaxproj.motion import feasible, pipeline
 from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.smoothing import Smoothing, frame_gains
 from jaxproj.projection.api import Model, project
+from jaxproj.projection.confidence import confidence
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector
 from jaxproj.projection.search import nearest
@@ -238,14 +242,36 @@ def predict_method(
 
     Raises ``JaxprojError`` rather than return a non-finite answer.
     """
-    pred = _predict(model, method, h, n_l=n_l, n_m=n_m, full=full, seed=seed, devices=devices)
+    pred, _ = _predict_value(model, method, h, n_l=n_l, n_m=n_m, full=full, seed=seed,
+                             devices=devices)  # fmt: skip
+    return pred
+
+
+def _predict_value(
+    model: Model,
+    method: str,
+    h: np.ndarray,
+    *,
+    n_l: int,
+    n_m: int,
+    full: FullConfig | None,
+    seed: int = 0,
+    devices: Sequence[jax.Device] | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """``predict_method`` and, for the projections, ``(F,)`` their objective's value."""
+    value = None
+    if method in ("relaxed", "full"):
+        objective: Literal["relaxed", "full"] = "full" if method == "full" else "relaxed"
+        pred, value = project(model, h, objective, n_l=n_l, n_m=n_m, full=full, devices=devices)
+    else:
+        pred = _predict(model, method, h, n_l=n_l, n_m=n_m, full=full, seed=seed, devices=devices)
     bad = ~np.isfinite(pred).all(axis=1)
     if bad.any():
         raise JaxprojError(
             f"method {method!r} produced non-finite angles for {int(bad.sum())} of {len(pred)} "
             f"frames (first: valid frame {int(np.argmax(bad))})"
         )
-    return pred
+    return pred, value
 
 
 def _predict(model, method, h, *, n_l, n_m, full, seed, devices) -> np.ndarray:
@@ -492,6 +518,7 @@ def evaluate(
         "per_action": {},
         "per_sequence": {n: {} for n in data.names},
         "feasibility": {},
+        "confidence": {},
         "wall_s": {},
     }
     t_max = int(lengths.max())
@@ -502,11 +529,15 @@ def evaluate(
     predictions: dict[str, np.ndarray] = {}
     for method in bar(methods, "evaluating methods", enabled=progress):
         t0 = time.perf_counter()
-        pred = predict_method(model, method, h, n_l=n_l, n_m=n_m, full=full, devices=devices)
+        pred, value = _predict_value(model, method, h, n_l=n_l, n_m=n_m, full=full,
+                                     devices=devices)  # fmt: skip
         wall = time.perf_counter() - t0
         out["wall_s"][method] = wall
         out["wall_s"][f"{method}_us_per_frame"] = 1e6 * wall / max(len(h), 1)
         m_max, m_avg = frame_errors(pred, truth_v)
+        if value is not None:  # the projection's own error against its confidence
+            conf = np.asarray(confidence(jnp.asarray(value)))
+            out["confidence"][method] = metrics.confidence_deciles(conf, m_max, m_avg)
         scored_points = metrics.arm_points(pred, robot=spec)  # the scored FK, used twice below
         out["unsmoothed"][method] = summarize_errors(
             pred, truth_v, truth_points=truth_points, pred_points=scored_points, robot=spec

@@ -10,6 +10,7 @@ Joint space, in degrees over ``robot.driven_joints``, against the robot's analyt
   ``M_avg = mean_j |r*_j - r_gt_j|`` (section IV): the headline numbers, summarised by
   ``describe`` (mean / median / p95 / max);
 * ``joint_percentiles``: p50 / p95 of ``|r*_j - r_gt_j|`` per driven joint;
+* ``confidence_deciles``: error against the per-frame confidence, by decile;
 * ``lag_frames``: how many frames a motion trails the IK's (best cross-correlation shift);
 * ``m_max_without``: ``M_max`` over the driven joints minus some, by default the robot's
   ``loose_joints`` (NAO: the two elbow-yaw joints). With a near-straight arm the elbow's yaw turns
@@ -153,6 +154,51 @@ def lag_frames(
         if curve > 0:
             return float(shifts[i] + 0.5 * (cost[i - 1] - cost[i + 1]) / curve)
     return float(shifts[i])
+
+
+def confidence_deciles(
+    confidence: np.ndarray, m_max: np.ndarray, m_avg: np.ndarray, over: float = 30.0
+) -> dict:
+    """Error against confidence: the frames in ten equal groups from the least to the most
+    confident.
+
+    Args:
+      confidence: ``(F,)`` per-frame confidence (``projection.confidence``).
+      m_max, m_avg: ``(F,)`` the frames' errors, degrees.
+      over: the M_max (deg) a frame must exceed to count as a gross error.
+
+    Returns:
+      ``{"deciles": [{"confidence_max", "M_max_median", "M_max_p95", "M_avg_median",
+      "share_over"}, ...] (least confident first), "over_deg", "share_over" (all frames),
+      "low_share" (frames below ``LOW_CONFIDENCE``), "low_recall" (share of the gross errors
+      among them), "worst_decile_share_over"}``.
+    """
+    from jaxproj.projection.confidence import LOW_CONFIDENCE
+
+    conf = np.asarray(confidence, np.float64)
+    m_max, m_avg = np.asarray(m_max, np.float64), np.asarray(m_avg, np.float64)
+    order = np.argsort(conf, kind="stable")
+    gross = m_max > over
+    rows = []
+    for part in np.array_split(order, 10):
+        if len(part) == 0:
+            continue
+        rows.append({
+            "confidence_max": float(conf[part].max()),
+            "M_max_median": float(np.median(m_max[part])),
+            "M_max_p95": float(np.percentile(m_max[part], 95)),
+            "M_avg_median": float(np.median(m_avg[part])),
+            "share_over": float(gross[part].mean()),
+        })  # fmt: skip
+    low = conf < LOW_CONFIDENCE
+    return {
+        "deciles": rows,
+        "over_deg": over,
+        "share_over": float(gross.mean()) if len(conf) else 0.0,
+        "low_share": float(low.mean()) if len(conf) else 0.0,
+        "low_recall": float(gross[low].sum() / max(int(gross.sum()), 1)),
+        "worst_decile_share_over": rows[0]["share_over"] if rows else 0.0,
+    }
 
 
 def describe(x: np.ndarray) -> dict[str, float]:

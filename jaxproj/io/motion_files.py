@@ -6,14 +6,15 @@ of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, de
 
 - ``.npz`` (lossless, everything): ``angles`` ``(T, n_joints)`` float32 rad, ``times`` ``(T,)``
   float64 s, ``valid`` ``(T,)`` bool, ``joint_names`` ``(n_joints,)`` str (``robot.joint_names``),
-  ``positions`` ``(T, 20, 3)`` float32 m (only when the motion has them) and ``meta`` (a 0-d str
-  array holding a JSON object). ``load_motion`` also reads the ``.npz`` of ``jaxproj retarget``
-  (no ``times``: frames are taken ``1 / DEFAULT_FPS`` s apart; its ``method`` / ``smoothed``
-  become ``meta``).
+  ``positions`` ``(T, 20, 3)`` float32 m and ``confidence`` ``(T,)`` float32 (each only when
+  the motion has it) and ``meta`` (a 0-d str array holding a JSON object). ``load_motion``
+  also reads the ``.npz`` of ``jaxproj retarget`` (no ``times``: frames are taken
+  ``1 / DEFAULT_FPS`` s apart; its ``method`` / ``smoothed`` become ``meta``).
 - ``.csv``: a plain CSV, header ``time,<the robot's joint names in order>``, one row per
   frame, times in s and angles in rad, written so that parsing each value with ``float`` gives
-  the float32 angle bit-exactly and the float64 time exactly. There is no validity column:
-  loading a CSV marks every frame valid (and it has no positions and no meta).
+  the float32 angle bit-exactly and the float64 time exactly; a last column ``confidence``
+  when the motion has one. There is no validity column: loading a CSV marks every frame valid
+  (and it has no positions and no meta).
 - the robot's exports (NAO: ``.json``, NAOqi's ``angleInterpolation`` arguments; ``joints`` and
   ``lead_in`` of ``save_motion`` are its options): see ``jaxproj.robots.nao_h25.naoqi``.
 
@@ -75,10 +76,13 @@ class Motion:
       meta: JSON scalars describing the motion, e.g. ``method``, ``smoothed``, ``feasible``,
         ``source``, ``fps``.
       robot: the robot the angles are for (default the NAO H25).
+      confidence: ``(T,)`` float32 in ``[0, 1]``, each frame's confidence
+        (``jaxproj.projection.confidence``; ``RetargetResult.confidence``), or ``None``.
 
     Raises:
       ConfigError: a wrong shape or dtype, a non-finite angle, times not finite and strictly
-        increasing, or a meta value that is not a finite JSON scalar.
+        increasing, a confidence outside ``[0, 1]``, or a meta value that is not a finite JSON
+        scalar.
     """
 
     angles: np.ndarray
@@ -87,6 +91,7 @@ class Motion:
     positions: np.ndarray | None = None
     meta: Mapping[str, MetaValue] = field(default_factory=dict)
     robot: Robot = NAO_H25
+    confidence: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, Robot):
@@ -131,6 +136,19 @@ class Motion:
                     f"{positions.shape}"
                 )
             positions = _frozen(np.array(positions, dtype=np.float32))
+        conf = self.confidence
+        if conf is not None:
+            conf = np.asarray(conf)
+            if conf.dtype.kind not in "fiu" or conf.shape != (n,):
+                raise ConfigError(
+                    f"confidence must be a real ({n},) array or None, got {conf.dtype} {conf.shape}"
+                )
+            conf = np.array(conf, dtype=np.float32)
+            if not (np.isfinite(conf) & (conf >= 0) & (conf <= 1)).all():
+                bad = int(np.flatnonzero(~(np.isfinite(conf) & (conf >= 0) & (conf <= 1)))[0])
+                raise ConfigError(f"confidence must lie in [0, 1]; frame {bad} does not")
+            conf = _frozen(conf)
+        object.__setattr__(self, "confidence", conf)
         object.__setattr__(self, "angles", _frozen(angles))
         object.__setattr__(self, "times", _frozen(times))
         object.__setattr__(self, "valid", _frozen(np.array(valid)))
@@ -211,8 +229,9 @@ def save_motion(
     if ext == ".csv":
         return atomic_write(path, lambda tmp: _write_csv(tmp, motion))
     text = robot.exports[ext].write(
-        robot, motion.angles, motion.times, motion.valid, motion.meta, options[ext]
-    )
+        robot, motion.angles, motion.times, motion.valid, motion.meta, options[ext],
+        confidence=motion.confidence,
+    )  # fmt: skip
     return atomic_write(path, lambda tmp: _write_text(tmp, text))
 
 
@@ -233,6 +252,8 @@ def _npz_arrays(motion: Motion) -> dict[str, np.ndarray]:
     }
     if motion.positions is not None:
         arrays["positions"] = motion.positions
+    if motion.confidence is not None:
+        arrays["confidence"] = motion.confidence
     return arrays
 
 
@@ -258,9 +279,11 @@ def exact_strings(values: np.ndarray) -> list[str]:
 def _write_csv(tmp: Path, motion: Motion) -> None:
     cells = exact_strings(motion.angles)
     n = motion.robot.n_joints
-    lines = [",".join(("time", *motion.robot.joint_names))]
+    conf = [] if motion.confidence is None else exact_strings(motion.confidence)
+    extra = ["confidence"] if conf else []
+    lines = [",".join(("time", *motion.robot.joint_names, *extra))]
     for t, time in enumerate(motion.times.tolist()):
-        lines.append(",".join((repr(time), *cells[t * n : (t + 1) * n])))
+        lines.append(",".join((repr(time), *cells[t * n : (t + 1) * n], *conf[t : t + 1])))
     _write_text(tmp, "\n".join(lines) + "\n")
 
 
@@ -294,8 +317,9 @@ def load_motion(path: str | os.PathLike[str], robot: Robot = NAO_H25) -> Motion:
             return _read_npz(path, robot)
         if ext == ".csv":
             return _read_csv(path, robot)
-        angles, times, valid, meta = robot.exports[ext].read(robot, path)
-        return Motion(angles=angles, times=times, valid=valid, meta=meta, robot=robot)
+        angles, times, valid, meta, conf = robot.exports[ext].read(robot, path)
+        return Motion(angles=angles, times=times, valid=valid, meta=meta, robot=robot,
+                      confidence=conf)  # fmt: skip
     except ConfigError as e:  # a Motion check the readers did not pre-empt: still the file's fault
         raise InputError(path, str(e)) from None
 
@@ -357,6 +381,11 @@ def _read_npz(path: Path, robot: Robot) -> Motion:
             f"positions must be a real ({n}, {N_HUMAN_JOINTS}, 3) array, got {positions.dtype} "
             f"{positions.shape}",
         )
+    conf = data.get("confidence")
+    if conf is not None and (conf.dtype.kind not in "fiu" or conf.shape != (n,)):
+        raise InputError(
+            path, f"confidence must be a real ({n},) array, got {conf.dtype} {conf.shape}"
+        )
     meta: dict[str, Any] = {}
     if "meta" in data:
         text = data["meta"]
@@ -379,8 +408,9 @@ def _read_npz(path: Path, robot: Robot) -> Motion:
     except ConfigError as e:
         raise InputError(path, str(e)) from None
     return Motion(
-        angles=angles, times=times, valid=valid, positions=positions, meta=meta, robot=robot
-    )
+        angles=angles, times=times, valid=valid, positions=positions, meta=meta, robot=robot,
+        confidence=conf,
+    )  # fmt: skip
 
 
 def _read_csv(path: Path, robot: Robot) -> Motion:
@@ -401,6 +431,9 @@ def _read_csv(path: Path, robot: Robot) -> Motion:
             path, f"line 1: the header must be 'time,<joint names>', got {lines[0][:60]!r}"
         )
     names = header[1:]
+    has_conf = names[-1] == "confidence"
+    if has_conf:
+        names = names[:-1]
     if len(lines) < 2:
         raise InputError(path, "no frames (only a header)")
     width = len(header)
@@ -416,10 +449,12 @@ def _read_csv(path: Path, robot: Robot) -> Motion:
             raise InputError(path, f"line {i + 2}: not a number: {bad.strip()[:40]!r}") from None
     times = values[:, 0]
     check_times(times)
-    columns = values[:, 1:].astype(np.float32)
+    columns = values[:, 1 : 1 + len(names)].astype(np.float32)
     _check_finite_angles(path, columns)
     angles = robot.from_columns(names, columns)
-    return Motion(angles=angles, times=times, valid=np.ones(len(times), dtype=bool), robot=robot)
+    conf = values[:, -1].astype(np.float32) if has_conf else None
+    return Motion(angles=angles, times=times, valid=np.ones(len(times), dtype=bool), robot=robot,
+                  confidence=conf)  # fmt: skip
 
 
 def _is_float(text: str) -> bool:

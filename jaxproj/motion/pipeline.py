@@ -58,6 +58,7 @@ from jaxproj.human.skeleton import descriptor
 from jaxproj.motion.smoothing import smooth_any
 from jaxproj.motion.smoothing import step as smoothing_step
 from jaxproj.projection.api import project_batch
+from jaxproj.projection.confidence import confidence
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector, StackedProjector
 from jaxproj.robots import NAO_H25, Robot
@@ -103,19 +104,22 @@ def map_frames(
     full: FullConfig,
     bones: str | tuple[str, ...],
     robot: Robot = NAO_H25,
-) -> jax.Array:
-    """Per-frame mapping: ``(T, m)`` descriptors -> ``(T, n)`` driven angles (rad).
+) -> tuple[jax.Array, jax.Array]:
+    """Per-frame mapping: ``(T, m)`` descriptors -> ``(T, n)`` driven angles (rad) and ``(T,)``
+    confidence (``projection.confidence``).
 
     ``method="ik"``: the robot's analytic IK (``Robot.solve_ik_traced``; ``p`` unused;
-    ``bones`` picks its bones); ``"relaxed"`` / ``"full"``: ``projection.api.project_batch`` of
-    ``p`` with ``L = n_l``, ``M = n_m``. Both answer within the joint limits.
+    ``bones`` picks its bones), confidence 1; ``"relaxed"`` / ``"full"``:
+    ``projection.api.project_batch`` of ``p`` with ``L = n_l``, ``M = n_m``, confidence from
+    the objective's value. Both answer within the joint limits.
     """
     if method == "ik":
-        return robot.solve_ik_traced(d, bones)
+        q = robot.solve_ik_traced(d, bones)
+        return q, jnp.ones(q.shape[:-1], jnp.float32)
     if p is None:
         raise ConfigError(f"method {method!r} needs a projector")
-    q, _ = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
-    return q
+    q, value = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
+    return q, confidence(value)
 
 
 def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
@@ -205,7 +209,7 @@ def motion(
     mirror: bool,
     smoother: str | None,
     robot: Robot = NAO_H25,
-) -> tuple[jax.Array, jax.Array]:
+) -> tuple[jax.Array, jax.Array, jax.Array]:
     """The whole pipeline for one padded motion (``retarget``'s compiled call).
 
     Args:
@@ -221,14 +225,16 @@ def motion(
       robot: the robot (its IK, limits, posture and joints).
 
     Returns:
-      ``((T, n_joints) angles, (T,) valid)``: ``robot.joint_names`` order, the rest of the body
-      at the standing posture; validity after the descriptor's own check.
+      ``((T, n_joints) angles, (T,) valid, (T,) confidence)``: ``robot.joint_names`` order,
+      the rest of the body at the standing posture; validity after the descriptor's own check;
+      ``projection.confidence`` of each frame (0 where invalid, 1 for the IK).
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
-    q = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones, robot=robot)
+    q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
+                         robot=robot)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,
                   smoother=smoother or "paper")  # fmt: skip
-    return robot.driven_to_full(q), ok
+    return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)
 
 
 def frame(
@@ -244,7 +250,7 @@ def frame(
     bones: str | tuple[str, ...],
     mirror: bool,
     robot: Robot = NAO_H25,
-) -> tuple[jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
+) -> tuple[jax.Array, jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
     """One frame of the pipeline, causal (``streaming.update``'s compiled call).
 
     Descriptor -> relaxed projection (a batch of one) -> one smoother ``step`` -> clip. The
@@ -262,11 +268,13 @@ def frame(
       robot: the robot (its joint limits).
 
     Returns:
-      ``(angles, (level, trend, started))``: ``(n,)`` clipped driven angles and the next state.
+      ``(angles, confidence, (level, trend, started))``: ``(n,)`` clipped driven angles, this
+      frame's ``()`` confidence (0 if invalid) and the next state.
     """
     d, ok = frame_descriptors(positions, None, bones=bones, mirror=mirror)  # (m,), ()
     full = FullConfig()  # unused by the relaxed projection
-    r = map_frames(p, d[None], method="relaxed", n_l=n_l, n_m=n_m, full=full, bones=bones)[0]
+    r, conf = map_frames(p, d[None], method="relaxed", n_l=n_l, n_m=n_m, full=full, bones=bones)
+    r = r[0]
     s_t, b_t = smoothing_step(level, trend, r, gains)
     # the first valid frame starts the smoother, as smooth_motion starts a motion
     s_t = jnp.where(started, s_t, r)
@@ -275,7 +283,8 @@ def frame(
     new_level = jnp.where(ok, s_t, level)
     new_trend = jnp.where(ok, b_t, trend)
     new_started = started | ok
-    return clip_to_limits(new_level, robot), (new_level, new_trend, new_started)
+    out = clip_to_limits(new_level, robot)
+    return out, jnp.where(ok, conf[0], 0.0), (new_level, new_trend, new_started)
 
 
 def standing_driven(robot: Robot = NAO_H25) -> np.ndarray:

@@ -47,6 +47,7 @@ from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (its old home)
 from jaxproj.motion.smoothing import Smoothing, frame_gains
 from jaxproj.projection.api import Model, check_neighbours
+from jaxproj.projection.confidence import LOW_CONFIDENCE
 from jaxproj.projection.config import FullConfig
 from jaxproj.robots import Robot, get
 
@@ -64,12 +65,24 @@ class RetargetResult:
       times: ``(T,)`` float64 seconds of the frames (as given, or ``t / smoothing.rate``).
       unfiltered: ``(T, n_joints)`` float32 angles before the feasibility filter when ``retarget``
         ran it (``feasible=``), else ``None`` (``angles`` are then the unfiltered ones).
+      confidence: ``(T,)`` float32 in ``[0, 1]``, each frame's ``projection.confidence`` (from
+        the projection's least back-projection deviation; 1 for the IK, 0 where invalid);
+        below ``projection.confidence.LOW_CONFIDENCE`` a frame is less trusted than nine in ten
+        frames of people a model never saw. ``None`` only when built by hand.
     """
 
     angles: np.ndarray
     valid: np.ndarray
     times: np.ndarray
     unfiltered: np.ndarray | None = None
+    confidence: np.ndarray | None = None
+
+    @property
+    def low_confidence_share(self) -> float:
+        """Share of the frames with ``confidence < LOW_CONFIDENCE`` (invalid ones included)."""
+        if self.confidence is None or len(self.confidence) == 0:
+            return 0.0
+        return float(np.mean(self.confidence < LOW_CONFIDENCE))
 
 
 def _bucket(t: int) -> int:
@@ -120,7 +133,8 @@ def retarget(
         model's robot (``Model.robot``), else the default robot (the NAO H25).
 
     Returns:
-      ``RetargetResult`` with ``(T, n_joints)`` angles, ``(T,)`` validity and ``(T,)`` times.
+      ``RetargetResult`` with ``(T, n_joints)`` angles, ``(T,)`` validity, ``(T,)`` times and
+      ``(T,)`` confidence.
 
     Raises:
       ConfigError: bad shapes, a learned method without a model, a ``robot`` other than the
@@ -178,7 +192,7 @@ def retarget(
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
     padded = np.concatenate([stamps, np.repeat(stamps[-1:], size - t)])
     gains = frame_gains(params, None if times is None else padded, t)
-    angles, ok_out = _motion_jit(
+    angles, ok_out, conf = _motion_jit(
         p,
         pos,
         ok,
@@ -198,4 +212,5 @@ def retarget(
     if feasible is not None:
         unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
-    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps, unfiltered)
+    conf_t = np.asarray(conf, np.float32)[:t]
+    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps, unfiltered, conf_t)

@@ -48,7 +48,7 @@ from jax.typing import ArrayLike
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.motion.offline import OfflineSmoothing, rts_motion
+from jaxproj.motion.offline import OFFLINE_SMOOTHING, OfflineSmoothing, rts_motion
 
 
 @dataclass(frozen=True)
@@ -110,6 +110,10 @@ class SmoothingParams:
 
 PAPER_SMOOTHING = SmoothingParams()
 """The paper's gains: alpha 0.75, gamma 0.3, eta 0.15."""
+
+__all__ = ["OFFLINE_SMOOTHING", "PAPER_SMOOTHING", "OfflineSmoothing", "SmoothingParams",
+           "Smoothing", "frame_gains", "smooth", "smooth_any", "smooth_batch", "smooth_motion",
+           "step"]  # fmt: skip
 
 
 def step(

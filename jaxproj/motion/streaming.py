@@ -56,11 +56,14 @@ class StreamState(NamedTuple):
         The standing posture's driven joints until the first valid frame.
       trend: ``(n,)`` float32, the smoother's trend ``b``.
       started: ``()`` bool, whether a valid frame has been seen.
+      confidence: ``()`` float32, the last frame's confidence (``projection.confidence``; 0 for
+        an invalid frame and before any frame); the only field an invalid frame changes.
     """
 
     level: jax.Array
     trend: jax.Array
     started: jax.Array
+    confidence: jax.Array
 
 
 def _widths(p: AnyProjector) -> tuple[int, int]:
@@ -106,7 +109,7 @@ def init(model: Model | AnyProjector, *, robot: Robot | str | None = None) -> St
 
     Returns:
       ``StreamState`` with ``(n,)`` level (the standing posture's driven joints), ``(n,)``
-      zero trend and ``started = False``.
+      zero trend, ``started = False`` and confidence 0.
     """
     p, _, _ = _projector(model)
     spec = _robot(model, robot)
@@ -117,6 +120,7 @@ def init(model: Model | AnyProjector, *, robot: Robot | str | None = None) -> St
         level=jnp.asarray(pipeline.standing_driven(spec)),
         trend=jnp.zeros((n,), jnp.float32),
         started=jnp.zeros((), jnp.bool_),
+        confidence=jnp.zeros((), jnp.float32),
     )
 
 
@@ -132,11 +136,11 @@ def _update(
     mirror: bool,
     robot: Robot,
 ) -> tuple[jax.Array, StreamState]:
-    angles, (level, trend, started) = pipeline.frame(
+    angles, conf, (level, trend, started) = pipeline.frame(
         p, state.level, state.trend, state.started, positions, gains,
         n_l=n_l, n_m=n_m, bones=bones, mirror=mirror, robot=robot,
     )  # fmt: skip
-    return angles, StreamState(level, trend, started)
+    return angles, StreamState(level, trend, started, conf)
 
 
 _update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror", "robot"))
@@ -169,7 +173,8 @@ def update(
 
     Returns:
       ``(angles, state)``: ``(n,)`` float32 driven-joint angles (rad, the robot's
-      ``driven_joints`` order, within its joint limits, never NaN) and the next ``StreamState``.
+      ``driven_joints`` order, within its joint limits, never NaN) and the next ``StreamState``
+      (its ``confidence``: this frame's).
     """
     p, bones, mirror = _projector(model)
     spec = _robot(model, robot)
@@ -183,7 +188,12 @@ def update(
     if not isinstance(state, StreamState):
         raise ConfigError(f"state must be a StreamState from streaming.init, got {type(state)}")
     m, n = _widths(p)
-    if state.level.shape != (n,) or state.trend.shape != (n,) or state.started.shape != ():
+    if (
+        state.level.shape != (n,)
+        or state.trend.shape != (n,)
+        or state.started.shape != ()
+        or state.confidence.shape != ()
+    ):
         raise ConfigError(
             f"state does not fit this model: level {state.level.shape}, trend "
             f"{state.trend.shape}, started {state.started.shape} (expected ({n},), ({n},), ())"

@@ -254,17 +254,6 @@ def _sample_motions(data) -> list[str]:
     return out
 
 
-def _smoother_label(settings: dict | None) -> str:
-    """Words for ``evaluate``'s ``"smoothing"`` block."""
-    if not settings:
-        return "no smoother"
-    if settings.get("kind") == "offline":
-        return (f"zero-lag offline RTS smoother, accel_std {settings['accel_std']:g}, "
-                f"noise_std {settings['noise_std']:g}")  # fmt: skip
-    return (f"the paper's causal smoother, alpha {settings['alpha']:g}, gamma "
-            f"{settings['gamma']:g}, eta {settings['eta']:g}")  # fmt: skip
-
-
 def _comparison_md(r: dict) -> list[str]:
     """Whole-body vs per-chain, per objective and baseline, on both held-out splits."""
     lines = [
@@ -465,7 +454,7 @@ def _markdown(r: dict) -> str:
         f"joints {', '.join(r['driven_joints'])}, against the analytic IK. Devices: "
         f"{', '.join(r['devices'])}.",
         "",
-        f"## Accuracy of the default output: smoothed ({_smoother_label(r['smoothing'])})",
+        f"## Accuracy of the default output: smoothed ({report.smoother_label(r['smoothing'])})",
         "",
         "Each method's per-frame answers, invalid frames filled, smoothed and clipped to the "
         "joint limits, against the IK of every valid frame (the feasibility filter's effect "
@@ -491,6 +480,7 @@ def _markdown(r: dict) -> str:
             f"| {m} | {v['jerk_raw']:.3g} | {v.get('jerk_smoothed', nan):.3g} | "
             f"{v.get('lag_frames_raw', nan):+.2f} | {v.get('lag_frames_smoothed', nan):+.2f} |"
         )
+    lines += report.confidence_md(r.get("confidence") or {})
     lines += _comparison_md(r)
     lines += _where_md(r)
     lines += ["", "## Per action (relaxed, smoothed): median M_avg / p95 M_max", ""]

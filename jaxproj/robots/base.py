@@ -124,17 +124,18 @@ class Export:
       suffix: the file extension, e.g. ``".json"``.
       check: ``check(robot, joints, lead_in)`` validates the export options (ConfigError)
         and returns them resolved.
-      write: ``write(robot, angles (T, n_joints), times (T,), valid (T,), meta, options)`` ->
-        the document's text.
+      write: ``write(robot, angles (T, n_joints), times (T,), valid (T,), meta, options,
+        confidence=None | (T,))`` -> the document's text.
       read: ``read(robot, path)`` -> ``(angles (T, n_joints) float32, times (T,) float64,
-        valid (T,) bool, meta dict)``; ``InputError`` / ``ConfigError`` for a bad file.
+        valid (T,) bool, meta dict, confidence (T,) float32 or None)``; ``InputError`` /
+        ``ConfigError`` for a bad file.
     """
 
     name: str
     suffix: str
     check: Callable[..., Any]
     write: Callable[..., str]
-    read: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]]
+    read: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any], Any]]
 
 
 def _vector(value: object, n: int, what: str) -> np.ndarray:

@@ -421,3 +421,48 @@ def write_text(path: Path, text: str) -> None:
             fh.write(text)
 
     atomic_write(path, write)
+
+
+def smoother_label(settings: dict | None) -> str:
+    """Words for ``evaluate``'s ``"smoothing"`` block."""
+    if not settings:
+        return "no smoother"
+    if settings.get("kind") == "offline":
+        return (f"zero-lag offline RTS smoother, accel_std {settings['accel_std']:g}, "
+                f"noise_std {settings['noise_std']:g}")  # fmt: skip
+    return (f"the paper's causal smoother, alpha {settings['alpha']:g}, gamma "
+            f"{settings['gamma']:g}, eta {settings['eta']:g}")  # fmt: skip
+
+
+def confidence_md(blocks: dict) -> list[str]:
+    """Markdown: error against the per-frame confidence by decile, per projection objective
+    (``evaluate``'s ``"confidence"`` blocks); ``[]`` without any."""
+    if not blocks:
+        return []
+    lines = [
+        "",
+        "## Confidence: which frames to distrust",
+        "",
+        "Each frame's confidence (`jaxproj.projection.confidence`: exp(-deviation / 0.174), "
+        "from the projection's least back-projection deviation) against its unsmoothed error, "
+        "the held-out frames in ten equal groups from the least confident. `low` = frames "
+        "below exp(-1), the least trusted tenth of training people's frames on models that "
+        "never saw them.",
+        "",
+        "| method | decile | confidence up to | median M_max | p95 M_max | share M_max > 30 |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for method, b in blocks.items():
+        for i, d in enumerate(b["deciles"]):
+            lines.append(
+                f"| {method} | {i + 1} | {d['confidence_max']:.2f} | {d['M_max_median']:.1f} | "
+                f"{d['M_max_p95']:.1f} | {100 * d['share_over']:.1f} % |"
+            )
+    for method, b in blocks.items():
+        lines.append("")
+        lines.append(
+            f"{method}: {100 * b['low_share']:.1f} % of the frames are low-confidence and hold "
+            f"{100 * b['low_recall']:.0f} % of the frames with M_max > {b['over_deg']:.0f} deg "
+            f"({100 * b['share_over']:.1f} % of all frames)."
+        )
+    return lines

@@ -123,7 +123,9 @@ def test_retarget_utkinect_to_robot_files_with_time_and_no_speed_violation(tmp_p
     assert doc["isAbsolute"] is True and len(doc["names"]) == 14
     assert all(len(a) == n for a in doc["angleLists"]) and doc["timeLists"][0][0] > 0
     header = (tmp_path / "motion.csv").read_text().splitlines()[0].split(",")
-    assert header == ["time", *robot.JOINT_NAMES]
+    assert header == ["time", *robot.JOINT_NAMES, "confidence"]  # per frame, in every output
+    assert len(doc["jaxproj"]["confidence"]) == n
+    np.testing.assert_array_equal(load_motion(tmp_path / "motion.npz").confidence, raw_m.confidence)
     # --fps replaces the file's timing
     fast = tmp_path / "fast.npz"
     assert _run(capsys, "retarget", str(src), "--out", str(fast), "--fps", "60")[0] == 0

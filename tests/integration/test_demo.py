@@ -45,3 +45,9 @@ def test_demo_quick_writes_the_report(tmp_path):
     assert "## Whole-body vs per-chain" in md
     assert r["timings"]["total_s"] > 0
     assert r["quick"] is True and "**Quick run**" in md
+    # the default output is the zero-lag offline smoother's, labelled; confidence by decile
+    assert r["smoothing"]["kind"] == "offline" and "zero-lag offline RTS smoother" in md
+    assert abs(r["smoothness"]["relaxed"]["lag_frames_smoothed"]) < 0.5
+    deciles = r["confidence"]["relaxed"]["deciles"]
+    assert len(deciles) == 10 and "## Confidence: which frames to distrust" in md
+    assert deciles[0]["M_max_median"] > deciles[-1]["M_max_median"]

@@ -324,3 +324,17 @@ def test_bad_files_raise_input_error_naming_the_file(tmp_path, name):
 def test_load_rejects_an_unknown_extension(tmp_path):
     with pytest.raises(ConfigError, match=r"\.npz, \.csv, \.json"):
         load_motion(tmp_path / "m.bvh")
+
+
+@pytest.mark.parametrize("ext", [".npz", ".csv", ".json"])
+def test_confidence_round_trips(tmp_path, ext):
+    n = 6
+    angles = np.tile(robot.STANDING_POSTURE, (n, 1)).astype(np.float32)
+    conf = np.array([0.0, 0.25, 1 / 3, 0.9999, 1.0, 0.5], np.float32)
+    m = Motion(angles, np.arange(n) / 15.0, np.ones(n, bool), confidence=conf)
+    back = load_motion(save_motion(tmp_path / f"m{ext}", m))
+    np.testing.assert_array_equal(back.confidence, conf)
+    plain = load_motion(save_motion(tmp_path / f"p{ext}", Motion(angles, m.times, m.valid)))
+    assert plain.confidence is None
+    with pytest.raises(ConfigError, match=r"confidence must lie in \[0, 1\]; frame 2"):
+        Motion(angles, m.times, m.valid, confidence=np.array([0, 1, 1.5, 0, 0, 0], np.float32))

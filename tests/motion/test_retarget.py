@@ -98,3 +98,24 @@ def test_bad_arguments_are_config_errors(model, motion):
         retarget(positions, model=model, method="nearest")
     with pytest.raises(ConfigError, match="L=0"):
         retarget(positions, model=model, n_l=0)
+
+
+def test_confidence_and_the_default_offline_smoother(model, motion):
+    positions, valid = motion
+    res = retarget(positions, valid, model=model)  # defaults: offline smoother
+    _, v = engine.project(model, np.asarray(descriptor(positions)[0])[res.valid], "relaxed")
+    np.testing.assert_allclose(res.confidence[res.valid], np.exp(-v / 0.174), rtol=1e-5)
+    assert (res.confidence[~res.valid] == 0).all() and (~res.valid).any()
+    assert 0.0 <= res.low_confidence_share <= 1.0
+    ik_res = retarget(positions, valid)
+    np.testing.assert_array_equal(ik_res.confidence, res.valid.astype(np.float32))
+    # the default is the offline smoother: the stage-wise pipeline with smoothing.smooth of it
+    # on the projection, invalid frames skipped
+    d, ok = descriptor(positions)
+    ok = np.asarray(ok) & valid
+    q, _ = engine.project(model, np.asarray(d), "relaxed")
+    q = np.asarray(smoothing.smooth(q, smoothing.OFFLINE_SMOOTHING, valid=ok))
+    q = np.clip(q, robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX])
+    first, last = np.flatnonzero(ok)[[0, -1]]
+    inner = slice(first, last + 1)
+    np.testing.assert_allclose(res.angles[inner][:, robot.DRIVEN_INDEX], q[inner], atol=1e-4)

@@ -105,11 +105,14 @@ def test_invalid_frames_hold_the_previous_output_and_state(projector, recordings
     for t in (0, 1):
         np.testing.assert_array_equal(angles[t], STANDING)
         assert not states[t].started
-    # an invalid frame repeats the previous output and leaves the state untouched
+    # an invalid frame repeats the previous output and leaves the state untouched, but for
+    # its confidence: 0
     for t in sorted(where_bad - {0, 1}):
         np.testing.assert_array_equal(angles[t], angles[t - 1])
-        for a, b in zip(states[t], states[t - 1], strict=True):
+        for a, b in zip(states[t][:3], states[t - 1][:3], strict=True):
             np.testing.assert_array_equal(a, b)
+        assert states[t].confidence == 0.0
+    assert all(0.0 < states[t].confidence <= 1.0 for t in range(len(frames)) if t not in where_bad)
     # the valid frames are exactly the clean stream: invalid frames leave no trace
     valid = [t for t in range(len(frames)) if t not in where_bad]
     np.testing.assert_array_equal(angles[valid], clean)
@@ -217,5 +220,5 @@ def test_init_state(projector):
     assert isinstance(s, streaming.StreamState)
     np.testing.assert_array_equal(np.asarray(s.level), STANDING)
     np.testing.assert_array_equal(np.asarray(s.trend), np.zeros(10, np.float32))
-    assert not bool(s.started)
+    assert not bool(s.started) and float(s.confidence) == 0.0
     assert PAPER_SMOOTHING == SmoothingParams()  # update's default gains are the paper's

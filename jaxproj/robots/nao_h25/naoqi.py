@@ -4,7 +4,8 @@ The document is exactly the arguments of NAOqi's
 ``ALMotion.angleInterpolation(names, angleLists, timeLists, isAbsolute)``:
 ``{"names": [...], "angleLists": [[...], ...], "timeLists": [[...], ...], "isAbsolute": true}``,
 one angle list and one time list per joint name, plus a ``"jaxproj"`` block (the motion's
-``meta`` and ``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``) that NAOqi never sees.
+``meta`` and ``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``, and ``confidence``, one
+number per frame, when the motion has one) that NAOqi never sees.
 Times are ``times - times[0] + lead_in``: NAOqi wants strictly increasing times > 0, and the
 lead-in (default 1 s) gives the robot time to move from wherever it stands to the first pose.
 By default only the ``"upper"`` joints are written (``UPPER_JOINTS``: NAOqi's Head, LArm and
@@ -43,7 +44,7 @@ UPPER_JOINTS: tuple[str, ...] = (
 DEFAULT_LEAD_IN_S = 1.0
 """Seconds before the first pose in NAOqi JSON (the robot moves there from where it stands)."""
 
-RESERVED_META = ("t0", "lead_in_s", "joints", "invalid_frames")
+RESERVED_META = ("t0", "lead_in_s", "joints", "invalid_frames", "confidence")
 """Keys of the ``"jaxproj"`` block that a motion's ``meta`` may not use."""
 
 _JSON_KEYS = ("names", "angleLists", "timeLists", "isAbsolute")
@@ -96,12 +97,14 @@ def document(
     valid: np.ndarray,
     meta: Mapping[str, Any],
     options: tuple[tuple[str, ...], str | list[str], float],
+    confidence: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The NAOqi ``angleInterpolation`` arguments plus the ``jaxproj`` block.
 
     Args:
       robot: the NAO (joint names).
       angles: ``(T, n_joints)`` float32 rad; times: ``(T,)`` float64 s; valid: ``(T,)`` bool.
+      confidence: optional ``(T,)`` float32 per-frame confidence (written to the block).
       meta: the motion's meta (no ``RESERVED_META`` key).
       options: ``check_options(...)``.
     """
@@ -127,8 +130,14 @@ def document(
             "lead_in_s": lead_in,
             "joints": label,
             "invalid_frames": np.flatnonzero(~valid).tolist(),
+            **({} if confidence is None else {"confidence": _exact(confidence)}),
         },
     }
+
+
+def _exact(values: np.ndarray) -> list[float]:
+    """float32 values as JSON numbers that read back to the same float32 bits."""
+    return [float(v) for v in np.asarray(values, np.float32).tolist()]
 
 
 def write(
@@ -138,9 +147,11 @@ def write(
     valid: np.ndarray,
     meta: Mapping[str, Any],
     options: tuple[tuple[str, ...], str | list[str], float],
+    confidence: np.ndarray | None = None,
 ) -> str:
     """The document (``document``) as JSON text."""
-    return json.dumps(document(robot, angles, times, valid, meta, options), allow_nan=False)
+    doc = document(robot, angles, times, valid, meta, options, confidence)
+    return json.dumps(doc, allow_nan=False)
 
 
 def _number_list(path: Path, what: str, value: object) -> np.ndarray:
@@ -155,14 +166,17 @@ def _number_list(path: Path, what: str, value: object) -> np.ndarray:
     return arr
 
 
-def read(robot: Robot, path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+def read(
+    robot: Robot, path: Path
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any], np.ndarray | None]:
     """Read a NAOqi JSON document.
 
     Returns:
-      ``(angles (T, n_joints) float32, times (T,) float64, valid (T,) bool, meta)``: joints the
-      file does not name at the standing posture; times restored with ``t0`` / ``lead_in_s`` of
-      the ``"jaxproj"`` block when present (else NAOqi's times as they are); frames valid except
-      the block's ``invalid_frames``.
+      ``(angles (T, n_joints) float32, times (T,) float64, valid (T,) bool, meta, confidence
+      (T,) float32 or None)``: joints the file does not name at the standing posture; times
+      restored with ``t0`` / ``lead_in_s`` of the ``"jaxproj"`` block when present (else NAOqi's
+      times as they are); frames valid except the block's ``invalid_frames``; the block's
+      ``confidence`` when present.
 
     Raises:
       InputError: the file is unreadable or malformed (names the file and the problem).
@@ -234,12 +248,17 @@ def read(robot: Robot, path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     ):
         raise InputError(path, f"jaxproj.invalid_frames must list frame indices < {len(times)}")
     valid[invalid] = False
+    conf = None
+    if "confidence" in block:
+        conf = _number_list(path, "jaxproj.confidence", block["confidence"]).astype(np.float32)
+        if conf.shape != (len(times),):
+            raise InputError(path, f"jaxproj.confidence must list {len(times)} numbers")
     meta = {k: v for k, v in block.items() if k not in RESERVED_META}
     try:
         meta = check_meta(meta)
     except ConfigError as e:
         raise InputError(path, f"jaxproj block: {e}") from None
-    return angles, times, valid, meta
+    return angles, times, valid, meta, conf
 
 
 EXPORT = Export(name="naoqi", suffix=".json", check=check_options, write=write, read=read)
