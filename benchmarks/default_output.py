@@ -11,6 +11,8 @@ the paper's causal one), against the IK of every valid frame:
   median M_avg, p95 M_max;
 * lag (frames of best cross-correlation with the IK's motion) and mean squared jerk
   ((rad/s^3)^2) of the smoothed motion, the IK's own jerk beside them;
+* the per-frame confidence against the unsmoothed error: the share of frames with M_max > 30
+  deg in the least confident decile, and the share of those frames flagged low-confidence;
 * the feasible output's simulated servo speed is ``benchmarks/bench_rollout.py``'s, not here.
 
     python -m benchmarks.default_output [--model P.npz] [--save-model P.npz] [--json OUT]
@@ -59,6 +61,7 @@ def row(r: dict) -> dict:
         "jerk_unsmoothed": s["relaxed"]["jerk_raw"],
         "jerk_ik": s["ik"]["jerk_raw"],
         "frames": r["valid_frames"],
+        "confidence": r["confidence"]["relaxed"],
     }
 
 
@@ -80,8 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     out: dict = {"landmarks": model.landmarks, "splits": {}}
     lines = [
         "| split | smoother | unsmoothed median M_avg / p95 M_max / p95 w/o EY | default output "
-        "median M_avg / p95 M_max / p95 w/o EY | lag (frames) | jerk (rad^2/s^6) | IK jerk |",
-        "|---|---|---|---|---:|---:|---:|",
+        "median M_avg / p95 M_max / p95 w/o EY | lag (frames) | jerk (rad^2/s^6) | IK jerk | "
+        "worst-confidence decile: share M_max > 30 | low-confidence frames: share of them / "
+        "recall of M_max > 30 |",
+        "|---|---|---|---|---:|---:|---:|---:|---|",
     ]
     for split, seqs in splits().items():
         data = ev.prepare(seqs)
@@ -89,13 +94,15 @@ def main(argv: list[str] | None = None) -> int:
             r = ev.evaluate(model, data, ["relaxed"], smoothing=smoothing)
             x = row(r)
             out["splits"].setdefault(split, {})[name] = x
-            u, d = x["unsmoothed"], x["default_output"]
+            u, d, c = x["unsmoothed"], x["default_output"], x["confidence"]
             lines.append(
                 f"| {split} ({x['frames']} frames) | {name} | {u['M_avg_median']:.2f} / "
                 f"{u['M_max_p95']:.1f} / {u['M_max_no_elbow_yaw_p95']:.1f} | "
                 f"{d['M_avg_median']:.2f} / {d['M_max_p95']:.1f} / "
                 f"{d['M_max_no_elbow_yaw_p95']:.1f} | {x['lag_frames']:+.2f} | {x['jerk']:.3g} | "
-                f"{x['jerk_ik']:.3g} |"
+                f"{x['jerk_ik']:.3g} | {100 * c['worst_decile_share_over']:.0f} % (all frames: "
+                f"{100 * c['share_over']:.1f} %) | {100 * c['low_share']:.0f} % / "
+                f"{100 * c['low_recall']:.0f} % |"
             )
     out["wall_s"] = time.perf_counter() - t0
     print("\n".join(lines))
