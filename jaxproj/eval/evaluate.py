@@ -501,7 +501,8 @@ def evaluate(
     seq_of_frame = np.repeat(np.arange(len(data.names)), lengths)[data.valid]
     truth_points = metrics.arm_points(truth_v, robot=spec)  # one FK of the truth serves all
     out: dict = {
-        "landmarks": model.n_landmarks,
+        "landmarks": model.n_landmarks,  # the smallest chain's: the largest L and M
+        "landmarks_per_chain": dict(model.landmarks),
         "L": n_l,
         "M": n_m,
         "frames": int(len(data.valid)),

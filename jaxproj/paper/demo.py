@@ -261,8 +261,9 @@ def _comparison_md(r: dict) -> list[str]:
         "## Whole-body vs per-chain projection (unsmoothed)",
         "",
         "The same five methods with the paper's whole-body projector (one set of landmarks over "
-        "all 15 descriptor numbers) and with the default per-chain projector (head, left arm, "
-        "right arm, each searched and trained in its own bones; baselines per chain too). "
+        "all 15 descriptor numbers) and with the per-chain projector built here (head, left arm, "
+        f"right arm: {r['build']['landmarks']} landmarks, each chain searched and trained in its "
+        "own bones; baselines per chain too). "
         "Held-out MSR Action3D subjects (all actions) and the UTKinect-Action3D upper-body "
         "segments (other people, another room: cross-dataset). Landmarks from MSR subjects "
         f"{r['train_subjects']}.",

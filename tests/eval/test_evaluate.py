@@ -84,6 +84,17 @@ def test_evaluate_report_layout_and_ordering(model, data, tmp_path):
 
     back = json.loads(path.read_text())
     assert "_predictions" not in back and back["landmarks"] == model.n_landmarks
+    assert back["landmarks_per_chain"] == dict(model.landmarks)  # which model, per chain
+    # the projections' confidence against their error, by decile; lag and jerk of each method
+    for m in ("relaxed", "full"):
+        deciles = back["confidence"][m]["deciles"]
+        assert len(deciles) == 10
+        assert deciles[0]["confidence_max"] <= deciles[-1]["confidence_max"]
+    assert "nearest_landmark" not in back["confidence"]
+    assert back["smoothing"]["kind"] == "offline"
+    for m in evaluate.METHODS:
+        assert np.isfinite(back["smoothness"][m]["lag_frames_smoothed"])
+    assert back["smoothness"]["ik"]["jerk_raw"] > 0
 
 
 def test_plots_are_written(model, data, tmp_path):
