@@ -70,8 +70,11 @@ class Model:
 
     @property
     def landmarks(self) -> dict[str, int]:
-        """Landmark count per chain."""
-        lay = self.projector.layout
+        """Landmark count per chain (a model holding a bare one-chain ``Projector``, as
+        ``Model(projector=...)`` may: ``{"whole": K}``)."""
+        lay = getattr(self.projector, "layout", None)
+        if lay is None:
+            return {"whole": int(self.projector.n_landmarks)}
         return dict(zip(lay.names, lay.landmarks, strict=True))
 
 
