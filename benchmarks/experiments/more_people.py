@@ -76,13 +76,15 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
         fold: dict = {"train_utkinect": train_people, "test_utkinect": test_people,
-                      "utkinect_train_frames": len(utk_train), "landmarks": both.landmarks}  # fmt: skip
+                      "utkinect_train_frames": len(utk_train),
+                      "landmarks": both.landmarks}  # fmt: skip
         for name, model in (("msr_only", msr_only), ("msr_plus_utkinect", both)):
             s = scores(model, test)
             pooled[name].append(s)
-            fold[name] = {"utkinect": summary(*s), "msr_held_out": summary(*scores(model, msr_test))}
+            msr = summary(*scores(model, msr_test))
+            fold[name] = {"utkinect": summary(*s), "msr_held_out": msr}
         out["folds"].append(fold)
-        print(f"fold train {train_people} / test {test_people}: {json.dumps(fold)}", file=sys.stderr)
+        print(f"fold {train_people} / {test_people}: {json.dumps(fold)}", file=sys.stderr)
     print("| model | UTKinect held-out people: median M_avg / p95 M_max / p95 no EY / share > 30 | "
           "MSR held out (fold 1, fold 2): median M_avg / p95 M_max |\n|---|---|---|")  # fmt: skip
     for name, parts in pooled.items():
