@@ -115,7 +115,13 @@ def add_data_options(
 ) -> None:
     """``--data``, ``--subjects``, ``--strict`` and ``--bvh-map`` of ``build`` / ``evaluate``:
     ``role`` names the subjects ("training"), ``msr_subjects`` the bundled protocol's split."""
-    parser.add_argument("--data", default="bundled", help="'bundled'/'msr', 'utkinect' or a folder")
+    parser.add_argument(
+        "--data",
+        default="bundled",
+        help="'bundled'/'msr', 'utkinect' or a folder; several joined by '+' (e.g. "
+        "bundled+utkinect, bundled+FOLDER: a model should hold frames of the capture set-up it "
+        "will serve, docs/results.md)",
+    )
     parser.add_argument(
         "--subjects",
         type=parse_ints,
@@ -199,12 +205,28 @@ def load_data(
 ) -> tuple[list, Any]:
     """Recordings of ``--data`` and, for a folder, its ``datasets.FolderContents`` (else
     ``None``). ``--subjects`` defaults to the MSR Action3D protocol's ``split`` (train / test
-    subjects) on the bundled MSR data, to every recording elsewhere. For a folder, what was
+    subjects) on the bundled MSR data, to every recording elsewhere. Several sources joined by
+    ``+`` (``bundled+utkinect``, ``bundled+/my/recordings``; at most one folder) give all their
+    recordings, ``--subjects`` applied to each. For a folder, what was
     skipped (not a recording), left out (``--subjects``) or unreadable is noted on stderr;
     an unreadable recording stops the command only with ``--strict``."""
     from jaxproj._internal.progress import bar
     from jaxproj.io import datasets
 
+    parts = data.split("+")
+    if len(parts) > 1 and not Path(data).exists():  # several sources, one training set
+        seqs: list = []
+        folder = None
+        for part in parts:
+            if not part:
+                raise ConfigError(f"--data {data}: an empty source between '+' signs")
+            more, contents = load_data(part, subjects, split, strict, bvh_map)
+            if contents is not None:
+                if folder is not None:
+                    raise ConfigError(f"--data {data}: at most one folder among the sources")
+                folder = contents
+            seqs += more
+        return seqs, folder
     if subjects is None and data in ("bundled", "msr"):
         subjects = list(datasets.TRAIN_SUBJECTS if split == "train" else datasets.TEST_SUBJECTS)
     if data in ("bundled", "msr", "utkinect"):

@@ -338,3 +338,18 @@ def test_no_warp_notice_on_the_users_terminal(tmp_path):
     assert res.returncode == 2 and res.stdout == ""
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith("jaxproj: error:") and "none.npz" in line
+
+
+def test_data_sources_join_with_plus(tmp_path):
+    from jaxproj.cli import options
+    from jaxproj.errors import ConfigError
+
+    msr, _ = options.load_data("bundled", None, "train")
+    utk, _ = options.load_data("utkinect", None, "train")
+    both, contents = options.load_data("bundled+utkinect", None, "train")
+    assert [s.name for s in both] == [s.name for s in msr] + [s.name for s in utk]
+    assert contents is None
+    some, _ = options.load_data("utkinect+msr", [3], "train")  # --subjects for each source
+    assert {s.subject for s in some} == {3} and len(some) > len(utk) // 5
+    with pytest.raises(ConfigError, match="empty source"):
+        options.load_data("bundled+", None, "train")
