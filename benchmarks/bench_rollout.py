@@ -126,8 +126,12 @@ def motions(batch: int, frames: int, seed: int) -> np.ndarray:
     return np.clip(q, robot.LOWER + margin, robot.UPPER - margin).astype(np.float32)
 
 
-def cpu_rollout(targets: np.ndarray, substeps: int) -> tuple[np.ndarray, int, float]:
-    """The rollout protocol with CPU MuJoCo mj_step: (T, 26) qpos, contacts seen, seconds."""
+def cpu_rollout(
+    targets: np.ndarray, substeps: int, interpolate: bool = True
+) -> tuple[np.ndarray, int, float]:
+    """The rollout protocol with CPU MuJoCo mj_step: (T, 26) qpos, contacts seen, seconds
+    (``interpolate``: the command ramps from the previous frame's target to this frame's,
+    ``RolloutConfig.interpolate``)."""
     model = robot.load_model("fixed")
     data = mujoco.MjData(model)
     qi = robot.joint_qpos_index(model)
@@ -143,8 +147,10 @@ def cpu_rollout(targets: np.ndarray, substeps: int) -> tuple[np.ndarray, int, fl
     ncon = 0
     t0 = time.perf_counter()
     for f in range(len(targets)):
-        data.ctrl[:] = ctrl[f]
-        for _ in range(substeps):
+        prev = ctrl[max(f - 1, 0)]
+        for k in range(1, substeps + 1):
+            w = k / substeps if interpolate else 1.0
+            data.ctrl[:] = ctrl[f] if w >= 1.0 else prev + (ctrl[f] - prev) * np.float32(w)
             mujoco.mj_step(model, data)
             ncon += data.ncon
         out[f] = data.qpos[qi]

@@ -19,12 +19,17 @@ Protocol, for one motion (``lax.scan`` over frames, an inner ``lax.scan`` over p
 
 * start at rest at the first target frame (``qpos`` = frame 0 clipped to the joint ranges,
   each coupled follower at its leader, ``robot.coupled_joints``; ``qvel`` = 0);
-* frame ``t`` (zero-order hold): ``ctrl`` = frame ``t`` clipped to the actuator ``ctrlrange``
-  (a coupled follower has no actuator: it follows its leader through the joint equality) for
-  ``substeps = round(frame_dt / timestep)`` physics steps (33 at 15 frames/s and dt = 2 ms);
+* frame ``t`` lasts ``substeps = round(frame_dt / timestep)`` physics steps (33 at 15
+  frames/s and dt = 2 ms); at its step ``k`` (``1 .. substeps``) ``ctrl`` = ``c[t-1] + (c[t] -
+  c[t-1]) * k / substeps``, where ``c[t]`` is frame ``t`` clipped to the actuator ``ctrlrange``
+  and ``c[-1] = c[0]`` (``RolloutConfig.interpolate``, the default: a first-order hold, as
+  NAOqi's ``angleInterpolation`` plays a trajectory; ``interpolate=False``: ``c[t]`` on every
+  step, the zero-order hold). A coupled follower has no actuator: it follows its leader
+  through the joint equality;
 * at the end of frame ``t`` (time ``(t + 1) * frame_dt``) record the joint angles and speeds;
   the tracking error of frame ``t`` is ``|qpos[t] - target[t]|``, i.e. the servos get one frame
-  to reach each new target;
+  to reach each new target (with the ramp: the frame's target is reached by the command only at
+  its last step);
 * self-contact: a frame "has" contact of a group when the collision detection of any of its
   physics steps finds a penetrating pair (``dist < margin``, MuJoCo's own inclusion rule; the
   margins are 0) of that group: arm-torso, arm-head, arm-arm (leg contacts are not reported);

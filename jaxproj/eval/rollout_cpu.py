@@ -56,10 +56,13 @@ def _one(
     depth = np.zeros(n_frames)
     vmax = np.zeros(n)
     vpeak = np.zeros(n)
+    prev = np.clip(held[0][t.act_src], lo, hi)
     for f in range(n_frames):
-        data.ctrl[:] = np.clip(held[f][t.act_src], lo, hi)
+        ctrl = np.clip(held[f][t.act_src], lo, hi)
         vpeak[:] = 0.0
-        for _ in range(t.substeps):
+        for k in range(t.substeps):
+            w = float(t.ramp[k])  # RolloutConfig.interpolate: a ramp from the last target
+            data.ctrl[:] = ctrl if w >= 1.0 else prev + (ctrl - prev) * w
             mujoco.mj_step(model, data)
             np.maximum(vpeak, np.abs(data.qvel[t.didx]), out=vpeak)
             nc = data.ncon
@@ -72,6 +75,7 @@ def _one(
                 if active.any():
                     contact[f, group[active]] = True
                     depth[f] = max(depth[f], float(np.max(-dist[active])), 0.0)
+        prev = ctrl
         qpos[f] = data.qpos[t.qidx]
         qvel[f] = data.qvel[t.didx]
         if f < n_valid:

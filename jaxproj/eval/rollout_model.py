@@ -56,6 +56,11 @@ class RolloutConfig:
         otherwise runs the whole model. The answers equal the whole model's to the constraint
         solver's tolerance (the solver's stopping test and line search act on each part alone);
         measured in ``benchmarks/RESULTS.md``; ``False`` runs the whole model.
+      interpolate: the servos' targets ramp linearly within each frame from the previous
+        frame's target to this frame's, reached at the frame's last physics step (a first-order
+        hold, as NAOqi's ``angleInterpolation`` plays a trajectory); ``False``: each frame's
+        target from its first physics step (zero-order hold, the protocol before 0.3: a servo
+        handed a step accelerates hard, so its peak speed overshoots the frame's mean speed).
 
     The split's certificate: the head turns about the neck, so its geoms stay inside a ball
     about the neck (radius: the farthest head-geom point, computed from the MJCF); the legs'
@@ -79,13 +84,14 @@ class RolloutConfig:
     ls_iterations: int = 4
     contact_friction: bool = True
     split_legs: bool = True
+    interpolate: bool = True
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.frame_dt) and self.frame_dt > 0):
             raise ConfigError(f"frame_dt must be a positive number of seconds, got {self.frame_dt}")
         if not (np.isfinite(self.kp_scale) and self.kp_scale > 0):
             raise ConfigError(f"kp_scale must be positive, got {self.kp_scale}")
-        for flag in ("contact_friction", "split_legs"):
+        for flag in ("contact_friction", "split_legs", "interpolate"):
             if not isinstance(getattr(self, flag), bool):
                 raise ConfigError(f"{flag} must be a bool, got {getattr(self, flag)!r}")
         for name in ("solver_iterations", "ls_iterations"):
@@ -145,6 +151,7 @@ class _Setup(NamedTuple):
     guard_geom: jax.Array  # (k,) int32 geoms that could touch the head (legs part; else k = 0)
     guard_radius: jax.Array  # (k,) float32 their clearance radius about guard_center, m
     guard_center: jax.Array  # (3,) float32 the neck: the point the head turns about, m
+    ramp: jax.Array  # (substeps,) float32 share of the step to this frame's target per physics step
 
 
 def _geom_class(name: str) -> str:
@@ -328,6 +335,7 @@ class _Tables(NamedTuple):
     q_lo: np.ndarray  # (n,) float32 joint range, for the initial pose
     q_hi: np.ndarray  # (n,) float32
     pair_group: np.ndarray  # (ngeom, ngeom) int32: index into CONTACT_GROUPS, -1 not reported
+    ramp: np.ndarray  # (substeps,) float32: (k + 1) / substeps with interpolate, else ones
 
 
 @functools.lru_cache(maxsize=8)
@@ -361,7 +369,16 @@ def _tables(config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25) 
         q_lo=model.jnt_range[jids, 0].astype(np.float32),
         q_hi=model.jnt_range[jids, 1].astype(np.float32),
         pair_group=pair_group,
+        ramp=_ramp(config, substeps),
     )
+
+
+def _ramp(config: RolloutConfig, substeps: int) -> np.ndarray:
+    """``(substeps,)`` float32: how far each physics step's servo target has moved from the
+    previous frame's target to this frame's (``RolloutConfig.interpolate``); the last is 1."""
+    if not config.interpolate:
+        return np.ones(substeps, np.float32)
+    return (np.arange(1, substeps + 1) / substeps).astype(np.float32)
 
 
 @functools.lru_cache(maxsize=8)
@@ -390,5 +407,6 @@ def _setup(
         guard_geom=jnp.asarray(guard_geom),
         guard_radius=jnp.asarray(guard_radius),
         guard_center=jnp.asarray(guard_center),
+        ramp=jnp.asarray(t.ramp),
     )
     return setup, t.substeps

@@ -112,17 +112,25 @@ def _rollout_one(
     n_groups = len(CONTACT_GROUPS)
     n_joints = s.joints.shape[0]
 
-    def substep(carry, _):
+    def substep(carry, xs):
         d, vpeak, hit, depth, clear = carry
-        d = _mjx_step(s, d)
+        c_prev, c_next, w = xs
+        # the ramp's last step is exactly this frame's target (no rounding): with
+        # interpolate=False every step is (the zero-order hold)
+        ctrl = jnp.where(w >= 1.0, c_next, c_prev + (c_next - c_prev) * w.astype(c_next.dtype))
+        d = _mjx_step(s, d.replace(ctrl=ctrl))
         h, p = _self_contact(s, d)
         vpeak = jnp.maximum(vpeak, jnp.abs(d.qvel[s.didx]))
         clear = jnp.minimum(clear, _guard_clearance(s, d))
         return (d, vpeak, hit | h, jnp.maximum(depth, p), clear), None
 
     def frame(d, xs):
-        target, ok = xs
+        target, prev, ok = xs
         ctrl = jnp.clip(target[s.act_src], s.ctrl_lo, s.ctrl_hi).astype(d.ctrl.dtype)
+        c_prev = jnp.clip(prev[s.act_src], s.ctrl_lo, s.ctrl_hi).astype(d.ctrl.dtype)
+        n_sub = s.ramp.shape[0]
+        ramp_xs = (jnp.broadcast_to(c_prev, (n_sub, *c_prev.shape)),
+                   jnp.broadcast_to(ctrl, (n_sub, *ctrl.shape)), s.ramp)  # fmt: skip
         init = (
             d.replace(ctrl=ctrl),
             jnp.zeros(n_joints, jnp.float32),
@@ -130,7 +138,7 @@ def _rollout_one(
             jnp.zeros((), jnp.float32),
             jnp.full((), jnp.inf, jnp.float32),
         )
-        (d, vpeak, hit, depth, clear), _ = jax.lax.scan(substep, init, None, length=substeps)
+        (d, vpeak, hit, depth, clear), _ = jax.lax.scan(substep, init, ramp_xs, length=substeps)
         rec = (
             d.qpos[s.qidx],
             d.qvel[s.didx],
@@ -141,7 +149,8 @@ def _rollout_one(
         )
         return d, rec
 
-    _, records = jax.lax.scan(frame, d, (held, valid))
+    prev = jnp.concatenate([held[:1], held[:-1]])  # frame 0 ramps from itself: a hold
+    _, records = jax.lax.scan(frame, d, (held, prev, valid))
     return records
 
 

@@ -87,16 +87,21 @@ def _cpu_rollout(model: mujoco.MjModel, targets: np.ndarray) -> dict[str, np.nda
     data = mujoco.MjData(model)
     data.qpos[:] = robot.config_to_qpos(model, np.clip(targets[0], robot.LOWER, robot.UPPER))
     qpos, contact, peak = [], [], np.zeros(26)
+    prev = np.clip(targets[0][src], lo, hi)
     for target in targets:
-        data.ctrl[:] = np.clip(target[src], lo, hi)
+        ctrl = np.clip(target[src], lo, hi)
         hit = np.zeros(3, dtype=bool)
-        for _ in range(SUBSTEPS):
+        for k in range(1, SUBSTEPS + 1):  # the command ramps to the frame's target
+            data.ctrl[:] = (
+                ctrl if k == SUBSTEPS else prev + (ctrl - prev) * np.float32(k / SUBSTEPS)
+            )
             mujoco.mj_step(model, data)
             peak = np.maximum(peak, np.abs(data.qvel[di]))
             for c in data.contact[: data.ncon]:
                 names = sorted(model.geom(g).name.split("_")[0] for g in (c.geom1, c.geom2))
                 if tuple(names) in groups:
                     hit[groups[tuple(names)]] = True
+        prev = ctrl
         qpos.append(data.qpos[qi].copy())
         contact.append(hit)
     return {"qpos": np.array(qpos), "contact": np.array(contact), "max_speed": peak}
@@ -291,17 +296,31 @@ def whole(batch) -> rollout.RolloutResult:
 def test_split_matches_whole_model(batch, whole: rollout.RolloutResult) -> None:
     # the default (split_legs=True) against the whole 26-joint model: the parts share no degree
     # of freedom, so only the constraint solver's stopping test and line search (per part
-    # instead of joint) and float32 rounding differ (measured 1.3e-6 rad on CPU)
+    # instead of joint) and float32 rounding differ: measured 4.5e-7 rad on the contact-free
+    # rows on CPU; on COLLIDE, in self-contact for 7 frames, the capped (8-iteration) solver
+    # stops at different points of the two problems: 2.9e-4 rad with the ramped targets
+    # (RolloutConfig.interpolate; 1.3e-6 with the zero-order hold)
     targets, lengths, r = batch
     assert rollout.RolloutConfig().split_legs
-    np.testing.assert_allclose(r.qpos, whole.qpos, atol=1e-4)
-    np.testing.assert_allclose(r.qvel, whole.qvel, atol=1e-2)
-    np.testing.assert_array_equal(r.contact, whole.contact)
+    free = [i for i in range(len(lengths)) if i != COLLIDE]
+    _same_rollout(rollout.RolloutResult(*(x[free] for x in r)),
+                  rollout.RolloutResult(*(x[free] for x in whole)))  # fmt: skip
+    # COLLIDE: the angles and tracking to 1e-3 rad; its speeds in contact part by up to 0.14
+    # rad/s (the solvers' different stopping points), so they are not compared
+    np.testing.assert_allclose(r.qpos[COLLIDE], whole.qpos[COLLIDE], atol=1e-3)
+    np.testing.assert_allclose(r.tracking_rms[COLLIDE], whole.tracking_rms[COLLIDE], atol=1e-3)
     np.testing.assert_array_equal(r.contact_frames, whole.contact_frames)
-    np.testing.assert_allclose(r.penetration, whole.penetration, atol=1e-4)
-    np.testing.assert_allclose(r.max_speed, whole.max_speed, atol=1e-2)
-    np.testing.assert_allclose(r.tracking_rms, whole.tracking_rms, atol=1e-4)
     assert r.contact_frames[COLLIDE, ARM_TORSO] > 0  # the comparison covers a contact
+
+
+def _same_rollout(r: rollout.RolloutResult, w: rollout.RolloutResult) -> None:
+    """Two rollouts of contact-free motions agree to the solvers' float32 round-off."""
+    np.testing.assert_allclose(r.qpos, w.qpos, atol=1e-5)
+    np.testing.assert_allclose(r.qvel, w.qvel, atol=1e-2)
+    np.testing.assert_array_equal(r.contact, w.contact)
+    np.testing.assert_allclose(r.penetration, w.penetration, atol=1e-4)
+    np.testing.assert_allclose(r.max_speed, w.max_speed, atol=1e-2)
+    np.testing.assert_allclose(r.tracking_rms, w.tracking_rms, atol=1e-4)
 
 
 def test_split_with_moving_legs(batch, whole: rollout.RolloutResult) -> None:
@@ -325,8 +344,10 @@ def test_split_with_moving_legs(batch, whole: rollout.RolloutResult) -> None:
     np.testing.assert_array_equal(q[..., ~legs_mask], np.asarray(batch[2].qpos)[..., ~legs_mask])
     # and the moving legs against the whole model
     w = rollout.simulate(moved, lengths, rollout.RolloutConfig(split_legs=False), backend="mjx")
-    np.testing.assert_allclose(q, np.asarray(w.qpos), atol=1e-4)
-    np.testing.assert_allclose(np.asarray(r.tracking_rms), np.asarray(w.tracking_rms), atol=1e-4)
+    free = [i for i in range(len(lengths)) if i != COLLIDE]  # COLLIDE: see the test above
+    np.testing.assert_allclose(q[free], np.asarray(w.qpos)[free], atol=1e-4)
+    np.testing.assert_allclose(q[COLLIDE], np.asarray(w.qpos)[COLLIDE], atol=1e-3)
+    np.testing.assert_allclose(np.asarray(r.tracking_rms), np.asarray(w.tracking_rms), atol=1e-3)
 
 
 def test_leg_motions_dedup() -> None:
