@@ -191,7 +191,9 @@ def _plot(
     ik_q = truth.angles[:, robot.DRIVEN_INDEX]
     ranges = np.degrees(out.max(axis=0) - out.min(axis=0))
     widest = ", ".join(f"{robot.DRIVEN_JOINTS[i]} {ranges[i]:.0f}" for i in np.argsort(-ranges)[:4])
-    title = f"{Path(args.input).name}: {args.method}, {len(out)} frames at {rec.fps:.3g} fps"
+    span = float(result.times[-1] - result.times[0])
+    title = (f"{Path(args.input).name}: {args.method}, {len(out)} frames over {span:.1f} s "
+             f"({rec.time_source}; {rec.fps:.3g} frames/s on average)")  # fmt: skip
     report.plot_retarget(plot, title, rec.positions, result.valid, result.times, out, ik_q,
                          label=args.method)  # fmt: skip
     print(f"  plot -> {plot} (widest joint ranges, deg: {widest})")

@@ -102,24 +102,51 @@ def nao_points(model, angles: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
+def _side(name: str) -> tuple[float, float, float]:
+    """The house colour rule (``viz.panels``, as ``render`` draws): left limbs orange, right
+    limbs blue, the rest dark grey."""
+    from jaxproj.viz.panels import CENTRE_COLOR, LEFT_COLOR, RIGHT_COLOR
+
+    if "Left" in name or name.startswith("l_"):
+        return LEFT_COLOR
+    if "Right" in name or name.startswith("r_"):
+        return RIGHT_COLOR
+    return CENTRE_COLOR
+
+
 def _draw_human(ax, pts: np.ndarray, axes: tuple[int, int]) -> None:
     a, b = axes
     for p, c in BONES:
         i, j = J[p], J[c]
-        left = "Left" in c
-        ax.plot([pts[i, a], pts[j, a]], [pts[i, b], pts[j, b]], "-",
-                color="tab:red" if left else "k", lw=2)  # fmt: skip
-    ax.plot(pts[J["Head"], a], pts[J["Head"], b], "o", color="k", ms=8)
+        ax.plot([pts[i, a], pts[j, a]], [pts[i, b], pts[j, b]], "-", color=_side(c), lw=2)
+    ax.plot(pts[J["Head"], a], pts[J["Head"], b], "o", color=_side("Head"), ms=8)
 
 
-def _draw_nao(ax, pts: dict[str, np.ndarray], axes: tuple[int, int], color: str) -> None:
+def _draw_nao(ax, pts: dict[str, np.ndarray], axes: tuple[int, int], style: str) -> None:
+    """One NAO pose: ``style`` ``"-"`` (the output, thick) or ``"--"`` (the IK, thin)."""
     a, b = axes
+    lw = 2.0 if style == "-" else 1.2
     for p, c in _NAO_LINKS:
-        left = c.startswith("l_")
-        ax.plot([pts[p][a], pts[c][a]], [pts[p][b], pts[c][b]], "-",
-                color="tab:red" if left else color, lw=2)  # fmt: skip
-    ax.plot([pts["neck"][a], pts["head"][a]], [pts["neck"][b], pts["head"][b]], "-", color=color)
-    ax.plot(pts["head"][a], pts["head"][b], "o", color=color, ms=8)
+        ax.plot([pts[p][a], pts[c][a]], [pts[p][b], pts[c][b]], style, color=_side(c), lw=lw)
+    grey = _side("neck")
+    ax.plot([pts["neck"][a], pts["head"][a]], [pts["neck"][b], pts["head"][b]], style, color=grey)
+    ax.plot(pts["head"][a], pts["head"][b], "o", color=grey, ms=8 if style == "-" else 5,
+            fillstyle="full" if style == "-" else "none")  # fmt: skip
+
+
+def _legend(fig: Any, label: str) -> None:
+    """One legend for the figure's colour and line rule."""
+    from matplotlib.lines import Line2D
+
+    from jaxproj.viz.panels import LEFT_COLOR, RIGHT_COLOR
+
+    handles = [
+        Line2D([], [], color=LEFT_COLOR, lw=2, label="left limbs"),
+        Line2D([], [], color=RIGHT_COLOR, lw=2, label="right limbs"),
+        Line2D([], [], color="k", lw=2, ls="-", label=f"NAO: {label}"),
+        Line2D([], [], color="k", lw=1.2, ls="--", label="NAO: per-frame IK"),
+    ]
+    fig.legend(handles=handles, loc="upper right", ncol=4, fontsize=8, frameon=False)
 
 
 def _key_frames(
@@ -134,7 +161,8 @@ def _key_frames(
 ) -> None:
     """The top two rows of ``plot_motion`` / ``plot_retarget``: at each key frame ``picks[col]``
     (titled by ``when[col]``) the human (front and side view) and the NAO playing ``angles``
-    (blue, ``label``) over the per-frame IK ``ik_angles`` (green).
+    (solid, ``label``) over the per-frame IK ``ik_angles`` (dashed); left limbs orange, right
+    limbs blue (``_side``), with one legend for the figure.
 
     Args:
       positions: ``(T, 20, 3)`` human joints, Kinect order.
@@ -150,17 +178,18 @@ def _key_frames(
         for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
             sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
             ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
-            # front view: seen from in front, so the person's left (+y, red) is on the right;
-            # side view: seen from the person's right, forward (+x) to the right
+            # front view: seen from in front, so the person's left (+y, orange) is on the
+            # right; side view: seen from the person's right, forward (+x) to the right
             _draw_human(ax_h, hp, axes)
-            _draw_nao(ax_r, ik_p, axes, "tab:green")
-            _draw_nao(ax_r, out, axes, "tab:blue")
+            _draw_nao(ax_r, ik_p, axes, "--")
+            _draw_nao(ax_r, out, axes, "-")
             for ax in (ax_h, ax_r):
                 ax.set_aspect("equal")
                 ax.set_xticks([])
                 ax.set_yticks([])
             ax_h.set_title(f"human, {when[col]} ({view})", fontsize=8)
-            ax_r.set_title(f"NAO: {label} (blue) / IK (green)", fontsize=8)
+            ax_r.set_title(f"NAO: {label} / IK (dashed)", fontsize=8)
+    _legend(fig, label)
 
 
 def plot_motion(
@@ -204,6 +233,20 @@ def plot_motion(
     _save(plt, fig, path)
 
 
+def _gaps(times: np.ndarray) -> np.ndarray:
+    """Indices ``i`` where the step ``times[i] - times[i - 1]`` is a tracker gap (more than 3x
+    the median step): a line must not be drawn across it."""
+    steps = np.diff(np.asarray(times, np.float64))
+    if steps.size == 0:
+        return np.zeros(0, np.int64)
+    return np.flatnonzero(steps > 3.0 * np.median(steps)) + 1
+
+
+def _gapped(x: np.ndarray, cut: np.ndarray) -> np.ndarray:
+    """``x`` with a NaN inserted before each index of ``cut`` (matplotlib breaks the line)."""
+    return np.insert(np.asarray(x, np.float64), cut, np.nan)
+
+
 def plot_retarget(
     path: Path,
     title: str,
@@ -218,10 +261,11 @@ def plot_retarget(
     """One retargeted recording (``jaxproj retarget --plot``): the figure of ``plot_motion`` with
     the joint angles over time instead of the errors.
 
-    Top rows: the human (body frame, front and side view; left limbs red) and the NAO playing
-    ``angles`` (blue) and the per-frame IK (green) at ``key_frames`` frames spread over the
-    valid ones. Bottom: the driven joints over time, head / left arm / right arm, ``angles``
-    solid and the IK dashed.
+    Top rows: the human (body frame, front and side view) and the NAO playing ``angles``
+    (solid) and the per-frame IK (dashed) at ``key_frames`` frames spread over the valid ones;
+    left limbs orange, right limbs blue, as ``render`` draws them, with a legend. Bottom: the
+    driven joints over time, head / left arm / right arm, ``angles`` solid and the IK dashed
+    (not drawn at invalid frames); no line across a tracker gap (a step over 3x the median).
 
     Args:
       positions: ``(T, 20, 3)`` human joints, Kinect order; ``valid`` ``(T,)``; ``times``
@@ -239,14 +283,17 @@ def plot_retarget(
     _key_frames(fig, grid, picks, when, positions, angles, ik_angles, label)
     groups = (("head", ("Head",)), ("left arm", ("LShoulder", "LElbow")),
               ("right arm", ("RShoulder", "RElbow")))  # fmt: skip
+    cut = _gaps(times)
+    t_gap = _gapped(np.asarray(times, np.float64), cut)
     for row, (name, prefixes) in enumerate(groups, start=2):
         ax = fig.add_subplot(grid[row, :])
         joints = [i for i, n in enumerate(robot.DRIVEN_JOINTS) if n.startswith(prefixes)]
         for k, i in enumerate(joints):
             c = f"C{k}"
-            ax.plot(times, np.degrees(angles[:, i]), "-", color=c, lw=1.5,
+            ax.plot(t_gap, _gapped(np.degrees(angles[:, i]), cut), "-", color=c, lw=1.5,
                     label=robot.DRIVEN_JOINTS[i])  # fmt: skip
-            ax.plot(times, np.degrees(ik_angles[:, i]), "--", color=c, lw=0.8, alpha=0.7)
+            ik_deg = np.where(valid, np.degrees(ik_angles[:, i]), np.nan)  # no IK where invalid
+            ax.plot(t_gap, _gapped(ik_deg, cut), "--", color=c, lw=0.8, alpha=0.7)
         for t in picks:
             ax.axvline(times[t], color="k", lw=0.5, alpha=0.4)
         ax.set_ylabel(f"{name} (deg)")
