@@ -28,7 +28,7 @@ from jaxproj.motion import feasible
 from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import robot
 from jaxproj.robots.nao_h25.ik import driven_to_full
-from jaxproj.viz import report
+from jaxproj.viz import report, report_text
 
 TRAIN_SUBJECTS = datasets.TRAIN_SUBJECTS
 TEST_SUBJECTS = datasets.TEST_SUBJECTS
@@ -405,7 +405,7 @@ def _experiments_md(ex: dict) -> list[str]:
         ]
         cov = bp["coverage_deg"][pose]["pose"]
         lines.append(f"| {pose} | " + " | ".join(cells) + f" | {cov:.1f} |")
-    lines += ["", "### Landmark-set size (relaxed)", ""]
+    lines += report_text.pose_notes(bp) + ["", "### Landmark-set size (relaxed)", ""]
     lines += [
         "| target | landmarks reached (per chain) | bandwidth | held-out median M_avg "
         "| held-out p95 M_max "
@@ -455,7 +455,8 @@ def _markdown(r: dict) -> str:
         f"joints {', '.join(r['driven_joints'])}, against the analytic IK. Devices: "
         f"{', '.join(r['devices'])}.",
         "",
-        f"## Accuracy of the default output: smoothed ({report.smoother_label(r['smoothing'])})",
+        "## Accuracy of the default output: smoothed "
+        f"({report_text.smoother_label(r['smoothing'])})",
         "",
         "Each method's per-frame answers, invalid frames filled, smoothed and clipped to the "
         "joint limits, against the IK of every valid frame (the feasibility filter's effect "
@@ -481,7 +482,7 @@ def _markdown(r: dict) -> str:
             f"| {m} | {v['jerk_raw']:.3g} | {v.get('jerk_smoothed', nan):.3g} | "
             f"{v.get('lag_frames_raw', nan):+.2f} | {v.get('lag_frames_smoothed', nan):+.2f} |"
         )
-    lines += report.confidence_md(r.get("confidence") or {})
+    lines += report_text.confidence_md(r.get("confidence") or {})
     lines += _comparison_md(r)
     lines += _where_md(r)
     lines += ["", "## Per action (relaxed, smoothed): median M_avg / p95 M_max", ""]
