@@ -26,17 +26,10 @@ import sys
 import time
 from pathlib import Path
 
+from benchmarks import heldout
 from jaxproj.eval import evaluate as ev
-from jaxproj.io import datasets
 from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.smoothing import PAPER_SMOOTHING
-from jaxproj.projection import api as engine
-
-
-def splits() -> dict[str, list]:
-    msr = datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS, actions=datasets.ARM_ACTIONS)
-    utk = datasets.utkinect_action3d(actions=datasets.UTK_UPPER_BODY_ACTIONS)
-    return {"msr_held_out_arm": msr, "utkinect_upper_body": utk}
 
 
 def row(r: dict) -> dict:
@@ -72,14 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", help="write the results here")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        train = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TRAIN_SUBJECTS))
-        model = engine.build(train, engine.BuildConfig())
-        if args.save_model:
-            engine.save(model, args.save_model)
-    print(f"model: {model.landmarks} landmarks", file=sys.stderr)
+    model = heldout.default_model(args.model, save=args.save_model)
     out: dict = {"landmarks": model.landmarks, "splits": {}}
     lines = [
         "| split | smoother | unsmoothed median M_avg / p95 M_max / p95 w/o EY | default output "
@@ -88,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         "recall of M_max > 30 |",
         "|---|---|---|---|---:|---:|---:|---:|---|",
     ]
-    for split, seqs in splits().items():
+    for split, seqs in heldout.splits().items():
         data = ev.prepare(seqs)
         for name, smoothing in (("offline", OFFLINE_SMOOTHING), ("paper", PAPER_SMOOTHING)):
             r = ev.evaluate(model, data, ["relaxed"], smoothing=smoothing)

@@ -21,15 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from benchmarks import heldout
 from jaxproj.eval import evaluate as ev
-from jaxproj.io import datasets
-from jaxproj.projection import api as engine
-
-
-def _splits() -> dict[str, list]:
-    msr = datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS, actions=datasets.ARM_ACTIONS)
-    utk = datasets.utkinect_action3d(actions=datasets.UTK_UPPER_BODY_ACTIONS)
-    return {"msr_held_out_arm": msr, "utkinect_upper_body": utk}
 
 
 def _row(split: str, name: str, block: dict, before: dict | None) -> str:
@@ -60,12 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", help="write the results here")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        train = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TRAIN_SUBJECTS))
-        model = engine.build(train, engine.BuildConfig())
-    print(f"model: {model.landmarks} landmarks ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+    model = heldout.default_model(args.model)
     out: dict = {"landmarks": list(model.landmarks), "splits": {}}
     lines = [
         "| split | trajectory | motions over speed limit | frames over | max step (deg) | max "
@@ -73,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         "unfiltered: joint deg p95 / hand cm p95 |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for split, seqs in _splits().items():
+    for split, seqs in heldout.splits().items():
         data = ev.prepare(seqs)
         r = ev.evaluate(model, data, methods=["relaxed"])
         out["splits"][split] = {

@@ -31,6 +31,7 @@ from jaxproj.io import datasets
 from jaxproj.motion.offline import OFFLINE_SMOOTHING, OfflineSmoothing
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, frame_gains
 from jaxproj.projection import api as engine
+from jaxproj.robots import get
 
 ACCEL_STDS = (4.0, 5.0, 6.0, 7.0, 8.0, 10.0, 12.0, 15.0, 20.0, 40.0, 80.0, 160.0)
 """Candidate ``accel_std`` (rad/s^2 per sqrt(Hz)) at ``noise_std`` 0.02 rad: only their ratio
@@ -72,18 +73,16 @@ def score(runs, smoothing) -> dict:
         gains, kind = None, "offline"
         if smoothing is not None:
             gains, kind = frame_gains(smoothing, None, lengths), smoothing.kind
-        truth_m = ev._per_motion(data, data.truth[data.valid], robot=data_robot(data))[0]
-        _, sm, _ = ev._per_motion(data, q, gains, robot=data_robot(data), smoother=kind)
+        robot = get(data.robot)
+        truth_m = ev._per_motion(data, data.truth[data.valid], robot=robot)[0]
+        _, sm, _ = ev._per_motion(data, q, gains, robot=robot, smoother=kind)
         flat = np.concatenate([sm[i, :n] for i, n in enumerate(lengths)])[data.valid]
         preds.append(flat)
         truths.append(data.truth[data.valid])
         n_j = sum(max(int(n) - 3, 0) for n in lengths) * sm.shape[2]
         jerk_num += ev.mean_squared_jerk(sm, lengths) * n_j
         jerk_den += n_j
-        valid = np.zeros(sm.shape[:2], bool)
-        for i, n in enumerate(lengths):
-            valid[i, :n] = data.valid[data.offsets[i] : data.offsets[i + 1]]
-        lag_cost.append((sm, truth_m, lengths, valid))
+        lag_cost.append((sm, truth_m, lengths, ev.padded_valid(data)))
     m_max, m_avg = metrics.frame_errors(np.concatenate(preds), np.concatenate(truths))
     lags = [metrics.lag_frames(a, b, n, v) for a, b, n, v in lag_cost]
     weights = [int(v.sum()) for *_, v in lag_cost]
@@ -93,12 +92,6 @@ def score(runs, smoothing) -> dict:
         "lag_frames": float(np.average(lags, weights=weights)),
         "jerk": jerk_num / max(jerk_den, 1),
     }
-
-
-def data_robot(data: ev.EvalData):
-    from jaxproj.robots import get
-
-    return get(data.robot)
 
 
 def main(argv: list[str] | None = None) -> int:

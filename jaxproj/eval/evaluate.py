@@ -275,8 +275,7 @@ def _predict_value(
 
 
 def _predict(model, method, h, *, n_l, n_m, full, seed, devices) -> np.ndarray:
-    if method in ("relaxed", "full"):
-        return project(model, h, method, n_l=n_l, n_m=n_m, full=full, devices=devices)[0]
+    """A baseline's ``(F, n)`` answers (the projections: ``_predict_value``)."""
     if method not in METHODS:
         raise ConfigError(f"unknown method {method!r}; use one of {METHODS}")
     # the baselines run per chain too, on each chain's own landmarks and bones
@@ -338,6 +337,16 @@ def _finish_batch(
 _finish_batch = jit(_finish_batch, static_argnames=("robot", "smoother"))
 
 
+def padded_valid(data: EvalData) -> np.ndarray:
+    """``(S, T_max)`` bool: each motion's frame validity, padding false (``_per_motion``'s
+    layout)."""
+    lengths = np.diff(data.offsets)
+    valid = np.zeros((len(lengths), int(lengths.max())), bool)
+    for s, n in enumerate(lengths):
+        valid[s, :n] = data.valid[data.offsets[s] : data.offsets[s + 1]]
+    return valid
+
+
 def _per_motion(
     data: EvalData,
     per_frame: np.ndarray,
@@ -356,11 +365,10 @@ def _per_motion(
     full = np.zeros((len(data.valid), per_frame.shape[1]), np.float32)
     full[data.valid] = per_frame
     out = np.zeros((n_seq, t_max, per_frame.shape[1]), np.float32)
-    valid = np.zeros((n_seq, t_max), bool)
     for s in range(n_seq):
         a, b = data.offsets[s], data.offsets[s + 1]
         out[s, : b - a] = full[a:b]
-        valid[s, : b - a] = data.valid[a:b]
+    valid = padded_valid(data)
     # one padded call (padding frames are invalid, so they never feed a real frame)
     filled, scored = _finish_batch(
         jnp.asarray(out), jnp.asarray(valid), jnp.asarray(lengths, jnp.int32), gains,
@@ -495,9 +503,7 @@ def evaluate(
     h = data.descriptors[data.valid]
     truth_v = data.truth[data.valid]
     truth_motion, _, _ = _per_motion(data, truth_v, robot=spec)
-    padded_valid = np.zeros(truth_motion.shape[:2], bool)
-    for s_, n in enumerate(lengths):
-        padded_valid[s_, :n] = data.valid[data.offsets[s_] : data.offsets[s_ + 1]]
+    valid_motion = padded_valid(data)
     seq_of_frame = np.repeat(np.arange(len(data.names)), lengths)[data.valid]
     truth_points = metrics.arm_points(truth_v, robot=spec)  # one FK of the truth serves all
     out: dict = {
@@ -546,7 +552,7 @@ def evaluate(
         kind = "offline" if smoothing is None else smoothing.kind
         motions, sm, _ = _per_motion(data, pred, gains, robot=spec, smoother=kind)
         jerk_raw = mean_squared_jerk(motions, lengths)
-        lag_raw = metrics.lag_frames(motions, truth_motion, lengths, padded_valid)
+        lag_raw = metrics.lag_frames(motions, truth_motion, lengths, valid_motion)
         if smoothing is not None:
             flat = np.concatenate([sm[s, :n] for s, n in enumerate(lengths)])[data.valid]
             m_max, m_avg = frame_errors(flat, truth_v)
@@ -558,7 +564,7 @@ def evaluate(
                 "jerk_raw": jerk_raw,
                 "jerk_smoothed": mean_squared_jerk(sm, lengths),
                 "lag_frames_raw": lag_raw,
-                "lag_frames_smoothed": metrics.lag_frames(sm, truth_motion, lengths, padded_valid),
+                "lag_frames_smoothed": metrics.lag_frames(sm, truth_motion, lengths, valid_motion),
             }
             motions = sm
         else:

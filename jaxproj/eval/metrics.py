@@ -69,6 +69,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.eval.fk import FK_BATCH, arm_model, arm_points, check_angles
+from jaxproj.projection.confidence import LOW_CONFIDENCE
 from jaxproj.robots import NAO_H25, Robot
 
 __all__ = ["ARM_SITES", "FK_BATCH", "NO_ELBOW_YAW", "SIDES", "TASK_METRICS", "ArmErrors",
@@ -173,8 +174,6 @@ def confidence_deciles(
       "low_share" (frames below ``LOW_CONFIDENCE``), "low_recall" (share of the gross errors
       among them), "worst_decile_share_over"}``.
     """
-    from jaxproj.projection.confidence import LOW_CONFIDENCE
-
     conf = np.asarray(confidence, np.float64)
     m_max, m_avg = np.asarray(m_max, np.float64), np.asarray(m_avg, np.float64)
     order = np.argsort(conf, kind="stable")

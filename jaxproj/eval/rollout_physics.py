@@ -112,33 +112,30 @@ def _rollout_one(
     n_groups = len(CONTACT_GROUPS)
     n_joints = s.joints.shape[0]
 
-    def substep(carry, xs):
-        d, vpeak, hit, depth, clear = carry
-        c_prev, c_next, w = xs
-        # the ramp's last step is exactly this frame's target (no rounding): with
-        # interpolate=False every step is (the zero-order hold)
-        ctrl = jnp.where(w >= 1.0, c_next, c_prev + (c_next - c_prev) * w.astype(c_next.dtype))
-        d = _mjx_step(s, d.replace(ctrl=ctrl))
-        h, p = _self_contact(s, d)
-        vpeak = jnp.maximum(vpeak, jnp.abs(d.qvel[s.didx]))
-        clear = jnp.minimum(clear, _guard_clearance(s, d))
-        return (d, vpeak, hit | h, jnp.maximum(depth, p), clear), None
-
     def frame(d, xs):
         target, prev, ok = xs
         ctrl = jnp.clip(target[s.act_src], s.ctrl_lo, s.ctrl_hi).astype(d.ctrl.dtype)
         c_prev = jnp.clip(prev[s.act_src], s.ctrl_lo, s.ctrl_hi).astype(d.ctrl.dtype)
-        n_sub = s.ramp.shape[0]
-        ramp_xs = (jnp.broadcast_to(c_prev, (n_sub, *c_prev.shape)),
-                   jnp.broadcast_to(ctrl, (n_sub, *ctrl.shape)), s.ramp)  # fmt: skip
+
+        def substep(carry, w):
+            d, vpeak, hit, depth, clear = carry
+            # the ramp's last step is exactly this frame's target (no rounding): with
+            # interpolate=False every step is (the zero-order hold)
+            u = jnp.where(w >= 1.0, ctrl, c_prev + (ctrl - c_prev) * w.astype(ctrl.dtype))
+            d = _mjx_step(s, d.replace(ctrl=u))
+            h, p = _self_contact(s, d)
+            vpeak = jnp.maximum(vpeak, jnp.abs(d.qvel[s.didx]))
+            clear = jnp.minimum(clear, _guard_clearance(s, d))
+            return (d, vpeak, hit | h, jnp.maximum(depth, p), clear), None
+
         init = (
-            d.replace(ctrl=ctrl),
+            d,
             jnp.zeros(n_joints, jnp.float32),
             jnp.zeros(n_groups, dtype=bool),
             jnp.zeros((), jnp.float32),
             jnp.full((), jnp.inf, jnp.float32),
         )
-        (d, vpeak, hit, depth, clear), _ = jax.lax.scan(substep, init, ramp_xs, length=substeps)
+        (d, vpeak, hit, depth, clear), _ = jax.lax.scan(substep, init, s.ramp, length=substeps)
         rec = (
             d.qpos[s.qidx],
             d.qvel[s.didx],

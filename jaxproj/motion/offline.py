@@ -81,12 +81,20 @@ class OfflineSmoothing:
         """
         if dt is None:
             return jnp.asarray((1.0 / self.rate, self.accel_std, self.noise_std), jnp.float32)
-        dt = np.asarray(dt, np.float64)
-        if dt.ndim != 1 or not np.isfinite(dt).all() or (dt[1:] <= 0).any():
-            raise ConfigError("dt must be (T,) finite seconds, positive after the first frame")
+        dt = check_steps(dt)
         a, r = np.full_like(dt, self.accel_std), np.full_like(dt, self.noise_std)
         rows = np.stack([np.maximum(dt, 0.0), a, r], axis=-1)
         return jnp.asarray(rows, jnp.float32)
+
+
+def check_steps(dt: np.ndarray) -> np.ndarray:
+    """``(T,)`` seconds from each frame's predecessor (entry 0 unused) as float64, or
+    ``ConfigError`` unless finite and positive after the first frame (both smoothers'
+    ``gains``)."""
+    dt = np.asarray(dt, np.float64)
+    if dt.ndim != 1 or not np.isfinite(dt).all() or (dt[1:] <= 0).any():
+        raise ConfigError("dt must be (T,) finite seconds, positive after the first frame")
+    return dt
 
 
 OFFLINE_SMOOTHING = OfflineSmoothing()

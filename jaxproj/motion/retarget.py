@@ -45,7 +45,7 @@ from jaxproj.motion import pipeline
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
 from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (its old home)
-from jaxproj.motion.smoothing import Smoothing, frame_gains
+from jaxproj.motion.smoothing import Smoothing, frame_gains, smoother_kind
 from jaxproj.projection.api import Model, check_neighbours
 from jaxproj.projection.confidence import LOW_CONFIDENCE
 from jaxproj.projection.config import FullConfig
@@ -168,9 +168,7 @@ def retarget(
     else:
         spec.check_bones(bones)  # ConfigError for a subset the IK cannot use
     params = smoothing or OFFLINE_SMOOTHING
-    if not isinstance(params, Smoothing):
-        raise ConfigError(f"smoothing must be an OfflineSmoothing, a SmoothingParams or None, "
-                          f"got {type(params).__name__}")  # fmt: skip
+    kind = smoother_kind(params)  # ConfigError for anything but either smoother's settings
     if times is None:
         stamps = np.arange(t, dtype=np.float64) / params.rate
     else:
@@ -204,7 +202,7 @@ def retarget(
         full=full or FullConfig(),
         bones=bones,
         mirror=mirror,
-        smoother=None if smoothing is None else params.kind,
+        smoother=None if smoothing is None else kind,
         robot=spec,
     )
     angles = np.asarray(angles)[:t]

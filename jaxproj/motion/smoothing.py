@@ -48,7 +48,7 @@ from jax.typing import ArrayLike
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.motion.offline import OFFLINE_SMOOTHING, OfflineSmoothing, rts_motion
+from jaxproj.motion.offline import OFFLINE_SMOOTHING, OfflineSmoothing, check_steps, rts_motion
 
 
 @dataclass(frozen=True)
@@ -90,9 +90,7 @@ class SmoothingParams:
         """
         if dt is None:
             return jnp.asarray((self.alpha, self.gamma, self.eta), jnp.float32)
-        dt = np.asarray(dt, np.float64)
-        if dt.ndim != 1 or not np.isfinite(dt).all() or (dt[1:] <= 0).any():
-            raise ConfigError("dt must be (T,) finite seconds, positive after the first frame")
+        dt = check_steps(dt)
         n = np.maximum(dt, 0.0) * float(self.rate)
         per = np.stack(
             [
@@ -113,7 +111,7 @@ PAPER_SMOOTHING = SmoothingParams()
 
 __all__ = ["OFFLINE_SMOOTHING", "PAPER_SMOOTHING", "OfflineSmoothing", "SmoothingParams",
            "Smoothing", "frame_gains", "smooth", "smooth_any", "smooth_batch", "smooth_motion",
-           "step"]  # fmt: skip
+           "smoother_kind", "step"]  # fmt: skip
 
 
 def step(
@@ -223,7 +221,7 @@ def smooth(
         raise ConfigError(f"smooth expects a (T, n) motion with T >= 1, got shape {y.shape}")
     if times is not None and np.shape(times) != (y.shape[0],):
         raise ConfigError(f"times must be ({y.shape[0]},) seconds, got shape {np.shape(times)}")
-    kind = _kind(params)
+    kind = smoother_kind(params)
     gains = frame_gains(params, times, y.shape[0])
     ok = np.ones(y.shape[0], bool) if valid is None else np.asarray(valid, bool)
     if ok.shape != (y.shape[0],):
@@ -259,7 +257,7 @@ def smooth_batch(
     lengths = np.asarray(lengths, np.int64)
     if times is not None and np.shape(times) != y.shape[:2]:
         raise ConfigError(f"times must be {y.shape[:2]} seconds, got shape {np.shape(times)}")
-    kind = _kind(params)
+    kind = smoother_kind(params)
     gains = frame_gains(params, times, lengths)
     ok = np.ones(y.shape[:2], bool) if valid is None else np.asarray(valid, bool)
     if ok.shape != y.shape[:2]:
@@ -267,7 +265,8 @@ def smooth_batch(
     return _smooth_batch(y, jnp.asarray(ok), jnp.asarray(lengths, jnp.int32), gains, kind=kind)
 
 
-def _kind(params: object) -> str:
+def smoother_kind(params: object) -> str:
+    """``params.kind`` of either smoother's settings, or ``ConfigError`` for anything else."""
     if not isinstance(params, SmoothingParams | OfflineSmoothing):
         got = type(params).__name__
         raise ConfigError(f"smoothing must be a SmoothingParams or an OfflineSmoothing, got {got}")
