@@ -15,7 +15,6 @@ the package: scipy is imported when a ``Reference`` is constructed, not when thi
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import numpy as np
@@ -23,6 +22,7 @@ import numpy as np
 from jaxproj.errors import ConfigError
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector, StackedProjector
+from jaxproj.projection.simplex_newton import DAMPING_START, DAMPINGS, QP_SWEEPS, WEIGHT_FLOOR
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
@@ -39,6 +39,50 @@ def simplex_projection(x: np.ndarray) -> np.ndarray:
     k = np.count_nonzero(cond, axis=-1)[..., None]  # >= 1
     theta = (np.take_along_axis(css, k - 1, axis=-1) - 1.0) / k
     return np.maximum(x - theta, 0.0)
+
+
+def _modified_cholesky_solve(a: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``a^{-1} rhs`` through a Cholesky factor whose negative pivots are taken by absolute
+    value (``simplex_newton._cholesky_solve``'s rule), in float64."""
+    p = a.shape[0]
+    low = np.zeros_like(a)
+    floor = 1e-12 * np.abs(np.diag(a)).max()
+    for j in range(p):
+        v = a[:, j] - low[:, :j] @ low[j, :j]
+        d = np.sqrt(max(abs(v[j]), floor))
+        low[j, j] = d
+        low[j + 1 :, j] = v[j + 1 :] / d
+    y = np.linalg.solve(low, rhs)  # triangular; a general solve is exact enough here
+    return np.linalg.solve(low.T, y)
+
+
+def _simplex_qp(b: np.ndarray, c: np.ndarray, x: np.ndarray, sweeps: int) -> np.ndarray:
+    """``x^T B x / 2 + c.x`` lowered over the unit simplex by ``sweeps`` sweeps of the primal
+    active-set method ``simplex_newton.simplex_qp`` runs, from the feasible ``x`` (float64)."""
+    x = np.where(x > WEIGHT_FLOOR, x, 0.0)
+    x = x / x.sum()
+    free = x > 0
+    for _ in range(sweeps):
+        a = np.where(free[:, None] & free[None, :], b, 0.0) + np.diag(np.where(free, 0.0, 1.0))
+        z = _modified_cholesky_solve(a, np.stack([np.where(free, -c, 0.0), free * 1.0], axis=1))
+        nu = (z[:, 0].sum() - 1.0) / z[:, 1].sum()
+        y = np.where(free, z[:, 0] - nu * z[:, 1], 0.0)
+        if (y[free] >= 0).all():
+            x = y
+            lam = np.where(free, np.inf, b @ y + c + nu)
+            i = int(np.argmin(lam))
+            if lam[i] >= 0:
+                return x
+            free[i] = True
+        else:
+            dec = free & (y < x)
+            ratio = np.full(len(x), np.inf)
+            ratio[dec] = x[dec] / (x[dec] - y[dec])
+            i = int(np.argmin(ratio))
+            x = np.where(free, x + min(ratio[i], 1.0) * (y - x), 0.0)
+            x[i] = 0.0
+            free[i] = False
+    return x
 
 
 class _Bank:
@@ -102,94 +146,150 @@ class Reference:
         n_m: int,
         cfg: FullConfig = FullConfig(),  # noqa: B008 - immutable
     ) -> tuple[np.ndarray, float]:
-        """Full projection of one query (``projection.project_full_one``, in NumPy).
+        """Full projection of one query (``projection.full.project_full_one``, in NumPy).
 
-        The same projected gradient: Adam (optax defaults b1 0.9, b2 0.999, eps 1e-8) on the
-        simplex weights of each candidate's cluster, ``cfg.iterations`` steps, best iterate
-        kept; gradients written out by hand. With ``cfg.clusters`` only the clusters with the
-        smallest warm-start values are optimised. Returns (pose ``(n,)``, objective value).
-        Only ``solver="adam"`` is re-implemented (``ConfigError`` otherwise): the Newton solver
-        is checked against its own long solves and against Adam's objective values
-        (``tests/projection/test_projection.py``, ``benchmarks/experiments/full_newton.py``).
+        The same problems (``full.problems``: the weighted or the ``min_k min_w`` reading, the
+        proximal and ridge terms), each solved in float64 by ``cfg.solver``: ``"newton"``, the
+        engine's steps run to convergence on every problem (``_solve_newton``;
+        ``cfg.iterations``, ``screen`` and ``finalists`` are ignored), ``"adam"`` as the engine
+        does (``cfg.iterations`` steps, best iterate). The derivatives are written out by hand
+        (``_derivatives``, exact to second order; Newton uses their Gauss-Newton part, as the
+        engine does). With ``cfg.clusters`` only the problems with
+        the smallest warm-start values are solved. Returns (pose ``(n,)``, objective value).
         """
-        if cfg.solver != "adam":
-            raise ConfigError(
-                f"the float64 reference re-implements solver='adam' only, not {cfg.solver!r}"
-            )
         h = np.asarray(h, np.float64)
         cand = self.candidates(h, n_l)  # (L, n)
         ridx = self._knn(self.tree_r, cand, n_m)  # (L, M)
-        if 0 < cfg.clusters < n_l:
-            start = self._full(h, cand, ridx, dataclasses.replace(cfg, iterations=0))[2]
-            keep = np.argsort(start, kind="stable")[: cfg.clusters]
-            cand, ridx = cand[keep], ridx[keep]
-        r, f, _ = self._full(h, cand, ridx, cfg)
-        j = int(np.argmin(f))
-        return np.clip(r[j], self.lower, self.upper), float(f[j])
+        probs = [p for j in range(n_l) for p in self._problems(cand[j], ridx[j], cfg)]
+        f0 = np.array([self._value(h, pr, pr["w0"], cfg) for pr in probs])
+        if 0 < cfg.clusters < len(probs):
+            probs = [probs[i] for i in np.argsort(f0, kind="stable")[: cfg.clusters]]
+        solve = self._solve_adam if cfg.solver == "adam" else self._solve_newton
+        out = [solve(h, pr, cfg) for pr in probs]
+        j = int(np.argmin([f for _, f in out]))
+        return np.clip(out[j][0], self.lower, self.upper), float(out[j][1])
 
-    def _full(
-        self, h: np.ndarray, cand: np.ndarray, ridx: np.ndarray, cfg: FullConfig
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every cluster's (r(w*) ``(L, n)``, f(w*) ``(L,)``, f(w0) ``(L,)``)."""
-        bank = self.backward
-        rk = self.robot[ridx]  # (L, M, n)
+    def _problems(self, r_c: np.ndarray, idx: np.ndarray, cfg: FullConfig) -> list[dict]:
+        """The simplex problems of one candidate (``full.problems``), as dicts."""
+        rk = self.robot[idx]
+        n_m = len(idx)
         if cfg.include_candidate:
-            verts = np.concatenate([cand[:, None], rk], axis=1)  # (L, M + 1, n)
-            w = np.zeros(verts.shape[:2])
-            w[:, 0] = 1.0
+            verts = np.concatenate([r_c[None], rk])
+            w0 = np.zeros(n_m + 1)
+            w0[0] = 1.0
         else:
             verts = rk
-            w = 1.0 / (np.sum((rk - cand[:, None]) ** 2, axis=-1) + 1e-8)
-            w = w / w.sum(axis=1, keepdims=True)
-        s = bank.inv[ridx][..., None]  # (L, M, 1)
-        beta, out, off = bank.bias[ridx], bank.out[ridx], bank.offset[ridx]
+            w0 = 1.0 / (np.sum((rk - r_c) ** 2, axis=1) + 1e-8)
+            w0 /= w0.sum()
+        base = dict(verts=verts, w0=w0, anchor=r_c)
+        if cfg.objective == "min":
+            zero = np.zeros((1, len(w0)))
+            return [base | dict(k=idx[i : i + 1], mix=zero, mix0=np.ones(1)) for i in range(n_m)]
+        mix = np.eye(n_m)
+        if cfg.include_candidate:
+            mix = np.concatenate([np.full((n_m, 1), 1.0 / n_m), mix], axis=1)
+        return [base | dict(k=idx, mix=mix, mix0=np.zeros(n_m))]
 
-        def value_grad(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            r = np.einsum("lk,lkn->ln", w, verts)
-            q = _sigmoid((r @ bank.w.T)[:, None, :] * s + beta)  # (L, M, hidden)
-            e = off + np.einsum("lmh,lmho->lmo", q, out) - h  # (L, M, m)
-            dev = np.sum(e * e, axis=-1)  # (L, M)
-            # d dev_k / d r = 2 * s_k * W^T (q_k (1 - q_k) * (B_k e_k))
-            gz = 2.0 * np.einsum("lmho,lmo->lmh", out, e) * q * (1.0 - q) * s
-            if cfg.objective == "min":
-                k = np.argmin(dev, axis=1)
-                val = dev[np.arange(len(k)), k]
-                g_r = gz[np.arange(len(k)), k] @ bank.w
-                g = np.einsum("ln,lkn->lk", g_r, verts)
-                return val, g
-            if cfg.include_candidate:
-                tot = w[:, 1:].sum(axis=1, keepdims=True)
-                norm = np.maximum(tot, 1e-12)
-                wk = w[:, 1:] / norm
-                val = np.sum(wk * dev, axis=1)
-                g_direct = np.zeros_like(w)
-                g_direct[:, 1:] = np.where(tot > 1e-12, (dev - val[:, None]) / norm, dev / norm)
+    def _kernels(self, pr: dict, r: np.ndarray, second: bool = False) -> tuple[np.ndarray, ...]:
+        """The problem's kernels at ``r``: predictions ``(K, m)``, Jacobians ``(K, m, n)`` and
+        (``second``) second derivatives ``(K, m, n, n)``, all exact."""
+        b = self.backward
+        k = pr["k"]
+        s = b.inv[k][:, None]  # (K, 1)
+        q = _sigmoid((b.w @ r)[None] * s + b.bias[k])  # (K, H)
+        out = np.swapaxes(b.out[k], 1, 2)  # (K, m, H)
+        pred = b.offset[k] + np.einsum("koh,kh->ko", out, q)
+        d1 = q * (1 - q) * s  # d q / d (W r)
+        d2 = q * (1 - q) * (1 - 2 * q) * s * s
+        jac = np.einsum("koh,kh,hn->kon", out, d1, b.w)
+        if not second:
+            return pred, jac, np.zeros(0)
+        sec = np.einsum("koh,kh,hn,hp->konp", out, d2, b.w, b.w)
+        return pred, jac, sec
+
+    def _value(self, h: np.ndarray, pr: dict, w: np.ndarray, cfg: FullConfig) -> float:
+        return self._derivatives(h, pr, w, cfg, order=0)[0]
+
+    def _derivatives(
+        self, h: np.ndarray, pr: dict, w: np.ndarray, cfg: FullConfig, order: int = 2
+    ) -> tuple[float, np.ndarray, list[np.ndarray]]:
+        """``F(w)`` and (``order`` >= 1) its gradient, (2) its Gauss-Newton Hessian in the
+        weights (the residuals' second derivatives left out), (3) and the exact one."""
+        v = pr["verts"]
+        r = v.T @ w
+        pred, jac, sec = self._kernels(pr, r, second=order >= 3)
+        e = pred - h
+        phi = np.sum(e * e, axis=1)
+        u = pr["mix"] @ w + pr["mix0"]
+        dr = r - pr["anchor"]
+        f = float(u @ phi + 0.5 * cfg.proximal * dr @ dr + 0.5 * cfg.ridge * w @ w)
+        if order == 0:
+            return f, np.zeros(0), []
+        pg = 2 * np.einsum("kon,ko->kn", jac, e)  # (K, n) gradients of phi_k
+        g_r = u @ pg + cfg.proximal * dr
+        grad = pr["mix"].T @ phi + v @ g_r + cfg.ridge * w
+        cross = pr["mix"].T @ pg @ v.T
+        gn = 2 * np.einsum("k,kon,kop->np", u, jac, jac)
+        hessians = []
+        for h_r in [gn] + ([gn + 2 * np.einsum("k,ko,konp->np", u, e, sec)] if order >= 3 else []):
+            h_r = h_r + cfg.proximal * np.eye(len(r))
+            hessians.append(cross + cross.T + v @ h_r @ v.T + cfg.ridge * np.eye(len(w)))
+        return f, grad, hessians
+
+    def _solve_newton(self, h: np.ndarray, pr: dict, cfg: FullConfig) -> tuple[np.ndarray, float]:
+        """The engine's projected Gauss-Newton (``simplex_newton``) in float64, every problem
+        run to convergence: until the model promises less than ``1e-12 F`` and the step moved
+        no joint by ``1e-9`` rad, or no damping lowers ``F`` (float64 exhausted); at most 500
+        steps. Returns (r(w*), F(w*))."""
+        w = pr["w0"].copy()
+        f, g, hessians = self._derivatives(h, pr, w, cfg)
+        hess = hessians[0]
+        r = pr["verts"].T @ w
+        damping = DAMPING_START
+        for _ in range(500):
+            scale = float(np.mean(np.diag(hess))) + 1e-12
+            trials, values = [], []
+            for mult in DAMPINGS:
+                b = hess + damping * mult * scale * np.eye(len(w))
+                t = _simplex_qp(b, g - b @ w, w, QP_SWEEPS)
+                trials.append(t)
+                ok = np.isfinite(t).all()
+                values.append(self._value(h, pr, t, cfg) if ok else np.inf)
+            dx = [t - w for t in trials if np.isfinite(t).all()]
+            predicted = max([-(g @ d + 0.5 * d @ hess @ d) for d in dx], default=np.inf)
+            i = int(np.argmin(values))
+            step = 0.0
+            if values[i] < f:
+                w = trials[i]
+                f, g, hessians = self._derivatives(h, pr, w, cfg)
+                hess = hessians[0]
+                r_new = pr["verts"].T @ w
+                step = float(np.abs(r_new - r).max())
+                r = r_new
+                damping = max(damping * DAMPINGS[i] / 8.0, 1e-12)
             else:
-                wk = w
-                val = np.sum(wk * dev, axis=1)
-                g_direct = dev
-            g_r = np.einsum("lm,lmh->lh", wk, gz) @ bank.w  # (L, n)
-            return val, g_direct + np.einsum("ln,lkn->lk", g_r, verts)
+                damping *= 4096.0
+            if (predicted <= 1e-12 * max(f, 1e-8) and step <= 1e-9) or damping > 1e8:
+                break
+        return r, f
 
-        f0, _ = value_grad(w)
-        best_w, best_f = w.copy(), f0.copy()
+    def _solve_adam(self, h: np.ndarray, pr: dict, cfg: FullConfig) -> tuple[np.ndarray, float]:
+        """Projected Adam as the engine runs it (optax defaults), best iterate kept."""
+        w = pr["w0"].copy()
+        best_w, best_f = w, self._value(h, pr, w, cfg)
         mu, nu = np.zeros_like(w), np.zeros_like(w)
-        b1, b2, eps, lr = 0.9, 0.999, 1e-8, cfg.learning_rate
-        for t in range(1, cfg.iterations + 1):
-            val, g = value_grad(w)
-            better = val < best_f
-            best_w = np.where(better[:, None], w, best_w)
-            best_f = np.where(better, val, best_f)
+        b1, b2, eps = 0.9, 0.999, 1e-8
+        for t in range(1, cfg.iterations + 2):
+            f, g, _ = self._derivatives(h, pr, w, cfg, order=1)
+            if f < best_f:
+                best_w, best_f = w, f
+            if t > cfg.iterations:
+                break
             mu = b1 * mu + (1 - b1) * g
             nu = b2 * nu + (1 - b2) * g * g
             step = (mu / (1 - b1**t)) / (np.sqrt(nu / (1 - b2**t)) + eps)
-            w = simplex_projection(w - lr * step)
-        val, _ = value_grad(w)
-        better = val < best_f
-        best_w = np.where(better[:, None], w, best_w)
-        best_f = np.where(better, val, best_f)
-        r = np.einsum("lk,lkn->ln", best_w, verts)
-        return r, best_f, f0
+            w = simplex_projection(w - cfg.learning_rate * step)
+        return pr["verts"].T @ best_w, best_f
 
     def project(
         self, h: np.ndarray, objective: str, n_l: int, n_m: int, full: FullConfig | None = None

@@ -21,7 +21,7 @@ from jaxproj.errors import ConfigError
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import projector as projection
-from jaxproj.projection.config import FullConfig
+from jaxproj.projection.config import ADAM_30, FullConfig
 from jaxproj.projection.search import nearest
 from jaxproj.testing import Reference, simplex_projection
 
@@ -68,25 +68,27 @@ def test_relaxed_agrees_and_picks_the_same_landmark(model):
         assert int(np.asarray(ids_eng)[j_eng]) == int(ids_ref[j_ref])
 
 
-# Full objective, (config, tolerance in degrees, relative tolerance of f(w*)):
-# * the weighted objective is smooth: 30 (or 10) Adam steps in float32 follow the float64 ones
-#   to ~1e-4 deg (measured max 3e-4 over these queries), so 0.01 deg; f to 1e-4 relative;
-# * objective="min" takes the best kernel of each cluster: where two kernels' deviations are
-#   nearly equal, float32 and float64 can take different branches and then follow different
-#   gradients (measured max 0.1 deg, median 7e-5 deg), so the benchmark's 1 deg; f to 1e-2.
+# Full objective, (config, tolerance in degrees, relative tolerance of F(w*)):
+# * Newton (the default) against the reference's converged float64 solve of the same problems
+#   (an independent solver: exact Hessian, sequential damping, NumPy): answers within 0.1 deg
+#   (the issue's convergence criterion); values to 1e-3 relative (the engine evaluates F in
+#   float32, whose kernels round at ~1e-7 of O(1) sums against a small F);
+# * Adam-30 against the reference's Adam replica: the same 30 steps in float32 and float64
+#   follow each other to ~1e-4 deg on the smooth weighted objective, so 0.01 deg.
 FULL_CASES = [
-    pytest.param(FullConfig(), 0.01, 1e-4, id="exact"),
-    pytest.param(FullConfig(clusters=1, iterations=10), 0.01, 1e-4, id="pruned-1-cluster"),
-    pytest.param(FullConfig(clusters=2), 0.01, 1e-4, id="pruned-2-clusters"),
-    pytest.param(FullConfig(objective="min", include_candidate=True), 1.0, 1e-2, id="min-cand"),
+    pytest.param(FullConfig(), 0.1, 1e-3, id="newton"),
+    pytest.param(FullConfig(include_candidate=True), 0.1, 1e-3, id="newton-with-candidate"),
+    pytest.param(FullConfig(objective="min", clusters=4), 0.1, 1e-3, id="newton-min-pruned"),
+    pytest.param(ADAM_30, 0.01, 1e-4, id="adam-30"),
+    pytest.param(FullConfig(solver="adam", clusters=1, iterations=10), 0.01, 1e-4, id="adam-1"),
 ]
 
 
 @pytest.mark.parametrize("cfg, tol_deg, f_rtol", FULL_CASES)
 def test_full_agrees_with_the_engine(model, cfg, tol_deg, f_rtol):
     p, ref, h = model
-    h = h[:24]
-    got, f = engine.project(p, h, "full", n_l=L, n_m=M, full=cfg, batch_size=24)
+    h = h[:16]
+    got, f = engine.project(p, h, "full", n_l=L, n_m=M, full=cfg, batch_size=16)
     want = [ref.full(x, L, M, cfg) for x in h]
     diff = np.degrees(np.abs(got - np.stack([w[0] for w in want]))).max(axis=1)
     assert diff.max() <= tol_deg, diff.max()
@@ -94,23 +96,35 @@ def test_full_agrees_with_the_engine(model, cfg, tol_deg, f_rtol):
     np.testing.assert_allclose(f, [w[1] for w in want], rtol=f_rtol, atol=1e-7)
 
 
+def test_adam_30_stops_short_of_the_converged_answer(model):
+    # the reason Newton is the default: on the same problems Adam-30's answers are farther from
+    # the converged ones than Newton's 0.1 deg, and its objective values higher
+    p, ref, h = model
+    h = h[:16]
+    got, f = engine.project(p, h, "full", n_l=L, n_m=M, full=ADAM_30, batch_size=16)
+    want = [ref.full(x, L, M, FullConfig()) for x in h]
+    diff = np.degrees(np.abs(got - np.stack([w[0] for w in want]))).max(axis=1)
+    assert (diff > 0.1).mean() > 0.25
+    assert np.median(f / np.array([w[1] for w in want])) > 1.01
+
+
 def test_pruning_changes_the_reference_answer(model):
     # the pruned and exact configurations are different problems for the oracle too (else the
     # parametrised test above would not test the pruning)
     _, ref, h = model
-    exact = np.stack([ref.full(x, L, M, FullConfig())[0] for x in h[:24]])
-    pruned = np.stack([ref.full(x, L, M, FullConfig(clusters=1, iterations=10))[0] for x in h[:24]])
+    exact = np.stack([ref.full(x, L, M, ADAM_30)[0] for x in h[:24]])
+    pruned = np.stack([ref.full(x, L, M, FullConfig(solver="adam", clusters=1))[0] for x in h[:24]])
     assert np.degrees(np.abs(exact - pruned)).max() > 0.1
 
 
 def test_project_dispatches_and_rejects_unknown_objectives(model):
     _, ref, h = model
     np.testing.assert_array_equal(ref.project(h[0], "relaxed", L, M)[0], ref.relaxed(h[0], L, M)[0])
-    np.testing.assert_array_equal(ref.project(h[0], "full", 3, 3)[0], ref.full(h[0], 3, 3)[0])
+    np.testing.assert_array_equal(
+        ref.project(h[0], "full", 3, 3, ADAM_30)[0], ref.full(h[0], 3, 3, ADAM_30)[0]
+    )
     with pytest.raises(ConfigError, match="objective"):
         ref.project(h[0], "fast", L, M)
-    with pytest.raises(ConfigError, match="solver='adam' only"):
-        ref.project(h[0], "full", L, M, FullConfig(solver="newton"))
 
 
 def test_simplex_projection_matches_optax():

@@ -35,10 +35,12 @@ def add_parsers(sub: Any) -> None:
         "--method",
         default="ik",
         choices=METHODS,
-        help="ik: the analytic IK; relaxed / full: the projector of --model",
+        help="ik: the analytic IK; relaxed / full: the projector of --model (relaxed: the "
+        "most accurate against the IK on held-out people; full: see --full-reading)",
     )
     pr.add_argument("--model", help="projector file from `jaxproj build` (relaxed / full)")
     options.add_neighbour_options(pr)
+    options.add_full_reading_option(pr)
     pr.add_argument(
         "--bones",
         default=None,
@@ -124,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
         smoothing=options.smoothing(args.smoother),
         times=rec.times,
         feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
+        full=options.FULL_READINGS[args.full_reading],
     )
     angles = result.angles
     unfiltered = angles if result.unfiltered is None else result.unfiltered
@@ -131,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
     after = feasible.feasibility_report(angles, result.times)
     meta = {
         "method": args.method,
+        "full_reading": args.full_reading if args.method == "full" else None,
         "smoothed": args.smoother != "none",
         "smoother": args.smoother,
         "feasible": bool(args.feasible),

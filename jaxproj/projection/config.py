@@ -177,50 +177,74 @@ class BuildConfig:
 
 
 FullObjective = Literal["weighted", "min"]
-Solver = Literal["adam", "newton"]
+Solver = Literal["newton", "adam"]
 
 
 @dataclass(frozen=True)
 class FullConfig:
     """Settings of the full (simplex-weighted) objective. Static (hashable) under ``jax.jit``.
 
+    The problems are stated exactly in ``jaxproj.projection.full`` and the docs' engine page.
     Validated when constructed: a bad value raises ``ConfigError``.
 
     Attributes:
-      objective: ``"weighted"`` (default) ``f(w) = sum_k w_k ||kappa^r_{j,k}(r(w)) - h||^2``;
-        ``"min"`` ``f(w) = min_k ||kappa^r_{j,k}(r(w)) - h||^2`` (the paper's eq. 2 read
-        literally as the best kernel of the cluster).
-      solver: ``"adam"`` (default): projected ``optax.adam`` steps; ``"newton"``: projected
-        Newton steps on the face of the simplex the weights lie on, tried in parallel beside
-        projected-gradient steps, the best kept (``full.solve_cluster_newton``). Both project with
-        ``optax.projections.projection_simplex`` and never return worse than the warm start.
-        Adam's 30 steps stop far from a minimum (``benchmarks/RESULTS.md``); Newton's converge.
-      iterations: solver steps per candidate (fixed; no early exit), ``>= 0``.
-      learning_rate: Adam step size on the weights, ``> 0`` (the weights live on the simplex, so
-        the scale is absolute: 0.05 moves at most ~5% of mass per step). Unused by Newton.
-      include_candidate: add the candidate ``r_j`` itself as vertex 0 of its simplex (warm start
+      objective: ``"weighted"`` (default): one problem per candidate, its kernels' deviations
+        weighted by the simplex weights; ``"min"``: the paper's eq. 2 read literally,
+        ``min_k min_w``: one problem per (candidate, kernel).
+      solver: ``"newton"`` (default): projected Gauss-Newton in joint space, run until every
+        problem of the batch is stationary or ``iterations`` (``simplex_newton``);
+        ``"adam"``: projected ``optax.adam``, exactly ``iterations`` steps (fast, stops short of
+        the minimum; ``ADAM_30``). Both project with ``optax.projections.projection_simplex``
+        and never return worse than the warm start.
+      iterations: Newton: cap on steps per problem; Adam: its steps. ``>= 0``.
+      learning_rate: Adam's step size on the weights, ``> 0``. Unused by Newton.
+      include_candidate: add the candidate itself as vertex 0 of its simplex (warm start
         ``w0 = e_0``, i.e. the relaxed answer).
-      clusters: optimise only the ``clusters`` candidates whose objective is smallest at their
-        warm start (``0``: all ``L``, the exact full objective). A speed option: it skips the
-        projected gradient of clusters that start far behind; its measured effect on the
-        answers is in ``benchmarks/RESULTS.md``.
+      clusters: optimise only the ``clusters`` problems whose objective is smallest at their
+        warm start (``0``: all, the exact full objective). A speed option; its measured effect
+        is in ``benchmarks/RESULTS.md``.
+      proximal: ``rho``, the weight of ``rho/2 ||r - r_c||^2`` toward the cluster's candidate
+        (makes the minimiser unique where the kernels leave a joint free), ``>= 0``.
+      ridge: ``eps``, the weight of ``eps/2 ||w||^2`` (least-norm weights), ``>= 0``.
+      dec_tol: Newton's stationarity test: its quadratic model predicts a decrease of at most
+        ``dec_tol * max(F, 1e-8)``, ...
+      step_tol: ... and its last step (none, if rejected) moved every joint by less than
+        ``step_tol`` rad.
+      screen, finalists: Newton solves every problem for ``screen`` steps, then only the
+        ``finalists`` with the least objective on to ``iterations`` (``0`` finalists: every
+        problem to the end). Measured against solving all: ``benchmarks/results``.
     """
 
     objective: FullObjective = "weighted"
-    solver: Solver = "adam"
+    solver: Solver = "newton"
     iterations: int = 30
     learning_rate: float = 0.05
     include_candidate: bool = False
     clusters: int = 0
+    proximal: float = 1e-3
+    ridge: float = 1e-8
+    dec_tol: float = 1e-6
+    step_tol: float = 1e-5
+    screen: int = 8
+    finalists: int = 2
 
     def __post_init__(self) -> None:
         if self.objective not in ("weighted", "min"):
             raise ConfigError(f"full objective must be 'weighted' or 'min', got {self.objective!r}")
-        if self.solver not in ("adam", "newton"):
-            raise ConfigError(f"full solver must be 'adam' or 'newton', got {self.solver!r}")
+        if self.solver not in ("newton", "adam"):
+            raise ConfigError(f"full solver must be 'newton' or 'adam', got {self.solver!r}")
         if self.iterations < 0:
             raise ConfigError(f"full iterations={self.iterations} must be >= 0")
         if not self.learning_rate > 0:
             raise ConfigError(f"full learning_rate={self.learning_rate} must be > 0")
         if self.clusters < 0:
             raise ConfigError(f"full clusters={self.clusters} must be >= 0 (0: all L)")
+        if self.screen < 0 or self.finalists < 0:
+            raise ConfigError(f"full screen={self.screen}, finalists={self.finalists} must be >= 0")
+        for name in ("proximal", "ridge", "dec_tol", "step_tol"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"full {name}={getattr(self, name)} must be >= 0")
+
+
+ADAM_30 = FullConfig(solver="adam", iterations=30)
+"""The fast, unconverged option: 30 projected Adam steps (the default before 0.3)."""

@@ -1,228 +1,179 @@
 """The full objective (paper eq. 2-3): simplex weights over each candidate's robot landmarks.
 
 For one query ``h*`` and each of its ``L`` candidates ``r_j`` (``projector.candidates``), simplex
-weights ``w`` over the candidate's ``M`` robot landmarks give ``r(w) = sum_k w_k r_{j,k}``; ``w``
-minimises a back-projected deviation (``cluster_objective``, see ``FullConfig.objective``) by a
-projected solver, and the answer is ``r(w*)`` of the ``j`` with the least objective value.
+weights ``w`` over the candidate's ``M`` robot landmarks (and, with
+``FullConfig.include_candidate``, the candidate itself as vertex 0) give ``r(w) = V^T w``; the
+answer is ``r(w*)`` of the problem with the least objective value. The problems, exactly
+(``simplex_newton`` has the notation; ``phi_k(r) = ||kappa^r_{j,k}(r) - h*||^2``):
 
-Two solvers as pure functions of one cluster (``cluster``): projected Adam (``solve_cluster``)
-and projected Newton on the simplex's faces (``solve_cluster_newton``), both with
-``optax.projections.projection_simplex``. ``project_full_one`` is written for ONE query
-(callers vmap it); nothing here is jitted; ``L``, ``M`` and the ``FullConfig`` are static.
+* ``objective="weighted"`` (default): one problem per candidate,
+  ``F(w) = sum_k u_k(w) phi_k(r(w)) + rho/2 ||r(w) - r_j||^2 + eps/2 ||w||^2`` with the kernel
+  weights ``u = w`` (or, with the candidate as vertex 0, ``u_k = w_k + w_0 / M``: the candidate is
+  judged by the mean of its cluster's kernels).
+* ``objective="min"``: the paper's ``min_k min_w`` read literally: ``M`` problems per
+  candidate, one per kernel ``k``, ``F_k(w) = phi_k(r(w)) + rho/2 ... + eps/2 ...``; the answer
+  is the best of all ``L x M``.
+
+``rho`` (``FullConfig.proximal``) pulls ``r`` toward the candidate only where the kernels do
+not hold it (an elbow's yaw on a straight arm: there ``F`` is flat and its minimiser otherwise
+not unique); ``eps`` (``FullConfig.ridge``) picks the least-norm weights among those giving
+the same ``r``. Both are small enough that a well-conditioned answer does not move
+(``benchmarks/results/full_objective.json``).
+
+Two solvers: projected Gauss-Newton in joint space (``simplex_newton``, the default, run to
+convergence) and projected Adam (``solve_adam``, fixed steps, the fast option). Both project
+with ``optax.projections.projection_simplex`` and never return worse than the warm start.
+``project_full_one`` is written for ONE query (callers vmap it); nothing here is jitted; ``L``,
+``M`` and the ``FullConfig`` are static.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import optax
-from optax.projections import projection_simplex
 
+from jaxproj.projection import simplex_newton as sn
 from jaxproj.projection.config import FullConfig
-from jaxproj.projection.elm import KernelSlice, predict_slice, project_inputs, take
+from jaxproj.projection.elm import KernelSlice, take
 from jaxproj.projection.projector import Projector, candidates
 from jaxproj.projection.search import nearest
 
 
-class _PGState(NamedTuple):
+def problems(
+    p: Projector, h: jax.Array, r_c: jax.Array, idx: jax.Array, cfg: FullConfig
+) -> tuple[sn.Problem, jax.Array]:
+    """The simplex problems of one candidate ``r_c (n,)`` with robot landmarks ``idx (M,)``.
+
+    Returns ``(problems, w0)``: one problem (``"weighted"``) or ``M`` of them stacked on a
+    leading axis (``"min"``), and the warm start ``(P,)``: ``e_0`` with the candidate as a
+    vertex (the relaxed answer), else the inverse squared distance weights of ``r_c`` to the
+    landmarks.
+    """
+    rk = p.robot[idx]  # (M, n)
+    n_m = rk.shape[0]
+    kernels = take(p.backward, idx)  # gathered once, evaluated at every step
+    dtype = rk.dtype
+    if cfg.include_candidate:
+        verts = jnp.concatenate([r_c[None], rk], axis=0)  # (M + 1, n)
+        w0 = jnp.zeros((n_m + 1,), dtype).at[0].set(1.0)
+    else:
+        verts = rk
+        d2 = jnp.sum((rk - r_c[None]) ** 2, axis=1)
+        w0 = 1.0 / (d2 + 1e-8)
+        w0 = w0 / jnp.sum(w0)
+    rho, eps = jnp.asarray(cfg.proximal, dtype), jnp.asarray(cfg.ridge, dtype)
+    if cfg.objective == "weighted":
+        mix = jnp.eye(n_m, dtype=dtype)
+        if cfg.include_candidate:
+            mix = jnp.concatenate([jnp.full((n_m, 1), 1.0 / n_m, dtype), mix], axis=1)
+        pr = sn.Problem(
+            verts, mix, jnp.zeros((n_m,), dtype), kernels, p.backward.w, h, r_c, rho, eps
+        )
+        return pr, w0
+
+    def one(k: jax.Array) -> sn.Problem:  # kernel k alone
+        ks = KernelSlice(*(a[k][None] for a in kernels))
+        zero = jnp.zeros((1, verts.shape[0]), dtype)
+        return sn.Problem(verts, zero, jnp.ones((1,), dtype), ks, p.backward.w, h, r_c, rho, eps)
+
+    return jax.vmap(one)(jnp.arange(n_m)), w0
+
+
+class _AdamState(NamedTuple):
     w: jax.Array
     opt_state: optax.OptState
     best_w: jax.Array
     best_f: jax.Array
 
 
-class Cluster(NamedTuple):
-    """The simplex problem of one candidate (``cluster``)."""
-
-    verts: jax.Array  # (V, n) simplex vertices
-    w0: jax.Array  # (V,) warm start
-    kernels: KernelSlice  # the M backward kernels, gathered once
-
-
-def cluster(p: Projector, r_c: jax.Array, idx: jax.Array, cfg: FullConfig) -> Cluster:
-    """The simplex problem of one candidate ``r_c (n,)`` with robot landmarks ``idx (M,)``.
-
-    The simplex spans the candidate's ``M`` robot landmarks and, with
-    ``cfg.include_candidate``, the candidate ``r_c`` itself as vertex 0 (then ``w0 = e_0``: the
-    relaxed answer is the warm start). Otherwise ``w0`` is the inverse squared distance weights
-    of ``r_c`` to the landmarks.
-    """
-    rk = p.robot[idx]  # (M, n)
-    kernels = take(p.backward, idx)  # gathered once, evaluated at every step
-    if cfg.include_candidate:
-        verts = jnp.concatenate([r_c[None], rk], axis=0)  # (M + 1, n)
-        w0 = jnp.zeros((verts.shape[0],), rk.dtype).at[0].set(1.0)
-    else:
-        verts = rk
-        d2 = jnp.sum((rk - r_c[None]) ** 2, axis=1)
-        w0 = 1.0 / (d2 + 1e-8)
-        w0 = w0 / jnp.sum(w0)
-    return Cluster(verts, w0, kernels)
-
-
-def cluster_objective(
-    p: Projector, h: jax.Array, c: Cluster, cfg: FullConfig, w: jax.Array
-) -> jax.Array:
-    """The full objective ``f(w)`` of one cluster (see ``FullConfig.objective``)."""
-    r = jnp.einsum("m,mn->n", w, c.verts)
-    back = predict_slice(c.kernels, project_inputs(p.backward, r))  # (M, m)
-    dev = jnp.sum((back - h[None]) ** 2, axis=-1)
-    if cfg.objective == "min":
-        return jnp.min(dev)
-    wk = w[1:] / jnp.maximum(jnp.sum(w[1:]), 1e-12) if cfg.include_candidate else w
-    return jnp.sum(wk * dev)
-
-
-def start_value(p: Projector, h: jax.Array, c: Cluster, cfg: FullConfig) -> jax.Array:
-    """``f(w0)``: the objective of one cluster at its warm start."""
-    return cluster_objective(p, h, c, cfg, c.w0)
-
-
-def solve_cluster(
-    p: Projector, h: jax.Array, c: Cluster, f0: jax.Array, cfg: FullConfig
-) -> tuple[jax.Array, jax.Array]:
-    """Projected gradient on the simplex of one cluster (``cluster``) whose warm-start value
-    is ``f0``; returns (r(w*), f(w*)).
+def solve_adam(pr: sn.Problem, w0: jax.Array, cfg: FullConfig) -> tuple[jax.Array, jax.Array]:
+    """Projected Adam on one problem, ``cfg.iterations`` steps; returns ``(w*, F(w*))``.
 
     Every step is an Adam update followed by ``optax.projections.projection_simplex``; the
-    best iterate is kept, so the returned value is never worse than ``f0``.
+    best iterate is kept, so the returned value is never worse than ``F(w0)``. It stops where
+    its steps stop, usually short of the minimum (``benchmarks/RESULTS.md``).
     """
-
-    def objective(w: jax.Array) -> jax.Array:
-        return cluster_objective(p, h, c, cfg, w)
-
     opt = optax.adam(cfg.learning_rate)
-    f = jax.value_and_grad(objective)
+    f = jax.value_and_grad(lambda w: sn.value(pr, w))
 
-    # The two optax calls below run under JAX's standard dtype promotion, because optax 0.2.8
-    # mixes int32 and float32 inside them, whatever we pass in: Adam's bias correction computes
-    # ``decay ** count`` with its int32 step count (``optax.tree.bias_correction``) and the
-    # simplex projection divides by int32 ``arange`` indices (``_projection_unit_simplex``).
-    # Nothing else is inside the block: our own arithmetic (objective, gradient, best-iterate
-    # bookkeeping, ``apply_updates`` of two float32 arrays) follows the caller's promotion mode.
-    def step(state: _PGState, _: None) -> tuple[_PGState, None]:
+    # optax 0.2.8 mixes int32 and float32 inside ``update`` (Adam's bias correction raises the
+    # decays to its int32 step count): standard promotion for that call only.
+    def step(state: _AdamState, _: None) -> tuple[_AdamState, None]:
         val, g = f(state.w)
         better = val < state.best_f
         best_w = jnp.where(better, state.w, state.best_w)
         best_f = jnp.where(better, val, state.best_f)
         with jax.numpy_dtype_promotion("standard"):  # optax internals, see above
             upd, opt_state = opt.update(g, state.opt_state, state.w)
-        w = optax.apply_updates(state.w, upd)
-        with jax.numpy_dtype_promotion("standard"):  # optax internals, see above
-            w = projection_simplex(w)
-        return _PGState(w, opt_state, best_w, best_f), None
+        w = sn._project(optax.apply_updates(state.w, upd))
+        return _AdamState(w, opt_state, best_w, best_f), None
 
-    w0 = c.w0
-    init = _PGState(w0, opt.init(w0), w0, f0)
+    init = _AdamState(w0, opt.init(w0), w0, sn.value(pr, w0))
     final, _ = jax.lax.scan(step, init, None, length=cfg.iterations)
-    f_last = objective(final.w)
+    f_last = sn.value(pr, final.w)
     better = f_last < final.best_f
-    w_best = jnp.where(better, final.w, final.best_w)
-    f_best = jnp.where(better, f_last, final.best_f)
-    r_best = jnp.einsum("m,mn->n", w_best, c.verts)
-    return r_best, f_best
+    return jnp.where(better, final.w, final.best_w), jnp.where(better, f_last, final.best_f)
 
 
-NEWTON_DAMPING = (0.0, 1e-4, 1e-2, 1e-1)
-"""Levenberg damping of the Newton trials, as fractions of the Hessian's Frobenius norm."""
-
-NEWTON_STEPS = (1.0, 0.5, 0.25)
-"""Fractions of each damped Newton step tried."""
-
-GRADIENT_STEPS = (4.0, 1.0, 0.25, 1 / 16, 1 / 64)
-"""Projected-gradient trials, as multiples of the adaptive gradient step."""
-
-
-def _face_newton(
-    grad: jax.Array, hess: jax.Array, free: jax.Array, damping: jax.Array
-) -> jax.Array:
-    """Newton direction ``d (V,)`` on the face of the simplex where ``free (V,)`` weights lie.
-
-    Minimises ``grad . d + d^T (hess + damping I) d / 2`` over ``sum(d) = 0`` and ``d_k = 0``
-    off the face (one ``(V + 1)``-square KKT solve); ``0`` where the system is singular.
-    """
-    v = grad.shape[0]
-    a = hess + damping * jnp.eye(v, dtype=hess.dtype)
-    a = jnp.where(free[:, None] & free[None, :], a, 0.0) + jnp.diag(jnp.where(free, 0.0, 1.0))
-    one = free.astype(hess.dtype)
-    kkt = jnp.concatenate(
-        [
-            jnp.concatenate([a, one[:, None]], axis=1),
-            jnp.concatenate([one, jnp.zeros((1,), hess.dtype)])[None],
-        ]
-    )
-    rhs = jnp.concatenate([jnp.where(free, -grad, 0.0), jnp.zeros((1,), hess.dtype)])
-    d = jnp.linalg.solve(kkt, rhs)[:v]
-    return jnp.where(jnp.all(jnp.isfinite(d)), d, 0.0)
+def solve(pr: sn.Problem, w0: jax.Array, cfg: FullConfig) -> tuple[jax.Array, jax.Array]:
+    """One problem by ``cfg.solver`` (Newton: to ``cfg.iterations`` steps); returns
+    ``(r(w*) (n,), F(w*))``."""
+    if cfg.solver == "adam":
+        w, f = solve_adam(pr, w0, cfg)
+        return pr.verts.T @ w, f
+    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol)
+    s = solver.run(pr, solver.init(pr, w0), cfg.iterations)
+    return s.d.r, s.d.f
 
 
-class _NewtonState(NamedTuple):
-    w: jax.Array
-    f: jax.Array
-    step: jax.Array  # the adaptive projected-gradient step
-
-
-def solve_cluster_newton(
-    p: Projector, h: jax.Array, c: Cluster, f0: jax.Array, cfg: FullConfig
+def _solve_newton_screened(
+    prs: sn.Problem, w0: jax.Array, cfg: FullConfig
 ) -> tuple[jax.Array, jax.Array]:
-    """Projected Newton on the simplex of one cluster; returns (r(w*), f(w*)).
-
-    Every step computes the objective's gradient and Hessian in the weights (``V = M`` or
-    ``M + 1`` of them: small), then tries in parallel
-    * damped Newton steps on the current face (the weights' support; ``NEWTON_DAMPING`` x
-      ``NEWTON_STEPS``; the damping adds ``-lambda_min`` of the Hessian restricted to the face
-      where that is not positive definite), and
-    * projected-gradient steps (``GRADIENT_STEPS`` x an adaptive step), which move weights on or
-      off the face,
-    each projected with ``optax.projections.projection_simplex``, and keeps the trial with the
-    least objective if it improves (monotone: never worse than ``f0``). The objective is flat
-    along some directions (e.g. an elbow's yaw on a straight arm), where gradient steps crawl;
-    the Newton steps follow its curvature there.
+    """Every problem of one query by Newton for ``cfg.screen`` steps, then only the
+    ``cfg.finalists`` with the least objective on to ``cfg.iterations``: ``(r (n,), F)`` of the
+    best. A problem far behind after the screen does not catch up (measured against solving
+    every problem to the end: ``benchmarks/results/full_objective.json``), and a vmapped loop
+    runs as long as its slowest problem, so the long tail is paid for two problems, not ``L``.
     """
+    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol)
+    axes = (_AXES, 0)
+    states = jax.vmap(solver.init, in_axes=axes)(prs, w0)
+    states = jax.vmap(lambda pr, s: solver.run(pr, s, cfg.screen), in_axes=axes)(prs, states)
+    n_p = w0.shape[0]
+    if cfg.finalists < n_p:
+        _, keep = jax.lax.top_k(-states.d.f, cfg.finalists)
+        prs = _batched(prs, lambda a: a[keep])
+        states = jax.tree.map(lambda a: a[keep], states)
+    states = jax.vmap(lambda pr, s: solver.run(pr, s, cfg.iterations), in_axes=axes)(prs, states)
+    j = jnp.argmin(states.d.f)
+    return states.d.r[j], states.d.f[j]
 
-    def objective(w: jax.Array) -> jax.Array:
-        return cluster_objective(p, h, c, cfg, w)
 
-    v = c.w0.shape[0]
-    damping = jnp.asarray(NEWTON_DAMPING, c.w0.dtype)
-    fractions = jnp.asarray(NEWTON_STEPS, c.w0.dtype)
-    scales = jnp.asarray(GRADIENT_STEPS, c.w0.dtype)
-    n_newton = len(NEWTON_DAMPING) * len(NEWTON_STEPS)
+_AXES = sn.Problem(0, 0, 0, 0, None, None, 0, None, None)  # type: ignore[arg-type]
+"""vmap axes of a batch of problems of one query: the bank's ``W``, the query and the two
+regularisers are shared (not copied per problem)."""
 
-    def project(w: jax.Array) -> jax.Array:
-        with jax.numpy_dtype_promotion("standard"):  # optax internals, see solve_cluster
-            return projection_simplex(w)
 
-    def step(state: _NewtonState, _: None) -> tuple[_NewtonState, None]:
-        w = state.w
-        grad = jax.grad(objective)(w)
-        hess = jax.hessian(objective)(w)
-        hess = 0.5 * (hess + hess.T)
-        free = w > 0
-        n_free = jnp.sum(free.astype(w.dtype))
-        centre = jnp.where(free[:, None] & free[None, :], jnp.eye(v, dtype=w.dtype) - 1 / n_free, 0)
-        lam_min = jnp.linalg.eigvalsh(centre @ hess @ centre)[0]
-        norm = jnp.sqrt(jnp.sum(hess * hess)) + 1e-12
-        shift = 1.01 * jnp.maximum(0.0, -lam_min)
-        dirs = jax.vmap(lambda d: _face_newton(grad, hess, free, shift + d * norm))(damping)
-        newton = (w[None, None] + fractions[None, :, None] * dirs[:, None]).reshape(-1, v)
-        gradient = w[None] - (state.step * scales)[:, None] * grad[None]
-        trials = jax.vmap(project)(jnp.concatenate([newton, gradient]))
-        values = jax.vmap(objective)(trials)
-        i = jnp.argmin(values)
-        better = values[i] < state.f
-        by_gradient = better & (i >= n_newton)
-        grown = state.step * scales[jnp.maximum(i - n_newton, 0)] * 2.0
-        new_step = jnp.where(by_gradient, grown, jnp.where(better, state.step, state.step / 16))
-        return _NewtonState(
-            jnp.where(better, trials[i], w), jnp.where(better, values[i], state.f), new_step
-        ), None
+def _batched(prs: sn.Problem, fn: Callable[[jax.Array], jax.Array]) -> sn.Problem:
+    """``fn`` applied to the per-problem fields of a batch of problems (``_AXES``)."""
+    return prs._replace(
+        verts=fn(prs.verts),
+        mix=fn(prs.mix),
+        mix0=fn(prs.mix0),
+        kernels=KernelSlice(*(fn(a) for a in prs.kernels)),
+        anchor=fn(prs.anchor),
+    )
 
-    init = _NewtonState(c.w0, f0, jnp.ones((), c.w0.dtype))
-    final, _ = jax.lax.scan(step, init, None, length=cfg.iterations)
-    return jnp.einsum("m,mn->n", final.w, c.verts), final.f
+
+def _shared(prs: sn.Problem, p: Projector, h: jax.Array, cfg: FullConfig) -> sn.Problem:
+    """Replace the broadcast copies of the shared fields by the one unbatched value."""
+    dtype = h.dtype
+    rho, eps = jnp.asarray(cfg.proximal, dtype), jnp.asarray(cfg.ridge, dtype)
+    return prs._replace(w_in=p.backward.w, h=h, rho=rho, eps=eps)
 
 
 def project_full_one(
@@ -237,22 +188,29 @@ def project_full_one(
       cfg: objective and solver settings (static).
 
     Returns:
-      ``(r, f, f0)``: ``(n,)`` projected pose, the objective value at the chosen cluster's
+      ``(r, f, f0)``: ``(n,)`` projected pose, the objective value of the chosen problem at its
       optimum and at its warm start.
     """
     cand = candidates(p, h, n_l)  # (L, n)
     ridx, _ = nearest(p.robot, p.robot_sq, cand, n_m)  # (L, M)
-    clusters = jax.vmap(cluster, in_axes=(None, 0, 0, None))(p, cand, ridx, cfg)
-    f0 = jax.vmap(start_value, in_axes=(None, None, 0, None))(p, h, clusters, cfg)  # (L,)
-    solve = solve_cluster_newton if cfg.solver == "newton" else solve_cluster
-    if cfg.clusters == 1 < n_l:  # one cluster: index it (a size-1 vmap ran 2x slower on CPU)
+    prs, w0 = jax.vmap(problems, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
+    if cfg.objective == "min":  # (L, M) problems sharing their cluster's warm start
+        w0 = jnp.repeat(w0, n_m, axis=0)
+        prs = _batched(prs, lambda a: a.reshape(n_l * n_m, *a.shape[2:]))
+    prs = _shared(prs, p, h, cfg)
+    f0 = jax.vmap(sn.value, in_axes=(_AXES, 0))(prs, w0)
+    n_p = f0.shape[0]
+    if cfg.clusters == 1 < n_p:  # one problem: index it (a size-1 vmap ran 2x slower on CPU)
         j = jnp.argmin(f0)  # the first minimum, as top_k(-f0, 1) picks it
-        r, f = solve(p, h, jax.tree.map(lambda a: a[j], clusters), f0[j], cfg)
+        r, f = solve(_batched(prs, lambda a: a[j]), w0[j], cfg)
         return jnp.clip(r, p.lower, p.upper), f, f0[j]
-    if 0 < cfg.clusters < n_l:  # optimise only the clusters that start best
+    if 0 < cfg.clusters < n_p:  # optimise only the problems that start best
         _, keep = jax.lax.top_k(-f0, cfg.clusters)
-        clusters = jax.tree.map(lambda a: a[keep], clusters)
-        f0 = f0[keep]
-    r, f = jax.vmap(solve, in_axes=(None, None, 0, 0, None))(p, h, clusters, f0, cfg)
+        prs = _batched(prs, lambda a: a[keep])
+        w0, f0 = w0[keep], f0[keep]
+    if cfg.solver == "newton" and 0 < cfg.finalists:
+        r1, f1 = _solve_newton_screened(prs, w0, cfg)
+        return jnp.clip(r1, p.lower, p.upper), f1, jnp.min(f0)
+    r, f = jax.vmap(solve, in_axes=(_AXES, 0, None))(prs, w0, cfg)
     j = jnp.argmin(f)
     return jnp.clip(r[j], p.lower, p.upper), f[j], f0[j]
