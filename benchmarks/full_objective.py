@@ -6,16 +6,17 @@
 On the default model (``BuildConfig()`` on MSR training subjects 1,3,5,7,9 unless ``--model``),
 L = M = 10, queries from the held-out MSR subjects 2,4,6,8,10 (a fixed shuffle, seed 0):
 
-* convergence: the engine's answers (public ``jaxproj.project``, ``FullConfig()`` and
-  ``ADAM_30``) against the float64 reference's converged solve of the same problems
+* convergence: the engine's answers (public ``jaxproj.project``, ``NEWTON`` (recorded as
+  ``newton_default``: it was ``FullConfig()`` when measured) and ``ADAM_30``) against the
+  float64 reference's converged solve of the same problems
   (``jaxproj.testing.StackedReference``, ``solver="newton"``) on ``--ref-queries`` poses: the
   share within 0.1 deg on every joint, and the share whose objective value is within
   ``1 + 1e-4`` of the reference's (the engine's value is its own float32 evaluation);
 * stability: one held-out recording projected, and again with every joint position moved by
   one float32 ulp (``np.nextafter`` away from zero): the largest change of any answer (deg);
 * speed: the public ``jaxproj.project`` on a host array of ``--speed-queries`` descriptors
-  (compiled first, timed apart, best of 3), full ``FullConfig()``, ``ADAM_30`` and relaxed as
-  the baseline, each named;
+  (compiled first, timed apart, best of 3), full ``NEWTON``, ``ADAM_30`` (``FullConfig()``)
+  and relaxed as the baseline, each named;
 * ``--accuracy``: every reading of the full objective, converged (weighted / min, with and
   without the candidate as a vertex), against the IK on held-out MSR (arm actions) and
   UTKinect (upper body), unsmoothed and default output (offline smoother + feasibility),
@@ -31,6 +32,7 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import jax
@@ -40,13 +42,13 @@ from benchmarks import heldout
 from jaxproj.human.descriptors import valid_descriptors
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection.config import ADAM_30, FullConfig
+from jaxproj.projection.config import ADAM_30, NEWTON
 
 READINGS = {
-    "weighted": FullConfig(),
-    "weighted_with_candidate": FullConfig(include_candidate=True),
-    "min": FullConfig(objective="min"),
-    "min_with_candidate": FullConfig(objective="min", include_candidate=True),
+    "weighted": NEWTON,
+    "weighted_with_candidate": replace(NEWTON, include_candidate=True),
+    "min": replace(NEWTON, objective="min"),
+    "min_with_candidate": replace(NEWTON, objective="min", include_candidate=True),
 }
 
 _REF = None
@@ -61,7 +63,7 @@ def _ref_init(path: str) -> None:
 
 def _ref_one(h: np.ndarray) -> tuple[np.ndarray, float]:
     assert _REF is not None
-    return _REF.project(h, "full", 10, 10, FullConfig())
+    return _REF.project(h, "full", 10, 10, NEWTON)
 
 
 def reference(model_path: str, h: np.ndarray, workers: int) -> tuple[np.ndarray, np.ndarray]:
@@ -84,7 +86,7 @@ def reference(model_path: str, h: np.ndarray, workers: int) -> tuple[np.ndarray,
 
 def convergence(model: engine.Model, h: np.ndarray, want_r: np.ndarray, want_f: np.ndarray) -> dict:
     out = {}
-    for name, cfg in (("newton_default", FullConfig()), ("adam_30", ADAM_30)):
+    for name, cfg in (("newton_default", NEWTON), ("adam_30", ADAM_30)):
         r, f = engine.project(model, h, "full", full=cfg)
         diff = np.degrees(np.abs(r - want_r)).max(axis=1)
         ratio = f / np.maximum(want_f, 1e-30)
@@ -106,7 +108,7 @@ def ulp_stability(model: engine.Model) -> dict:
     pos = np.asarray(seq.positions, np.float32)[np.asarray(seq.valid, bool)]
     nudged = np.nextafter(pos, np.copysign(np.inf, pos)).astype(np.float32)
     out = {}
-    for name, cfg in (("newton_default", FullConfig()), ("adam_30", ADAM_30)):
+    for name, cfg in (("newton_default", NEWTON), ("adam_30", ADAM_30)):
         a, _ = engine.project(model, valid_descriptors(pos), "full", full=cfg)
         b, _ = engine.project(model, valid_descriptors(nudged), "full", full=cfg)
         out[name] = float(np.degrees(np.abs(a - b)).max())
@@ -118,7 +120,7 @@ def speed(model: engine.Model, h: np.ndarray) -> dict:
     out = {"queries": int(len(h)), "device": str(jax.devices()[0].device_kind)}
     for name, objective, cfg in (
         ("relaxed", "relaxed", None),
-        ("full_newton_default", "full", FullConfig()),
+        ("full_newton_default", "full", NEWTON),
         ("full_adam_30", "full", ADAM_30),
     ):
         t0 = time.perf_counter()

@@ -9,6 +9,7 @@ distinct descriptors of subjects 1 and 3 with their IK poses and both kernel ban
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
@@ -21,7 +22,7 @@ from jaxproj.errors import ConfigError
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import projector as projection
-from jaxproj.projection.config import ADAM_30, FullConfig
+from jaxproj.projection.config import ADAM_30, NEWTON, FullConfig
 from jaxproj.projection.search import nearest
 from jaxproj.testing import Reference, simplex_projection
 
@@ -69,16 +70,16 @@ def test_relaxed_agrees_and_picks_the_same_landmark(model):
 
 
 # Full objective, (config, tolerance in degrees, relative tolerance of F(w*)):
-# * Newton (the default) against the reference's converged float64 solve of the same problems
+# * Newton (``NEWTON``) against the reference's converged float64 solve of the same problems
 #   (an independent solver: exact Hessian, sequential damping, NumPy): answers within 0.1 deg
 #   (the convergence criterion); values to 1e-3 relative (the engine evaluates F in
 #   float32, whose kernels round at ~1e-7 of O(1) sums against a small F);
 # * Adam-30 against the reference's Adam replica: the same 30 steps in float32 and float64
 #   follow each other to ~1e-4 deg on the smooth weighted objective, so 0.01 deg.
 FULL_CASES = [
-    pytest.param(FullConfig(), 0.1, 1e-3, id="newton"),
-    pytest.param(FullConfig(include_candidate=True), 0.1, 1e-3, id="newton-with-candidate"),
-    pytest.param(FullConfig(objective="min", clusters=4), 0.1, 1e-3, id="newton-min-pruned"),
+    pytest.param(NEWTON, 0.1, 1e-3, id="newton"),
+    pytest.param(replace(NEWTON, include_candidate=True), 0.1, 1e-3, id="newton-with-candidate"),
+    pytest.param(replace(NEWTON, objective="min", clusters=4), 0.1, 1e-3, id="newton-min-pruned"),
     pytest.param(ADAM_30, 0.01, 1e-4, id="adam-30"),
     pytest.param(FullConfig(solver="adam", clusters=1, iterations=10), 0.01, 1e-4, id="adam-1"),
 ]
@@ -102,7 +103,7 @@ def test_adam_30_stops_short_of_the_converged_answer(model):
     p, ref, h = model
     h = h[:16]
     got, f = engine.project(p, h, "full", n_l=L, n_m=M, full=ADAM_30, batch_size=16)
-    want = [ref.full(x, L, M, FullConfig()) for x in h]
+    want = [ref.full(x, L, M, NEWTON) for x in h]
     diff = np.degrees(np.abs(got - np.stack([w[0] for w in want]))).max(axis=1)
     assert (diff > 0.1).mean() > 0.25
     assert np.median(f / np.array([w[1] for w in want])) > 1.01

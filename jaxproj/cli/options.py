@@ -146,10 +146,10 @@ def add_neighbour_options(parser: argparse.ArgumentParser) -> None:
 
 
 FULL_READINGS = {
-    "weighted": FullConfig(),
-    "weighted+candidate": FullConfig(include_candidate=True),
-    "min": FullConfig(objective="min"),
-    "min+candidate": FullConfig(objective="min", include_candidate=True),
+    "weighted": FullConfig(solver="newton"),
+    "weighted+candidate": FullConfig(solver="newton", include_candidate=True),
+    "min": FullConfig(solver="newton", objective="min"),
+    "min+candidate": FullConfig(solver="newton", objective="min", include_candidate=True),
 }
 """``--full-reading`` choices: the readings of the full objective (``FullConfig``), converged."""
 

@@ -134,7 +134,6 @@ def run(args: argparse.Namespace) -> int:
     after = feasible.feasibility_report(angles, result.times)
     meta = {
         "method": args.method,
-        "full_reading": args.full_reading if args.method == "full" else None,
         "smoothed": args.smoother != "none",
         "smoother": args.smoother,
         "feasible": bool(args.feasible),
@@ -143,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         "fps": round(rec.fps, 6),
         "format": rec.format,
     }
+    if args.method == "full":
+        meta["full_reading"] = args.full_reading
     motion = Motion(angles, result.times, result.valid, rec.positions, meta,
                     confidence=result.confidence)  # fmt: skip
     save_motion(out, motion, joints=args.joints)

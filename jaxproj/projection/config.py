@@ -191,10 +191,11 @@ class FullConfig:
       objective: ``"weighted"`` (default): one problem per candidate, its kernels' deviations
         weighted by the simplex weights; ``"min"``: the paper's eq. 2 read literally,
         ``min_k min_w``: one problem per (candidate, kernel).
-      solver: ``"newton"`` (default): projected Gauss-Newton in joint space, run until every
-        problem of the batch is stationary or ``iterations`` (``simplex_newton``);
-        ``"adam"``: projected ``optax.adam``, exactly ``iterations`` steps (fast, stops short of
-        the minimum; ``ADAM_30``). Both project with ``optax.projections.projection_simplex``
+      solver: ``"adam"`` (default): projected ``optax.adam``, exactly ``iterations`` steps
+        (fast, stops short of the minimum); ``"newton"`` (``NEWTON``): projected Gauss-Newton in
+        joint space, run until every problem of the batch is stationary or ``iterations``
+        (``simplex_newton``): converged, ~2.3x Adam's time on a CPU (``docs/results.md``).
+        Both project with ``optax.projections.projection_simplex``
         and never return worse than the warm start.
       iterations: Newton: cap on steps per problem; Adam: its steps. ``>= 0``.
       learning_rate: Adam's step size on the weights, ``> 0``. Unused by Newton.
@@ -216,7 +217,7 @@ class FullConfig:
     """
 
     objective: FullObjective = "weighted"
-    solver: Solver = "newton"
+    solver: Solver = "adam"
     iterations: int = 30
     learning_rate: float = 0.05
     include_candidate: bool = False
@@ -247,4 +248,7 @@ class FullConfig:
 
 
 ADAM_30 = FullConfig(solver="adam", iterations=30)
-"""The fast, unconverged option: 30 projected Adam steps (the default before 0.3)."""
+"""The fast, unconverged solver: 30 projected Adam steps (``FullConfig()``'s)."""
+
+NEWTON = FullConfig(solver="newton")
+"""The converged solver: projected Gauss-Newton in joint space (``simplex_newton``)."""

@@ -11,7 +11,7 @@ from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import simplex_newton as sn
-from jaxproj.projection.config import ADAM_30, FullConfig
+from jaxproj.projection.config import ADAM_30, NEWTON, FullConfig
 from jaxproj.robots.nao_h25 import ik, robot
 
 CFG = engine.BuildConfig(
@@ -94,14 +94,14 @@ def _full_values(model, d, cfg):
 
 
 def test_newton_converges_where_adam_stops_short(model):
-    # the same problems, the same warm starts: Newton (the default) reaches a lower objective
+    # the same problems, the same warm starts: Newton (``NEWTON``) reaches a lower objective
     # than 30 and 300 Adam steps, and its answers agree with its own long solves (200 steps,
     # every problem to the end, no stationarity exit): it has converged
-    d = _descriptors([2], actions=[1, 5])[:64]
-    r_n, f_n, f0 = _full_values(model, d, FullConfig())
+    d = _descriptors([2], actions=[1, 5])[:32]
+    r_n, f_n, f0 = _full_values(model, d, NEWTON)
     _, f_a, _ = _full_values(model, d, ADAM_30)
     _, f_a300, _ = _full_values(model, d, dataclasses.replace(ADAM_30, iterations=300))
-    long = FullConfig(iterations=200, finalists=0, dec_tol=0.0, step_tol=0.0)
+    long = dataclasses.replace(NEWTON, iterations=200, finalists=0, dec_tol=0.0, step_tol=0.0)
     r_long, f_long, _ = _full_values(model, d, long)
     assert (f_n <= f0 + 1e-7).all()  # monotone: never worse than the warm start
     assert (f_n <= f_a * (1 + 1e-4) + 1e-7).mean() >= 0.95
@@ -111,13 +111,12 @@ def test_newton_converges_where_adam_stops_short(model):
 
 
 def test_newton_is_deterministic_and_serves_every_reading(model):
-    d = _descriptors([2], actions=[9])[:48]
+    d = _descriptors([2], actions=[9])[:16]
     for cfg in (
-        FullConfig(),
-        FullConfig(include_candidate=True),
-        FullConfig(objective="min", include_candidate=True, clusters=3),
-        FullConfig(clusters=1),
-        FullConfig(finalists=0, iterations=8),
+        NEWTON,
+        dataclasses.replace(NEWTON, include_candidate=True),
+        dataclasses.replace(NEWTON, objective="min", include_candidate=True, clusters=3),
+        dataclasses.replace(NEWTON, clusters=1, finalists=0, iterations=8),
     ):
         a, fa = engine.project(model, d, "full", full=cfg)
         b, fb = engine.project(model, d, "full", full=cfg)
@@ -138,8 +137,8 @@ def test_newton_answers_do_not_jump_with_one_ulp_of_the_input(model):
     d_a, ok_a = descriptor(pos)
     d_b, ok_b = descriptor(nudged)
     ok = np.asarray(ok_a) & np.asarray(ok_b)
-    a, _ = engine.project(model, np.asarray(d_a)[ok], "full")
-    b, _ = engine.project(model, np.asarray(d_b)[ok], "full")
+    a, _ = engine.project(model, np.asarray(d_a)[ok], "full", full=NEWTON)
+    b, _ = engine.project(model, np.asarray(d_b)[ok], "full", full=NEWTON)
     assert _deg(a, b).max() <= 0.1
 
 
@@ -235,8 +234,8 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
     from jaxproj.projection.search import nearest
 
     p = model.projector.chain(0)
-    d = _descriptors([2], actions=[1, 5])[:200]
-    cfg = FullConfig(objective="min", include_candidate=True, finalists=0)
+    d = _descriptors([2], actions=[1, 5])[:60]
+    cfg = FullConfig(solver="newton", objective="min", include_candidate=True, finalists=0)
     exact, _ = engine.project(model, d, "full", full=cfg)
     all_l, _ = engine.project(model, d, "full", full=dataclasses.replace(cfg, clusters=100))
     np.testing.assert_array_equal(all_l, exact)  # clusters >= L * M is the exact objective
@@ -258,7 +257,7 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
 
     # The engine (jitted, vmapped) and by_hand (eager) round differently; a converged solve is
     # insensitive to that where its minimiser is well-conditioned: 0.05 deg.
-    for i in range(0, 200, 20):
+    for i in range(0, 60, 12):
         r, f = by_hand(d[i])
         assert _deg(one[i], r).max() <= 0.05
         np.testing.assert_allclose(f_one[i], f, rtol=1e-4, atol=1e-7)
