@@ -88,7 +88,7 @@ FULL_CASES = [
 @pytest.mark.parametrize("cfg, tol_deg, f_rtol", FULL_CASES)
 def test_full_agrees_with_the_engine(model, cfg, tol_deg, f_rtol):
     p, ref, h = model
-    h = h[:16]
+    h = h[:12]
     got, f = engine.project(p, h, "full", n_l=L, n_m=M, full=cfg, batch_size=16)
     want = [ref.full(x, L, M, cfg) for x in h]
     diff = np.degrees(np.abs(got - np.stack([w[0] for w in want]))).max(axis=1)
