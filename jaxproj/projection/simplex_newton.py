@@ -17,18 +17,17 @@ so their derivatives are taken there, written out for the ELM (``residuals``, ``
 (``phi_k = ||e_k||^2``, ``P`` the rows ``2 J_k^T e_k``; ``H_r`` is Gauss-Newton's: the
 residuals' second derivatives are left out, which changes the steps, never the stationary points).
 
-Each ``update`` takes a Levenberg-Marquardt-damped Newton step on the free face of the simplex
-(weights ``> 0`` and those whose gradient says they would enter), one ``(P + 1)``-square KKT
-solve per damping, three dampings tried at once, each projected with
-``optax.projections.projection_simplex``; the best trial is kept if it lowers ``F`` (monotone: a
+Each ``update`` minimises the quadratic model on the simplex (``simplex_qp``: a primal
+active-set method, ``QP_SWEEPS`` modified-Cholesky KKT solves) at each of the Levenberg-Marquardt
+dampings ``DAMPINGS`` x the current one; the best trial is kept if it lowers ``F`` (monotone: a
 solve never returns worse than its warm start), and the damping adapts. A problem is ``done``
-when it is stationary (Frank-Wolfe gap ``g.w - min_i g_i <= gap_tol``, the bound of ``F - F*``
-on a convex face, *and* the last step moved ``r`` by less than ``step_tol``) or when no damping
-improves it any more (float32 has nothing left to give). ``run`` loops ``update`` in a
-``lax.while_loop`` until the problem is done; vmapped, the loop runs until every problem of the
-batch is done (the batch's early exit) or ``iterations``.
+when it is stationary (the model promises a decrease below ``dec_tol * F`` *and* the step just
+taken moved ``r`` by less than ``step_tol``) or when no damping improves it any more (float32
+has nothing left to give). ``run`` loops ``update`` in a ``lax.while_loop`` until the problem is
+done or a step cap; vmapped, the loop runs until every problem of the batch is done (the
+batch's early exit) or the cap.
 
-The solver is an optax-style pair, ``SimplexSolver(init, update)``, with a ``NamedTuple`` state.
+The solver is optax-style, ``SimplexSolver(init, update, run)``, with a ``NamedTuple`` state.
 """
 
 from __future__ import annotations
@@ -124,11 +123,6 @@ def derivatives(pr: Problem, w: jax.Array) -> Derivatives:
     hess = hess + pr.eps * jnp.eye(w.shape[0], dtype=w.dtype)
     grad = pr.mix.T @ phi + pr.verts @ g_r + pr.eps * w
     return Derivatives(f, grad, hess, r)
-
-
-def frank_wolfe_gap(grad: jax.Array, w: jax.Array) -> jax.Array:
-    """``g.w - min_i g_i >= 0``: zero exactly at a stationary point of the simplex problem."""
-    return grad @ w - jnp.min(grad)
 
 
 def _cholesky_solve(a: jax.Array, rhs: jax.Array) -> jax.Array:
