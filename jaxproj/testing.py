@@ -22,6 +22,7 @@ import numpy as np
 from jaxproj.errors import ConfigError
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector, StackedProjector
+from jaxproj.projection.relaxed import SEARCH_RTOL, TIE_ATOL, TIE_RTOL
 from jaxproj.projection.simplex_newton import DAMPING_START, DAMPINGS, QP_SWEEPS, WEIGHT_FLOOR
 
 
@@ -85,6 +86,22 @@ def _simplex_qp(b: np.ndarray, c: np.ndarray, x: np.ndarray, sweeps: int) -> np.
     return x
 
 
+def near_set(tree: Any, pts: np.ndarray, x: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
+    """The ``n`` nearest of ``pts (K, d)`` (in the cKDTree ``tree``) to ``x (d,)`` under the
+    search tie (``projection.relaxed.SEARCH_RTOL``): ``(sure, tied, need)``, the indices surely
+    among them and, apart, those tied with the ``n``-th (itself included), ``need`` of which
+    complete the set (none tied, ``need == 0``, when the ``n+1``-th is clear of the ``n``-th)."""
+    k = min(n + 4, len(pts))
+    d, idx = tree.query(x, k=k)
+    d2, idx = np.asarray(d) ** 2, np.asarray(idx)
+    band = SEARCH_RTOL * (x @ x + pts[idx[n - 1]] @ pts[idx[n - 1]])
+    if k == n or d2[n] - d2[n - 1] > band:  # the set is fixed
+        return idx[:n], idx[:0], 0
+    sure = idx[d2 < d2[n - 1] - band]
+    tied = idx[np.abs(d2 - d2[n - 1]) <= band]
+    return sure, tied, n - len(sure)
+
+
 class _Bank:
     def __init__(self, bank: Any) -> None:
         self.w = np.asarray(bank.w, np.float64)
@@ -128,16 +145,49 @@ class Reference:
         idx = self._knn(self.tree_h, h, n_l)
         return self.forward.predict(h, idx)[0]
 
-    def relaxed(self, h: np.ndarray, n_l: int, n_m: int) -> tuple[np.ndarray, float]:
-        """Relaxed projection of one query ``(m,)`` -> (pose ``(n,)``, deviation)."""
+    def relaxed_choices(self, h: np.ndarray, n_l: int, n_m: int) -> tuple[np.ndarray, np.ndarray]:
+        """The relaxed objective's choices for one query ``(m,)``: ``(L, n)`` candidates clipped
+        to the joint limits and ``(L,)`` their least squared back-projected deviations."""
         h = np.asarray(h, np.float64)
         cand = self.candidates(h, n_l)  # (L, n)
         ridx = self._knn(self.tree_r, cand, n_m)  # (L, M)
         back, _ = self.backward.predict(cand[:, None, :], ridx[:, None, :])  # (L, 1, M, m)
         dev = np.sum((back[:, 0] - h) ** 2, axis=-1)  # (L, M)
-        best = dev.min(axis=1)
+        return np.clip(cand, self.lower, self.upper), dev.min(axis=1)
+
+    def relaxed(self, h: np.ndarray, n_l: int, n_m: int) -> tuple[np.ndarray, float]:
+        """Relaxed projection of one query ``(m,)`` -> (pose ``(n,)``, deviation)."""
+        cand, best = self.relaxed_choices(h, n_l, n_m)
         j = int(np.argmin(best))
-        return np.clip(cand[j], self.lower, self.upper), float(np.sqrt(best[j]))
+        return cand[j], float(np.sqrt(best[j]))
+
+    def judge(self, h: np.ndarray, r: np.ndarray, n_l: int, n_m: int, tol: float) -> str:
+        """Whether ``r (n,)`` is a correct relaxed answer for ``h (m,)`` under the near-tie rule
+        (``projection.relaxed.TIE_RTOL``): ``"exact"``, within ``tol`` rad on every joint of
+        the reference's pick (``relaxed``); ``"tie"``, of a candidate that some resolution of
+        the search ties makes tie with the best (its least possible deviation within the
+        deviation tie of the least deviation the engine can have found); ``"differs"``,
+        neither."""
+        h, r = np.asarray(h, np.float64), np.asarray(r, np.float64)
+        pick, _ = self.relaxed(h, n_l, n_m)
+        if np.max(np.abs(pick - r)) <= tol:
+            return "exact"
+        sure_h, tied_h, _ = near_set(self.tree_h, self.human, h, n_l)
+        idx_h = np.concatenate([sure_h, tied_h])
+        cand = self.forward.predict(h, idx_h)[0]  # (L', n)
+        lo, hi = np.empty(len(idx_h)), np.empty(len(idx_h))
+        for j, c in enumerate(cand):
+            sure, tied, need = near_set(self.tree_r, self.robot, c, n_m)
+            idx = np.concatenate([sure, tied])
+            back = self.backward.predict(c[None, :], idx[None, :])[0][0]  # (M', m)
+            dev = np.sqrt(np.sum((back - h) ** 2, axis=-1))
+            lo[j] = dev.min()  # the engine used the tied kernel with the least deviation
+            worst = np.sort(dev[len(sure) :])[::-1][:need]  # ... or the worst ones
+            hi[j] = min(dev[: len(sure)].min(initial=np.inf), worst.min(initial=np.inf))
+        best = hi[: len(sure_h)].min(initial=hi.max())  # the engine's least is at most this
+        match = np.max(np.abs(np.clip(cand, self.lower, self.upper) - r), axis=1) <= tol
+        tie = lo <= best + TIE_RTOL * best + TIE_ATOL
+        return "tie" if np.any(match & tie) else "differs"
 
     def full(
         self,
@@ -317,6 +367,18 @@ class StackedReference:
     def __init__(self, sp: StackedProjector) -> None:
         self.layout = sp.layout
         self.chains = [Reference(sp.chain(c)) for c in range(sp.layout.n_chains)]
+
+    def judge(self, h: np.ndarray, r: np.ndarray, n_l: int, n_m: int, tol: float) -> str:
+        """``Reference.judge`` per chain on its columns and joints: ``"differs"`` if any chain
+        differs, else ``"tie"`` if any chain took a tied candidate, else ``"exact"``."""
+        h, r = np.asarray(h, np.float64), np.asarray(r, np.float64)
+        verdicts = {
+            ref.judge(h[list(cols)], r[list(joints)], n_l, n_m, tol)
+            for ref, cols, joints in zip(
+                self.chains, self.layout.inputs, self.layout.outputs, strict=True
+            )
+        }
+        return next(v for v in ("differs", "tie", "exact") if v in verdicts)
 
     def project(
         self, h: np.ndarray, objective: str, n_l: int, n_m: int, full: FullConfig | None = None

@@ -69,6 +69,51 @@ def test_relaxed_agrees_and_picks_the_same_landmark(model):
         assert int(np.asarray(ids_eng)[j_eng]) == int(ids_ref[j_ref])
 
 
+def test_every_relaxed_answer_is_exact_or_a_stated_near_tie(model):
+    # the near-tie rule (``relaxed.TIE_RTOL``): no engine answer may differ from the float64
+    # pick unless the reference's own numbers tie it with the pick
+    p, ref, h = model
+    got, _ = engine.project(p, h, "relaxed", n_l=L, n_m=M, batch_size=64)
+    verdicts = [ref.judge(x, r, L, M, np.radians(0.01)) for x, r in zip(h, got, strict=True)]
+    assert "differs" not in verdicts
+    assert verdicts.count("exact") >= 0.9 * len(h)
+
+
+def test_judge_tells_a_near_tie_from_a_wrong_pick(model, monkeypatch):
+    from jaxproj import testing
+
+    _, ref, h = model
+    for x in h:  # a query whose two best candidates are far apart, and apart in value
+        cand, best = ref.relaxed_choices(x, L, M)
+        order = np.argsort(best)
+        dev = np.sqrt(best[order[:2]])
+        if dev[1] > 1.5 * dev[0] + 1e-3 and np.abs(cand[order[1]] - cand[order[0]]).max() > 0.01:
+            break
+    else:
+        pytest.fail("no query with a clear best candidate")
+    tol = np.radians(0.01)
+    assert ref.judge(x, cand[order[0]], L, M, tol) == "exact"
+    assert ref.judge(x, cand[order[1]], L, M, tol) == "differs"
+    assert ref.judge(x, cand[order[0]] + 0.1, L, M, tol) == "differs"  # no candidate at all
+    monkeypatch.setattr(testing, "TIE_RTOL", 1.0)  # now the runner-up ties with the best
+    assert ref.judge(x, cand[order[1]], L, M, tol) == "tie"
+
+
+def test_search_ties_leave_the_nth_neighbour_open():
+    # ``relaxed.SEARCH_RTOL``: the n-th and (n+1)-th landmarks at float32-equal distances are
+    # both possible; a clear gap leaves the set fixed
+    from scipy.spatial import cKDTree
+
+    from jaxproj.testing import near_set
+
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0 + 1e-9], [2.0, 2.0], [3.0, 3.0], [4.0, 4.0]])
+    x = np.array([0.0, 0.0])
+    sure, tied, need = near_set(cKDTree(pts), pts, x, 2)  # 2nd and 3rd at distance 1: tied
+    assert sorted(sure.tolist()) == [0] and sorted(tied.tolist()) == [1, 2] and need == 1
+    sure, tied, need = near_set(cKDTree(pts), pts, x, 3)  # the 4th is far: nothing open
+    assert sorted(sure.tolist()) == [0, 1, 2] and len(tied) == 0 and need == 0
+
+
 # Full objective, (config, tolerance in degrees, relative tolerance of F(w*)):
 # * Newton (``NEWTON``) against the reference's converged float64 solve of the same problems
 #   (an independent solver: exact Hessian, sequential damping, NumPy): answers within 0.1 deg
