@@ -86,7 +86,9 @@ def _simplex_qp(b: np.ndarray, c: np.ndarray, x: np.ndarray, sweeps: int) -> np.
     return x
 
 
-def near_set(tree: Any, pts: np.ndarray, x: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
+def near_set(
+    tree: Any, pts: np.ndarray, x: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray, int]:
     """The ``n`` nearest of ``pts (K, d)`` (in the cKDTree ``tree``) to ``x (d,)`` under the
     search tie (``projection.relaxed.SEARCH_RTOL``): ``(sure, tied, need)``, the indices surely
     among them and, apart, those tied with the ``n``-th (itself included), ``need`` of which

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.projection.elm import predict
@@ -198,8 +199,8 @@ def relaxed_candidates(
 
 
 def search_chains(
-    points: jax.Array,
-    points_sq: jax.Array,
+    points: jax.Array | np.ndarray,
+    points_sq: jax.Array | np.ndarray,
     x: jax.Array,
     n: int,
     sizes: Sequence[int] | None = None,
