@@ -71,9 +71,9 @@ def test_outputs_within_limits_and_finite_on_held_out_people(model):
 
 
 def test_full_objective_is_a_real_optimisation(model):
-    d = _descriptors([2], actions=[1, 5])[:300]
+    d = _descriptors([2], actions=[1, 5])[:96]
     relaxed, _ = engine.project(model, d, "relaxed")
-    for cfg, n in ((FullConfig(), 300), (FullConfig(objective="min", include_candidate=True), 60)):
+    for cfg, n in ((FullConfig(), 96), (FullConfig(objective="min", include_candidate=True), 32)):
         d, relaxed = d[:n], relaxed[:n]
         full, f = engine.project(model, d, "full", full=cfg)
         assert np.abs(full - relaxed).max() > 1e-3  # it moves away from the relaxed answer
