@@ -75,11 +75,11 @@ def test_full_objective_is_a_real_optimisation(model):
     relaxed, _ = engine.project(model, d, "relaxed")
     for cfg, n in ((FullConfig(), 96), (FullConfig(objective="min", include_candidate=True), 32)):
         d, relaxed = d[:n], relaxed[:n]
-        full, f = engine.project(model, d, "full", full=cfg)
-        assert np.abs(full - relaxed).max() > 1e-3  # it moves away from the relaxed answer
-        # never worse than its warm start
+        # the model's one chain, solved as ``project`` solves it (``_full_values``), but with the
+        # warm start's value too
         r, f_star, f0 = _full_values(model, d, cfg)
-        assert (f_star <= f0 + 1e-7).all()
+        assert np.abs(r - relaxed).max() > 1e-3  # it moves away from the relaxed answer
+        assert (f_star <= f0 + 1e-7).all()  # never worse than its warm start
         assert (f_star < f0 - 1e-6).mean() > 0.1  # and it improves a real share of queries
 
 
@@ -91,6 +91,25 @@ def _full_values(model, d, cfg):
     fn = jax.jit(jax.vmap(lambda h: project_full_one(model.projector.chain(0), h, 10, 10, cfg)))
     r, f, f0 = fn(d)
     return np.asarray(r), np.asarray(f), np.asarray(f0)
+
+
+def test_both_cholesky_forms_solve_the_same_modified_system():
+    # the CPU's looped and the GPU's unrolled modified Cholesky (``simplex_newton``) against the
+    # float64 NumPy one, on positive definite and indefinite matrices (negative pivots taken
+    # by absolute value), vmapped as the solver calls them
+    from jaxproj.testing import _modified_cholesky_solve
+
+    rng = np.random.default_rng(0)
+    g = rng.normal(size=(64, 10, 10))
+    a = g @ g.transpose(0, 2, 1) / 10 + 0.1 * np.eye(10)
+    a[32:] -= 1.5 * np.eye(10)  # indefinite: some pivots negative
+    rhs = rng.normal(size=(64, 10, 2))
+    want = np.stack([_modified_cholesky_solve(x, r) for x, r in zip(a, rhs, strict=True)])
+    for solve in (sn._cholesky_solve_looped, sn._cholesky_solve_unrolled, sn._cholesky_solve):
+        got = np.asarray(jax.jit(jax.vmap(solve))(a.astype(np.float32), rhs.astype(np.float32)))
+        scale = np.abs(want).max(axis=(1, 2), keepdims=True)
+        assert np.abs(got - want).max() <= 1e-3 * scale.max(), solve.__name__
+        np.testing.assert_allclose(got / scale, want / scale, atol=2e-4)
 
 
 def test_newton_converges_where_adam_stops_short(model):
