@@ -143,7 +143,7 @@ def test_full_agrees_with_the_engine(model, cfg, tol_deg, f_rtol):
 
 
 def test_adam_30_stops_short_of_the_converged_answer(model):
-    # the reason Newton is the default: on the same problems Adam-30's answers are farther from
+    # why Newton is the converged solver: on the same problems Adam-30's answers are farther from
     # the converged ones than Newton's 0.1 deg, and its objective values higher
     p, ref, h = model
     h = h[:16]

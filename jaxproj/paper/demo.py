@@ -37,7 +37,7 @@ QUICK_TRAIN_STRIDE = 8
 """``run_demo(quick=True)``: every 8th training frame feeds the builds."""
 QUICK_TEST_STRIDE = 32
 """``run_demo(quick=True)``: every 32nd held-out MSR recording (and every 2nd UTKinect one) is
-evaluated (the converged full objective costs ~17 ms per frame on a 2-core CPU)."""
+evaluated (a smoke run: the tests run it, within CI's 15-minute budget)."""
 QUICK_LANDMARKS = 200
 """``run_demo(quick=True)``: landmarks per arm chain and for the whole body."""
 

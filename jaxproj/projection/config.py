@@ -191,10 +191,11 @@ class FullConfig:
       objective: ``"weighted"`` (default): one problem per candidate, its kernels' deviations
         weighted by the simplex weights; ``"min"``: the paper's eq. 2 read literally,
         ``min_k min_w``: one problem per (candidate, kernel).
-      solver: ``"newton"`` (default, ``NEWTON``): projected Gauss-Newton in joint space, run
-        until every problem of the batch is stationary or ``iterations`` (``simplex_newton``):
-        converged; ``"adam"`` (``ADAM_30``): projected ``optax.adam``, exactly ``iterations``
-        steps (~2.3x faster on a CPU, stops short of the minimum: ``docs/results.md``).
+      solver: ``"adam"`` (default, ``ADAM_30``): projected ``optax.adam``, exactly
+        ``iterations`` steps (fast, stops short of the minimum); ``"newton"`` (``NEWTON``):
+        projected Gauss-Newton in joint space, run until every problem of the batch is
+        stationary or ``iterations`` (``simplex_newton``): converged, ~2.2x Adam's time on a
+        CPU, 1.3x on an H200 (``docs/results.md``: as the default it took CI over budget).
         Both project with ``optax.projections.projection_simplex``
         and never return worse than the warm start.
       iterations: Newton: cap on steps per problem; Adam: its steps. ``>= 0``.
@@ -217,7 +218,7 @@ class FullConfig:
     """
 
     objective: FullObjective = "weighted"
-    solver: Solver = "newton"
+    solver: Solver = "adam"
     iterations: int = 30
     learning_rate: float = 0.05
     include_candidate: bool = False
@@ -248,9 +249,7 @@ class FullConfig:
 
 
 ADAM_30 = FullConfig(solver="adam", iterations=30)
-"""The fast, unconverged solver: 30 projected Adam steps (``FullConfig()`` before the
-converged solver)."""
+"""The fast, unconverged solver: 30 projected Adam steps (``FullConfig()``'s)."""
 
 NEWTON = FullConfig(solver="newton")
-"""The converged solver, ``FullConfig()``: projected Gauss-Newton in joint space
-(``simplex_newton``)."""
+"""The converged solver: projected Gauss-Newton in joint space (``simplex_newton``)."""
