@@ -205,8 +205,8 @@ class Reference:
         engine's steps run to convergence on every problem (``_solve_newton``;
         ``cfg.iterations``, ``screen`` and ``finalists`` are ignored), ``"adam"`` as the engine
         does (``cfg.iterations`` steps, best iterate). The derivatives are written out by hand
-        (``_derivatives``, exact to second order; Newton uses their Gauss-Newton part, as the
-        engine does). With ``cfg.clusters`` only the problems with
+        (``_derivatives``: the value, the gradient and the Gauss-Newton Hessian the engine
+        uses). With ``cfg.clusters`` only the problems with
         the smallest warm-start values are solved. Returns (pose ``(n,)``, objective value).
         """
         h = np.asarray(h, np.float64)
@@ -242,9 +242,8 @@ class Reference:
             mix = np.concatenate([np.full((n_m, 1), 1.0 / n_m), mix], axis=1)
         return [base | dict(k=idx, mix=mix, mix0=np.zeros(n_m))]
 
-    def _kernels(self, pr: dict, r: np.ndarray, second: bool = False) -> tuple[np.ndarray, ...]:
-        """The problem's kernels at ``r``: predictions ``(K, m)``, Jacobians ``(K, m, n)`` and
-        (``second``) second derivatives ``(K, m, n, n)``, all exact."""
+    def _kernels(self, pr: dict, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The problem's kernels at ``r``: predictions ``(K, m)`` and Jacobians ``(K, m, n)``."""
         b = self.backward
         k = pr["k"]
         s = b.inv[k][:, None]  # (K, 1)
@@ -252,41 +251,34 @@ class Reference:
         out = np.swapaxes(b.out[k], 1, 2)  # (K, m, H)
         pred = b.offset[k] + np.einsum("koh,kh->ko", out, q)
         d1 = q * (1 - q) * s  # d q / d (W r)
-        d2 = q * (1 - q) * (1 - 2 * q) * s * s
-        jac = np.einsum("koh,kh,hn->kon", out, d1, b.w)
-        if not second:
-            return pred, jac, np.zeros(0)
-        sec = np.einsum("koh,kh,hn,hp->konp", out, d2, b.w, b.w)
-        return pred, jac, sec
+        return pred, np.einsum("koh,kh,hn->kon", out, d1, b.w)
 
     def _value(self, h: np.ndarray, pr: dict, w: np.ndarray, cfg: FullConfig) -> float:
         return self._derivatives(h, pr, w, cfg, order=0)[0]
 
     def _derivatives(
         self, h: np.ndarray, pr: dict, w: np.ndarray, cfg: FullConfig, order: int = 2
-    ) -> tuple[float, np.ndarray, list[np.ndarray]]:
+    ) -> tuple[float, np.ndarray, np.ndarray]:
         """``F(w)`` and (``order`` >= 1) its gradient, (2) its Gauss-Newton Hessian in the
-        weights (the residuals' second derivatives left out), (3) and the exact one."""
+        weights (the residuals' second derivatives left out, as the engine does)."""
         v = pr["verts"]
         r = v.T @ w
-        pred, jac, sec = self._kernels(pr, r, second=order >= 3)
+        pred, jac = self._kernels(pr, r)
         e = pred - h
         phi = np.sum(e * e, axis=1)
         u = pr["mix"] @ w + pr["mix0"]
         dr = r - pr["anchor"]
         f = float(u @ phi + 0.5 * cfg.proximal * dr @ dr + 0.5 * cfg.ridge * w @ w)
         if order == 0:
-            return f, np.zeros(0), []
+            return f, np.zeros(0), np.zeros(0)
         pg = 2 * np.einsum("kon,ko->kn", jac, e)  # (K, n) gradients of phi_k
         g_r = u @ pg + cfg.proximal * dr
         grad = pr["mix"].T @ phi + v @ g_r + cfg.ridge * w
         cross = pr["mix"].T @ pg @ v.T
-        gn = 2 * np.einsum("k,kon,kop->np", u, jac, jac)
-        hessians = []
-        for h_r in [gn] + ([gn + 2 * np.einsum("k,ko,konp->np", u, e, sec)] if order >= 3 else []):
-            h_r = h_r + cfg.proximal * np.eye(len(r))
-            hessians.append(cross + cross.T + v @ h_r @ v.T + cfg.ridge * np.eye(len(w)))
-        return f, grad, hessians
+        if order == 1:
+            return f, grad, np.zeros(0)
+        h_r = 2 * np.einsum("k,kon,kop->np", u, jac, jac) + cfg.proximal * np.eye(len(r))
+        return f, grad, cross + cross.T + v @ h_r @ v.T + cfg.ridge * np.eye(len(w))
 
     def _solve_newton(self, h: np.ndarray, pr: dict, cfg: FullConfig) -> tuple[np.ndarray, float]:
         """The engine's projected Gauss-Newton (``simplex_newton``) in float64, every problem
@@ -294,8 +286,7 @@ class Reference:
         no joint by ``1e-9`` rad, or no damping lowers ``F`` (float64 exhausted); at most 500
         steps. Returns (r(w*), F(w*))."""
         w = pr["w0"].copy()
-        f, g, hessians = self._derivatives(h, pr, w, cfg)
-        hess = hessians[0]
+        f, g, hess = self._derivatives(h, pr, w, cfg)
         r = pr["verts"].T @ w
         damping = DAMPING_START
         for _ in range(500):
@@ -313,8 +304,7 @@ class Reference:
             step = 0.0
             if values[i] < f:
                 w = trials[i]
-                f, g, hessians = self._derivatives(h, pr, w, cfg)
-                hess = hessians[0]
+                f, g, hess = self._derivatives(h, pr, w, cfg)
                 r_new = pr["verts"].T @ w
                 step = float(np.abs(r_new - r).max())
                 r = r_new
@@ -370,29 +360,31 @@ class StackedReference:
         self.layout = sp.layout
         self.chains = [Reference(sp.chain(c)) for c in range(sp.layout.n_chains)]
 
+    def _chains(self, h: np.ndarray) -> list[tuple[Reference, np.ndarray, list[int]]]:
+        """Per chain: its ``Reference``, its columns of the query ``h (m,)`` (float64) and
+        the indices of its joints in the whole pose."""
+        h = np.asarray(h, np.float64)
+        lay = self.layout
+        return [
+            (ref, h[list(cols)], list(joints))
+            for ref, cols, joints in zip(self.chains, lay.inputs, lay.outputs, strict=True)
+        ]
+
     def judge(self, h: np.ndarray, r: np.ndarray, n_l: int, n_m: int, tol: float) -> str:
         """``Reference.judge`` per chain on its columns and joints: ``"differs"`` if any chain
         differs, else ``"tie"`` if any chain took a tied candidate, else ``"exact"``."""
-        h, r = np.asarray(h, np.float64), np.asarray(r, np.float64)
-        verdicts = {
-            ref.judge(h[list(cols)], r[list(joints)], n_l, n_m, tol)
-            for ref, cols, joints in zip(
-                self.chains, self.layout.inputs, self.layout.outputs, strict=True
-            )
-        }
+        r = np.asarray(r, np.float64)
+        verdicts = {ref.judge(x, r[joints], n_l, n_m, tol) for ref, x, joints in self._chains(h)}
         return next(v for v in ("differs", "tie", "exact") if v in verdicts)
 
     def project(
         self, h: np.ndarray, objective: str, n_l: int, n_m: int, full: FullConfig | None = None
     ) -> tuple[np.ndarray, float]:
         """One query ``(m,)``, either objective -> (pose ``(n,)``, value)."""
-        h = np.asarray(h, np.float64)
         out = np.zeros(self.layout.n)
         values = []
-        for ref, cols, joints in zip(
-            self.chains, self.layout.inputs, self.layout.outputs, strict=True
-        ):
-            r, v = ref.project(h[list(cols)], objective, n_l, n_m, full)
+        for ref, x, joints in self._chains(h):
+            r, v = ref.project(x, objective, n_l, n_m, full)
             out[list(joints)] = r
             values.append(v)
         vs = np.asarray(values)

@@ -116,7 +116,8 @@ def test_search_ties_leave_the_nth_neighbour_open():
 
 # Full objective, (config, tolerance in degrees, relative tolerance of F(w*)):
 # * Newton (``NEWTON``) against the reference's converged float64 solve of the same problems
-#   (an independent solver: exact Hessian, sequential damping, NumPy): answers within 0.1 deg
+#   (an independent implementation: NumPy, hand-written derivatives, every problem to
+#   convergence in float64): answers within 0.1 deg
 #   (the convergence criterion); values to 1e-3 relative (the engine evaluates F in
 #   float32, whose kernels round at ~1e-7 of O(1) sums against a small F);
 # * Adam-30 against the reference's Adam replica: the same 30 steps in float32 and float64

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxproj.errors import ConfigError
-from jaxproj.projection.config import FullConfig
+from jaxproj.projection.config import FULL_READINGS
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -143,15 +143,6 @@ def add_data_options(
 def add_neighbour_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--L", type=int, default=10, help="human-landmark neighbours (candidates)")
     parser.add_argument("--M", type=int, default=10, help="robot-landmark neighbours per candidate")
-
-
-FULL_READINGS = {
-    "weighted": FullConfig(solver="newton"),
-    "weighted+candidate": FullConfig(solver="newton", include_candidate=True),
-    "min": FullConfig(solver="newton", objective="min"),
-    "min+candidate": FullConfig(solver="newton", objective="min", include_candidate=True),
-}
-"""``--full-reading`` choices: the readings of the full objective (``FullConfig``), converged."""
 
 
 def add_full_reading_option(parser: argparse.ArgumentParser) -> None:

@@ -10,6 +10,7 @@ from typing import Any
 from jaxproj.cli import options
 from jaxproj.errors import ConfigError
 from jaxproj.io.formats import format_names
+from jaxproj.projection.config import FULL_READINGS
 
 METHODS = ("ik", "relaxed", "full")
 
@@ -126,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         smoothing=options.smoothing(args.smoother),
         times=rec.times,
         feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
-        full=options.FULL_READINGS[args.full_reading],
+        full=FULL_READINGS[args.full_reading],
     )
     angles = result.angles
     unfiltered = angles if result.unfiltered is None else result.unfiltered

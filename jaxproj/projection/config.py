@@ -10,7 +10,7 @@ builder and the projection read one definition without importing each other.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 from jaxproj import robots
@@ -253,3 +253,12 @@ ADAM_30 = FullConfig(solver="adam", iterations=30)
 
 NEWTON = FullConfig(solver="newton")
 """The converged solver: projected Gauss-Newton in joint space (``simplex_newton``)."""
+
+FULL_READINGS = {
+    "weighted": NEWTON,
+    "weighted+candidate": replace(NEWTON, include_candidate=True),
+    "min": replace(NEWTON, objective="min"),
+    "min+candidate": replace(NEWTON, objective="min", include_candidate=True),
+}
+"""The readings of the full objective (``objective`` x ``include_candidate``), each converged:
+``retarget --full-reading`` and ``benchmarks/full_objective.py`` choose among them."""
