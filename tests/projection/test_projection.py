@@ -249,20 +249,27 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
 
     p = model.projector.chain(0)
     d = _descriptors([2], actions=[1, 5])[:24]
+    # L = M = 5 (25 problems per query): the exact "min" objective at L = M = 10 solves 100
+    # problems per query to the end, 7 s a call on 2 cores
     cfg = FullConfig(solver="newton", objective="min", include_candidate=True, finalists=0)
-    exact, _ = engine.project(model, d, "full", full=cfg)
-    all_l, _ = engine.project(model, d, "full", full=dataclasses.replace(cfg, clusters=100))
+    n = 5
+    exact, _ = engine.project(model, d, "full", full=cfg, n_l=n, n_m=n)
+    all_l, _ = engine.project(
+        model, d, "full", full=dataclasses.replace(cfg, clusters=n * n), n_l=n, n_m=n
+    )
     np.testing.assert_array_equal(all_l, exact)  # clusters >= L * M is the exact objective
-    one, f_one = engine.project(model, d, "full", full=dataclasses.replace(cfg, clusters=1))
+    one, f_one = engine.project(
+        model, d, "full", full=dataclasses.replace(cfg, clusters=1), n_l=n, n_m=n
+    )
 
     def by_hand(h):  # solve only the problem whose warm start is best
-        cand = candidates(p, h, 10)
-        ridx, _ = nearest(p.robot, p.robot_sq, cand, 10)
+        cand = candidates(p, h, n)
+        ridx, _ = nearest(p.robot, p.robot_sq, cand, n)
         probs = [
             (pr, w0)
-            for i in range(10)
+            for i in range(n)
             for prs, w0 in [full.problems(p, h, cand[i], ridx[i], cfg)]
-            for pr in [jax.tree.map(lambda a, k=k: a[k], prs) for k in range(10)]
+            for pr in [jax.tree.map(lambda a, k=k: a[k], prs) for k in range(n)]
         ]
         start = [float(sn.value(pr, w0)) for pr, w0 in probs]
         pr, w0 = probs[int(np.argmin(start))]
@@ -277,7 +284,7 @@ def test_full_with_fewer_clusters_optimises_the_best_starting_ones(model):
         np.testing.assert_allclose(f_one[i], f, rtol=1e-4, atol=1e-7)
     assert np.abs(one - exact).max() > 1e-3  # a different (cheaper) answer on some queries
     got, _ = engine.project(
-        model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2)
+        model, np.asarray(p.human), "full", full=dataclasses.replace(cfg, clusters=2), n_l=n, n_m=n
     )
     assert _deg(got, p.robot).max() < 0.01  # identity survives the pruning
 
