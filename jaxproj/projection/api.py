@@ -81,6 +81,7 @@ __all__ = [
     "project_sharded",
     "resolve_devices",
     "save",
+    "SEARCH_QUERIES_CPU",
     "search_batch",
     "sub_batch",
 ]
@@ -113,33 +114,33 @@ def sub_batch(p: AnyProjector, objective: str, n_l: int, n_m: int, batch: int) -
     return max(sub, 1)
 
 
+SEARCH_QUERIES_CPU = 128
+"""Queries per search call of the CPU's relaxed projection (``search_batch``)."""
+
+
 def search_batch(p: AnyProjector, n_l: int, batch: int, sub: int) -> int:
     """Queries per search call of the relaxed projection (a multiple of ``sub``, dividing
     ``batch``).
 
     On the CPU the searches run XLA's ``TopK`` per row, whose per-call costs want many rows per
     call, while the back-projection wants few queries at a time (``sub``, its gathered kernels
-    in cache): the searches take as many queries as keep their ``(L, K)`` distance rows per
-    chain (``4 * chains * L * K`` bytes per query) within the same 16 MiB budget, and the
+    in cache): the searches take up to ``SEARCH_QUERIES_CPU`` queries per call and the
     back-projection loops over them ``sub`` at a time (``project_relaxed_rows``' ``chunk``).
-    Measured on the 2-core VM, per-chain model at N = 1644 (K up to 1,725), relaxed
-    L = M = 10, batch 4,096: 1.15-1.18x at 64 queries per search call (142 us at 128 against
-    138 at 64). The forward kernels then round differently in the last bit, so where two
-    candidates' deviations tie to float32 round-off another one can be picked: 0.56 % of
-    held-out poses moved by more than 0.001 deg (up to 0.39), the float64 reference siding
-    with each batching about equally (``benchmarks/experiments/two_level_ab.py``,
-    ``benchmarks/RESULTS.md``). Accelerators search and back-project ``sub`` queries together
-    (their fused kernels hold no distance matrix): ``sub`` is returned.
+    Measured on the 2-core VM, relaxed L = M = 10, batch 4,096, one process, interleaved rounds
+    (``benchmarks/experiments/search_batch_ab.py``): default model (K up to 7,099) 328 -> 279 us
+    per pose from 16 to 128 queries per call (the 16 MiB distance-row budget used before gave
+    16), no gain at 64, none past 128; per-chain model at N = 1644, 277 -> 236 us from 64 to
+    128. Against one search per sub-batch (2026-11-23) the forward kernels round differently in
+    the last bit, so where two candidates' deviations tie to float32 round-off another one can
+    be picked (``relaxed.TIE_RTOL``; ``benchmarks/experiments/two_level_ab.py``). Accelerators
+    search and back-project ``sub`` queries together (their fused kernels hold no distance
+    matrix): ``sub`` is returned. ``p`` and ``n_l`` are unused (kept for callers).
     """
+    del p, n_l
     if jax.default_backend() != "cpu":
         return sub
-    if isinstance(p, StackedProjector):
-        chains, k = p.layout.n_chains, p.stack.human.shape[1]  # K of the largest chain
-    else:
-        chains, k = 1, p.n_landmarks
-    per_query = 4 * chains * n_l * k
     out = sub
-    while out * 2 * per_query <= 16 * 2**20 and out * 2 <= batch and batch % (out * 2) == 0:
+    while out * 2 <= min(SEARCH_QUERIES_CPU, batch) and batch % (out * 2) == 0:
         out *= 2
     return out
 

@@ -476,19 +476,16 @@ def test_two_level_relaxed_batches_give_the_same_answers(chain_model, monkeypatc
     np.testing.assert_allclose(np.asarray(v), np.asarray(v0), rtol=1e-6, atol=0)
 
 
-def test_search_batch_divides_the_batch_within_the_cpu_budget(chain_model):
+def test_search_batch_divides_the_batch_up_to_the_cpu_count(chain_model):
     """``engine.search_batch``: a multiple of the back-projection sub-batch that divides the
-    batch, with the searches' distance rows within 16 MiB (the 2-core VM's 64 queries at
-    K = 1,725)."""
+    batch, the largest such power-of-two multiple up to ``SEARCH_QUERIES_CPU`` queries."""
     sp = chain_model.projector
-    chains, k = sp.layout.n_chains, sp.stack.human.shape[1]
-    for batch, sub in ((4096, 8), (96, 8), (8, 8), (4096, 1), (1000, 8)):
+    cap = engine.SEARCH_QUERIES_CPU
+    expected = {(4096, 8): cap, (96, 8): 32, (8, 8): 8, (4096, 1): cap, (1000, 8): 8}
+    for (batch, sub), want in expected.items():
         out = engine.search_batch(sp, 10, batch, sub)
-        assert out % sub == 0 and batch % out == 0, (batch, sub, out)
-        assert out == sub or 4 * chains * 10 * k * out <= 16 * 2**20
-        doubled = 2 * out
-        fits = 4 * chains * 10 * k * doubled <= 16 * 2**20
-        assert not (fits and doubled <= batch and batch % doubled == 0), (batch, sub, out)
+        assert out % sub == 0 and batch % out == 0 and out <= max(cap, sub), (batch, sub, out)
+        assert out == want, (batch, sub, out)
 
 
 def test_fused_back_projection_matches_xla(chain_model):
