@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 from pathlib import Path
 
 import jax
@@ -35,16 +34,14 @@ from benchmarks import heldout
 from benchmarks.experiments.selection_ab import held_out_queries
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
+from jaxproj.timing import time_calls
 
 
 def _best_us(fn, *args, per: int, repeats: int = 5) -> float:
-    jax.block_until_ready(fn(*args))  # compile apart
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts)) / per * 1e6
+    """Median us per ``per`` items of ``fn(*args)`` (compiled by a first call, untimed)."""
+    jax.block_until_ready(fn(*args))
+    timing = time_calls(lambda: fn(*args), min_repeats=repeats, max_repeats=repeats)
+    return timing.median_s / per * 1e6
 
 
 def main() -> None:

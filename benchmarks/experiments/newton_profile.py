@@ -37,19 +37,17 @@ from jaxproj.projection import simplex_newton as sn
 from jaxproj.projection.config import NEWTON
 from jaxproj.projection.projector import candidates
 from jaxproj.projection.search import nearest
+from jaxproj.timing import time_calls
 
 _BATCH = sn.Problem(0, 0, 0, 0, None, 0, 0, None, None)  # type: ignore[arg-type]
 """vmap axes over queries: the bank's ``W`` and the regularisers are shared."""
 
 
 def _us(fn, *args, per: int, repeats: int = 5) -> float:
-    jax.block_until_ready(fn(*args))  # compile apart
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts)) / per * 1e6
+    """Median us per ``per`` items of ``fn(*args)`` (compiled by a first call, untimed)."""
+    jax.block_until_ready(fn(*args))
+    timing = time_calls(lambda: fn(*args), min_repeats=repeats, max_repeats=repeats)
+    return timing.median_s / per * 1e6
 
 
 def chain_costs(model: engine.Model, h_all: np.ndarray) -> dict:

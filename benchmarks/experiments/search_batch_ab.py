@@ -22,10 +22,12 @@ import jax
 import numpy as np
 
 from benchmarks import heldout
-from benchmarks.experiments.selection_ab import held_out_queries, print_reference_errors
-from jaxproj._internal.jit import jit
+from benchmarks.experiments.selection_ab import (
+    compile_with_search_batch,
+    held_out_queries,
+    print_reference_errors,
+)
 from jaxproj.projection import api as engine
-from jaxproj.timing import compile_timed
 
 
 def main() -> None:
@@ -50,17 +52,12 @@ def main() -> None:
         "default_search_batch": engine.search_batch(sp, 10, args.batch, sub),
     }
     print(out, flush=True)
-    default = engine.search_batch
     compiled, answers = {}, {}
     for size in sizes:
         if size % sub or args.batch % size:
             raise SystemExit(f"--sizes: {size} must be a multiple of {sub} dividing {args.batch}")
-        engine.search_batch = lambda p, n_l, batch, s, size=size: size  # traced anew below
-        try:
-            fn = jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10))
-            compiled[size], secs = compile_timed(fn, sp, q)
-        finally:
-            engine.search_batch = default
+        fixed = lambda p, n_l, batch, s, size=size: size  # noqa: E731
+        compiled[size], secs = compile_with_search_batch(sp, q, fixed)
         answers[size] = np.asarray(compiled[size](sp, q)[0])
         diff = np.degrees(np.abs(answers[size] - answers[sizes[0]])).max(axis=1)
         print(

@@ -103,6 +103,23 @@ def relaxed_rows_batch(search_impl: ImplLike, back_impl: ImplLike):
     return jit(batch)
 
 
+def compile_with_search_batch(
+    sp: StackedProjector, q: jax.Array, search_batch
+) -> tuple[object, float]:
+    """``engine.project_batch`` (relaxed, L = M = 10) on ``q`` compiled with
+    ``engine.search_batch`` replaced by ``search_batch`` while it is traced (restored after):
+    ``(compiled, compile seconds)``."""
+    from jaxproj.timing import compile_timed
+
+    default = engine.search_batch
+    engine.search_batch = search_batch
+    try:
+        fn = jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10))
+        return compile_timed(fn, sp, q)
+    finally:
+        engine.search_batch = default
+
+
 def print_reference_errors(
     sp: StackedProjector, q: jax.Array, answers: dict[str, np.ndarray], nq: int
 ) -> None:

@@ -20,12 +20,14 @@ import time
 
 import jax
 import numpy as np
-from selection_ab import held_out_queries, print_reference_errors  # this folder
+from selection_ab import (  # this folder
+    compile_with_search_batch,
+    held_out_queries,
+    print_reference_errors,
+)
 
 from jaxproj import testing
-from jaxproj._internal.jit import jit
 from jaxproj.projection import api as engine
-from jaxproj.timing import compile_timed
 
 
 def main() -> None:
@@ -46,15 +48,10 @@ def main() -> None:
         f"search batch {outer}",
         flush=True,
     )
-    default = engine.search_batch
     compiled, answers = {}, {}
-    for name, search in (("one level", lambda p, n_l, batch, sub: sub), ("two levels", default)):
-        engine.search_batch = search  # traced anew below
-        try:
-            fn = jit(lambda p, h: engine.project_batch(p, h, "relaxed", 10, 10))
-            compiled[name], secs = compile_timed(fn, sp, q)
-        finally:
-            engine.search_batch = default
+    one_level = lambda p, n_l, batch, sub: sub  # noqa: E731
+    for name, search in (("one level", one_level), ("two levels", engine.search_batch)):
+        compiled[name], secs = compile_with_search_batch(sp, q, search)
         answers[name] = np.asarray(compiled[name](sp, q)[0])
         print(f"{name}: compiled in {secs:.1f} s", flush=True)
     diff = np.degrees(np.abs(answers["one level"] - answers["two levels"])).max(axis=1)
