@@ -15,7 +15,8 @@ engines' distance from the float64 reference on held-out queries. Needs a CUDA G
 from __future__ import annotations
 
 import numpy as np
-from selection_ab import (  # this folder
+
+from benchmarks.experiments.selection_ab import (
     BATCH,
     ab_setup,
     per_pose_ns,
@@ -23,7 +24,6 @@ from selection_ab import (  # this folder
     print_reference_errors,
     relaxed_rows_batch,
 )
-
 from jaxproj import testing
 from jaxproj._internal.jit import jit
 from jaxproj.projection import relaxed

@@ -18,7 +18,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from selection_ab import (  # this folder
+
+from benchmarks.experiments.selection_ab import (
     BATCH,
     ab_setup,
     per_pose_ns,
@@ -26,7 +27,6 @@ from selection_ab import (  # this folder
     print_reference_errors,
     relaxed_rows_batch,
 )
-
 from jaxproj.projection.projector import candidates
 from jaxproj.projection.search import nearest_rows
 

@@ -20,12 +20,12 @@ import time
 
 import jax
 import numpy as np
-from selection_ab import (  # this folder
+
+from benchmarks.experiments.selection_ab import (
     compile_with_search_batch,
     held_out_queries,
     print_reference_errors,
 )
-
 from jaxproj import testing
 from jaxproj.projection import api as engine
 
