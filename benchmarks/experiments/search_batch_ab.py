@@ -49,14 +49,14 @@ def main() -> None:
         "landmarks": model.landmarks,
         "batch": args.batch,
         "sub_batch": sub,
-        "default_search_batch": engine.search_batch(sp, 10, args.batch, sub),
+        "default_search_batch": engine.search_batch(args.batch, sub),
     }
     print(out, flush=True)
     compiled, answers = {}, {}
     for size in sizes:
         if size % sub or args.batch % size:
             raise SystemExit(f"--sizes: {size} must be a multiple of {sub} dividing {args.batch}")
-        fixed = lambda p, n_l, batch, s, size=size: size  # noqa: E731
+        fixed = lambda batch, s, size=size: size  # noqa: E731
         compiled[size], secs = compile_with_search_batch(sp, q, fixed)
         answers[size] = np.asarray(compiled[size](sp, q)[0])
         diff = np.degrees(np.abs(answers[size] - answers[sizes[0]])).max(axis=1)

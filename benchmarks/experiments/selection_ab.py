@@ -26,6 +26,7 @@ from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed, search
 from jaxproj.projection.ops import ImplLike
 from jaxproj.projection.projector import StackedProjector
+from jaxproj.timing import compile_timed
 
 BATCH = 65536
 
@@ -109,8 +110,6 @@ def compile_with_search_batch(
     """``engine.project_batch`` (relaxed, L = M = 10) on ``q`` compiled with
     ``engine.search_batch`` replaced by ``search_batch`` while it is traced (restored after):
     ``(compiled, compile seconds)``."""
-    from jaxproj.timing import compile_timed
-
     default = engine.search_batch
     engine.search_batch = search_batch
     try:

@@ -41,7 +41,7 @@ def main() -> None:
     sp = model.projector
     q = jax.device_put(held_out_queries(args.batch))
     sub = engine.sub_batch(sp, "relaxed", 10, 10, args.batch)
-    outer = engine.search_batch(sp, 10, args.batch, sub)
+    outer = engine.search_batch(args.batch, sub)
     print(
         f"{jax.devices()[0].device_kind} ({jax.default_backend()}), jax {jax.__version__}, "
         f"landmarks {model.landmarks}; batch {args.batch}: back-projection sub-batch {sub}, "
@@ -49,7 +49,7 @@ def main() -> None:
         flush=True,
     )
     compiled, answers = {}, {}
-    one_level = lambda p, n_l, batch, sub: sub  # noqa: E731
+    one_level = lambda batch, sub: sub  # noqa: E731
     for name, search in (("one level", one_level), ("two levels", engine.search_batch)):
         compiled[name], secs = compile_with_search_batch(sp, q, search)
         answers[name] = np.asarray(compiled[name](sp, q)[0])

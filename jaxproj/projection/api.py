@@ -55,6 +55,7 @@ __all__ = [
     "FORMAT_VERSION",
     "HEAD_BANDWIDTH",
     "MIN_BATCH",
+    "SEARCH_QUERIES_CPU",
     "AnyProjector",
     "BuildConfig",
     "ChainConfig",
@@ -81,7 +82,6 @@ __all__ = [
     "project_sharded",
     "resolve_devices",
     "save",
-    "SEARCH_QUERIES_CPU",
     "search_batch",
     "sub_batch",
 ]
@@ -118,7 +118,7 @@ SEARCH_QUERIES_CPU = 128
 """Queries per search call of the CPU's relaxed projection (``search_batch``)."""
 
 
-def search_batch(p: AnyProjector, n_l: int, batch: int, sub: int) -> int:
+def search_batch(batch: int, sub: int) -> int:
     """Queries per search call of the relaxed projection (a multiple of ``sub``, dividing
     ``batch``).
 
@@ -127,16 +127,15 @@ def search_batch(p: AnyProjector, n_l: int, batch: int, sub: int) -> int:
     in cache): the searches take up to ``SEARCH_QUERIES_CPU`` queries per call and the
     back-projection loops over them ``sub`` at a time (``project_relaxed_rows``' ``chunk``).
     Measured on the 2-core VM, relaxed L = M = 10, batch 4,096, one process, interleaved rounds
-    (``benchmarks/experiments/search_batch_ab.py``): default model (K up to 7,099) 328 -> 279 us
+    (``benchmarks/experiments/search_batch_ab.py``): default model (K up to 7,099) 386 -> 297 us
     per pose from 16 to 128 queries per call (the 16 MiB distance-row budget used before gave
     16), no gain at 64, none past 128; per-chain model at N = 1644, 277 -> 236 us from 64 to
     128. Against one search per sub-batch (2026-11-23) the forward kernels round differently in
     the last bit, so where two candidates' deviations tie to float32 round-off another one can
     be picked (``relaxed.TIE_RTOL``; ``benchmarks/experiments/two_level_ab.py``). Accelerators
     search and back-project ``sub`` queries together (their fused kernels hold no distance
-    matrix): ``sub`` is returned. ``p`` and ``n_l`` are unused (kept for callers).
+    matrix): ``sub`` is returned.
     """
-    del p, n_l
     if jax.default_backend() != "cpu":
         return sub
     out = sub
@@ -168,7 +167,7 @@ def project_batch(
     impl = resolve_impl(impl)
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0])
     if objective == "relaxed":  # batched form: one search call per search batch
-        outer = search_batch(p, n_l, h.shape[0], sub)
+        outer = search_batch(h.shape[0], sub)
 
         def rows(x: jax.Array) -> tuple[jax.Array, jax.Array]:
             return project_relaxed_rows(p, x, n_l, n_m, chunk=sub, impl=impl)

@@ -476,14 +476,13 @@ def test_two_level_relaxed_batches_give_the_same_answers(chain_model, monkeypatc
     np.testing.assert_allclose(np.asarray(v), np.asarray(v0), rtol=1e-6, atol=0)
 
 
-def test_search_batch_divides_the_batch_up_to_the_cpu_count(chain_model):
+def test_search_batch_divides_the_batch_up_to_the_cpu_count():
     """``engine.search_batch``: a multiple of the back-projection sub-batch that divides the
     batch, the largest such power-of-two multiple up to ``SEARCH_QUERIES_CPU`` queries."""
-    sp = chain_model.projector
     cap = engine.SEARCH_QUERIES_CPU
     expected = {(4096, 8): cap, (96, 8): 32, (8, 8): 8, (4096, 1): cap, (1000, 8): 8}
     for (batch, sub), want in expected.items():
-        out = engine.search_batch(sp, 10, batch, sub)
+        out = engine.search_batch(batch, sub)
         assert out % sub == 0 and batch % out == 0 and out <= max(cap, sub), (batch, sub, out)
         assert out == want, (batch, sub, out)
 
