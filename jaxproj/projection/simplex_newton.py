@@ -256,7 +256,7 @@ def simplex_qp(b: jax.Array, c: jax.Array, x0: jax.Array, sweeps: int) -> jax.Ar
 
     x0 = jnp.where(x0 > WEIGHT_FLOOR, x0, 0.0)
     x0 = x0 / jnp.sum(x0)
-    x, _, _ = jax.lax.fori_loop(0, sweeps, sweep, (x0, x0 > 0, jnp.asarray(False)))
+    x, _, _ = jax.lax.fori_loop(0, sweeps, sweep, (x0, x0 > 0, x0[0] < 0.0))
     return x
 
 
