@@ -204,10 +204,17 @@ def _cholesky_solve_looped(a: jax.Array, rhs: jax.Array) -> jax.Array:
 def _cholesky_solve(a: jax.Array, rhs: jax.Array) -> jax.Array:
     """``A^{-1} rhs`` by the modified Cholesky factorisation (``_cholesky_solve_unrolled``):
     looped over columns on CPUs (``_cholesky_solve_looped``: compiles in half the time), unrolled
-    elsewhere (``lax.platform_dependent`` picks when the program is lowered)."""
-    return jax.lax.platform_dependent(
-        a, rhs, cpu=_cholesky_solve_looped, default=_cholesky_solve_unrolled
-    )
+    elsewhere.
+
+    Picked when traced, by JAX's default backend: ``lax.platform_dependent`` would trace and
+    compile both forms into every program (the dead one cost ~0.3 s of XLA:CPU compile per KKT
+    solve in the program, and its trace ~0.5 s per Newton program). A program lowered for
+    another platform than the default one (arrays placed on a CPU device of a GPU machine) runs
+    the default backend's form: the same solve, rounded in another order.
+    """
+    if jax.default_backend() == "cpu":
+        return _cholesky_solve_looped(a, rhs)
+    return _cholesky_solve_unrolled(a, rhs)
 
 
 def _kkt_solve(b: jax.Array, c: jax.Array, free: jax.Array) -> tuple[jax.Array, jax.Array]:
