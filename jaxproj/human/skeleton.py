@@ -12,6 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
+from jaxproj._internal.buckets import bucket, pad_rows
+from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 
 JOINT_NAMES: tuple[str, ...] = (
@@ -140,13 +142,42 @@ def descriptor(
       ``(x forward, y left, z up)`` vector; and ``(...,)`` bool. A frame is invalid where its body
       frame is degenerate, a value is non-finite, or a chosen bone is shorter than
       ``MIN_BONE_LENGTH``; its descriptor is all zeros there (never NaN).
+
+    Compiled once per shape; host arrays (NumPy) are padded along their frames to a bucket
+    (``jaxproj._internal.buckets``), so recordings of most lengths share one compile. Inside
+    a caller's trace it is plain JAX code.
+
+    Raises:
+      ConfigError: host ``positions`` not shaped ``(..., 20, 3)``.
     """
     names = resolve_bones(bones)
     if mirror:
         names = tuple(_MIRROR_NAME[n] for n in names)
-    idx = [BONE_NAMES.index(n) for n in names]
-    parents = np.array([J[BONES[i][0]] for i in idx])
-    children = np.array([J[BONES[i][1]] for i in idx])
+    index = tuple(BONE_NAMES.index(n) for n in names)
+    if isinstance(positions, jax.core.Tracer):  # inside a caller's trace: the plain core
+        return _descriptor(positions, index, mirror)
+    if isinstance(positions, jax.Array):  # on a device already: one compile per shape
+        return _descriptor_jit(positions, index=index, mirror=mirror)
+    # host data (a recording, a dataset): rows padded to a bucket, one compile per bucket
+    p = np.asarray(positions, np.float32)
+    if p.ndim < 2 or p.shape[-2:] != (N_JOINTS, 3):
+        raise ConfigError(f"positions must be (..., {N_JOINTS}, 3), got {p.shape}")
+    lead = p.shape[:-2]
+    flat = p.reshape(-1, N_JOINTS, 3)
+    n = len(flat)
+    d, ok = _descriptor_jit(pad_rows(flat, bucket(n)), index=index, mirror=mirror)
+    d_np, ok_np = np.asarray(d)[:n], np.asarray(ok)[:n]
+    # device_put, not jnp.asarray: the latter compiles a copy program per shape
+    return jax.device_put(d_np.reshape(*lead, -1)), jax.device_put(ok_np.reshape(lead))
+
+
+def _descriptor(
+    positions: jax.Array, index: tuple[int, ...], mirror: bool
+) -> tuple[jax.Array, jax.Array]:
+    """``descriptor``'s traceable core for the bones ``BONE_NAMES[i]`` of ``index`` (already
+    swapped when ``mirror``)."""
+    parents = np.array([J[BONES[i][0]] for i in index])
+    children = np.array([J[BONES[i][1]] for i in index])
     p = jnp.asarray(positions, dtype=jnp.float32)
     finite = jnp.all(jnp.isfinite(p), axis=(-2, -1))
     p = jnp.where(finite[..., None, None], p, 0.0)
@@ -158,4 +189,7 @@ def descriptor(
         local = local.at[..., 1].multiply(-1.0)
     valid = ok_frame & finite & jnp.all(ok_bone, axis=-1)
     local = jnp.where(valid[..., None, None], local, 0.0)
-    return local.reshape(*local.shape[:-2], 3 * len(names)), valid
+    return local.reshape(*local.shape[:-2], 3 * len(index)), valid
+
+
+_descriptor_jit = jit(_descriptor, static_argnames=("index", "mirror"))

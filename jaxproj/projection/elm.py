@@ -41,6 +41,7 @@ All kernels of a direction are trained in one vmapped call (no Python loop over 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -48,6 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxproj._internal.buckets import bucket, pad_rows
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 
@@ -206,20 +208,26 @@ def train_bank(
       ConfigError: a bad setting, or training that gave non-finite weights (an ill-conditioned
         ridge system: the message says which setting to change); never a bank with NaN.
     """
-    inputs = jnp.asarray(inputs, jnp.float32)
-    targets = jnp.asarray(targets, jnp.float32)
-    n = inputs.shape[0]
-    if targets.shape[0] != n:
-        raise ConfigError(f"inputs ({n}) and targets ({targets.shape[0]}) differ in count")
+    x_np = np.asarray(inputs, np.float32)  # host copies (a device array comes back once)
+    t_np = np.asarray(targets, np.float32)
+    n = x_np.shape[0]
+    if t_np.shape[0] != n:
+        raise ConfigError(f"inputs ({n}) and targets ({t_np.shape[0]}) differ in count")
     if not 2 <= k <= n:
         raise ConfigError(f"k={k} must lie in [2, number of landmarks={n}]")
     if hidden < k:
         raise ConfigError(f"hidden={hidden} must be >= k={k} (an ELM interpolates k samples)")
     if not lam > 0:
         raise ConfigError(f"lam={lam} must be > 0")
-    bank = _train_bank_jit(
-        inputs,
-        targets,
+    # landmarks padded to a bucket (one compile for most counts): the padding rows coincide far
+    # beyond every landmark, so no real kernel takes one as a neighbour (k <= n); their kernels
+    # are cut off below
+    finite = np.abs(x_np[np.isfinite(x_np)])
+    far = 1e3 * (1.0 + (float(finite.max()) if finite.size else 0.0))
+    rows = bucket(n, minimum=BANK_MIN_ROWS)
+    padded = _train_bank_jit(
+        jax.device_put(pad_rows(x_np, rows, far)),
+        jax.device_put(pad_rows(t_np, rows)),
         key,
         jnp.float32(lam),
         k=k,
@@ -228,6 +236,9 @@ def train_bank(
         min_scale=min_scale,
         anchor=anchor,
     )
+    # device_put, not jnp.asarray: the latter compiles a copy program per shape
+    cut = {f: jax.device_put(np.asarray(getattr(padded, f))[:n]) for f in _PER_KERNEL}
+    bank = dataclasses.replace(padded, **cut, n_kernels=n)
     bad = ~np.isfinite(np.asarray(bank.out)).all(axis=(1, 2))
     bad |= ~np.isfinite(np.asarray(bank.offset)).all(axis=1)
     if bad.any():
@@ -274,6 +285,12 @@ def _train_bank(
         k=k,
     )
 
+
+BANK_MIN_ROWS = 256
+"""The smallest landmark bucket of ``train_bank`` (``knn_indices``' row block)."""
+
+_PER_KERNEL = ("inv_scale", "bias", "out", "offset", "neighbours")
+"""``ELMBank``'s per-kernel fields (leading axis: the kernels)."""
 
 _train_bank_jit = jit(
     _train_bank, static_argnames=("k", "hidden", "input_scale", "min_scale", "anchor")

@@ -61,6 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
+from jaxproj._internal.buckets import bucket, pad_rows
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import UPPER_BODY, resolve_bones
@@ -259,8 +260,22 @@ def solve_driven(d: ArrayLike, bones: str | tuple[str, ...] = "upper") -> jax.Ar
 
     Returns:
       ``(..., 10)`` float32 radians in ``robot.DRIVEN_JOINTS`` order, within limits, finite.
+
+    Compiled once per shape; host arrays (NumPy) are padded along their rows to a bucket
+    (``jaxproj._internal.buckets``), so most lengths share one compile.
     """
-    return _solve_driven_jit(d, bone_index=bone_index(bones))
+    index = bone_index(bones)
+    if isinstance(d, jax.Array):  # on a device already: one compile per shape
+        return _solve_driven_jit(d, bone_index=index)
+    # host data: rows padded to a bucket (zero rows: the standing answer), one compile per bucket
+    x = np.asarray(d, np.float32)
+    if x.ndim == 0:
+        raise ConfigError(f"descriptors must be (..., 3 * n_bones), got a scalar {x!r}")
+    lead = x.shape[:-1]
+    flat = x.reshape(-1, x.shape[-1])
+    n = len(flat)
+    out = np.asarray(_solve_driven_jit(pad_rows(flat, bucket(n)), bone_index=index))[:n]
+    return jax.device_put(out.reshape(*lead, out.shape[-1]))  # no copy program per shape
 
 
 def driven_to_full(q_driven: jax.Array) -> jax.Array:
