@@ -191,13 +191,12 @@ class FullConfig:
       objective: ``"weighted"`` (default): one problem per candidate, its kernels' deviations
         weighted by the simplex weights; ``"min"``: the paper's eq. 2 read literally,
         ``min_k min_w``: one problem per (candidate, kernel).
-      solver: ``"adam"`` (default, ``ADAM_30``): projected ``optax.adam``, exactly
-        ``iterations`` steps (fast, stops short of the minimum); ``"newton"`` (``NEWTON``):
-        projected Gauss-Newton in joint space, run until every problem of the batch is
-        stationary or ``iterations`` (``simplex_newton``): converged, ~2.2x Adam's time on a
-        CPU, 1.3x on an H200 (``docs/results.md``: as the default it took CI over budget).
-        Both project with ``optax.projections.projection_simplex``
-        and never return worse than the warm start.
+      solver: ``"newton"`` (default, ``NEWTON``): projected Gauss-Newton in joint space,
+        run until every problem of the batch is stationary or ``iterations``
+        (``simplex_newton``): converged; ``"adam"`` (``ADAM_30``): projected ``optax.adam``,
+        exactly ``iterations`` steps: ~2.2x faster on a CPU, 1.3x on an H200, but it stops
+        short of the minimum (``docs/results.md``). Both project with
+        ``optax.projections.projection_simplex`` and never return worse than the warm start.
       iterations: Newton: cap on steps per problem; Adam: its steps. ``>= 0``.
       learning_rate: Adam's step size on the weights, ``> 0``. Unused by Newton.
       include_candidate: add the candidate itself as vertex 0 of its simplex (warm start
@@ -218,7 +217,7 @@ class FullConfig:
     """
 
     objective: FullObjective = "weighted"
-    solver: Solver = "adam"
+    solver: Solver = "newton"
     iterations: int = 30
     learning_rate: float = 0.05
     include_candidate: bool = False
@@ -249,10 +248,11 @@ class FullConfig:
 
 
 ADAM_30 = FullConfig(solver="adam", iterations=30)
-"""The fast, unconverged solver: 30 projected Adam steps (``FullConfig()``'s)."""
+"""The fast, unconverged solver: 30 projected Adam steps (``FullConfig()`` until 0.2.0)."""
 
-NEWTON = FullConfig(solver="newton")
-"""The converged solver: projected Gauss-Newton in joint space (``simplex_newton``)."""
+NEWTON = FullConfig()
+"""The converged solver, ``FullConfig()``: projected Gauss-Newton in joint space
+(``simplex_newton``)."""
 
 FULL_READINGS = {
     "weighted": NEWTON,
