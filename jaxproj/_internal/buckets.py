@@ -12,6 +12,10 @@ not. See each caller for the padding rows it uses.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
+import jax
 import numpy as np
 
 MIN_ROWS = 64
@@ -37,3 +41,25 @@ def pad_rows(a: np.ndarray, rows: int, value: float = 0.0) -> np.ndarray:
         return a
     pad = np.full((rows - len(a), *a.shape[1:]), value, a.dtype)
     return np.concatenate([a, pad], axis=0)
+
+
+def call_bucketed(
+    fn: Callable[[np.ndarray], Any], x: np.ndarray, item_ndim: int, minimum: int = MIN_ROWS
+) -> Any:
+    """``fn`` on the items of host array ``x`` (its trailing ``item_ndim`` axes), in one call.
+
+    The leading axes are flattened to ``n`` rows and padded with zeros to ``bucket(n,
+    minimum)``; every output of ``fn`` (an array or a pytree of them, rows first) comes back
+    cut to ``n`` rows and shaped with ``x``'s leading axes, as device arrays (``device_put``:
+    ``jnp.asarray`` of a NumPy array compiles a copy program per shape).
+    """
+    lead = x.shape[: x.ndim - item_ndim]
+    flat = x.reshape(-1, *x.shape[x.ndim - item_ndim :])
+    n = len(flat)
+    out = fn(pad_rows(flat, bucket(n, minimum)))
+
+    def cut(a: Any) -> jax.Array:
+        a = np.asarray(a)
+        return jax.device_put(a[:n].reshape(lead + a.shape[1:]))
+
+    return jax.tree.map(cut, out)

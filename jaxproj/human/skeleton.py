@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from jaxproj._internal.buckets import bucket, pad_rows
+from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 
@@ -162,13 +162,7 @@ def descriptor(
     p = np.asarray(positions, np.float32)
     if p.ndim < 2 or p.shape[-2:] != (N_JOINTS, 3):
         raise ConfigError(f"positions must be (..., {N_JOINTS}, 3), got {p.shape}")
-    lead = p.shape[:-2]
-    flat = p.reshape(-1, N_JOINTS, 3)
-    n = len(flat)
-    d, ok = _descriptor_jit(pad_rows(flat, bucket(n)), index=index, mirror=mirror)
-    d_np, ok_np = np.asarray(d)[:n], np.asarray(ok)[:n]
-    # device_put, not jnp.asarray: the latter compiles a copy program per shape
-    return jax.device_put(d_np.reshape(*lead, -1)), jax.device_put(ok_np.reshape(lead))
+    return call_bucketed(lambda x: _descriptor_jit(x, index=index, mirror=mirror), p, 2)
 
 
 def _descriptor(

@@ -61,7 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from jaxproj._internal.buckets import bucket, pad_rows
+from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import UPPER_BODY, resolve_bones
@@ -271,11 +271,7 @@ def solve_driven(d: ArrayLike, bones: str | tuple[str, ...] = "upper") -> jax.Ar
     x = np.asarray(d, np.float32)
     if x.ndim == 0:
         raise ConfigError(f"descriptors must be (..., 3 * n_bones), got a scalar {x!r}")
-    lead = x.shape[:-1]
-    flat = x.reshape(-1, x.shape[-1])
-    n = len(flat)
-    out = np.asarray(_solve_driven_jit(pad_rows(flat, bucket(n)), bone_index=index))[:n]
-    return jax.device_put(out.reshape(*lead, out.shape[-1]))  # no copy program per shape
+    return call_bucketed(lambda rows: _solve_driven_jit(rows, bone_index=index), x, 1)
 
 
 def driven_to_full(q_driven: jax.Array) -> jax.Array:
