@@ -104,6 +104,78 @@ def near_set(
     return sure, tied, n - len(sure)
 
 
+F32_UNIT_ROUNDOFF = 2.0**-24
+"""``u``: the largest relative error of one float32 rounding (round to nearest)."""
+
+SIGMOID_ULPS = 4.0
+"""Relative error of one float32 sigmoid, in units of ``u`` (``exp``, one add and one divide,
+each correctly rounded or within an ulp)."""
+
+
+def _gamma(n: int | np.ndarray) -> np.ndarray:
+    """Higham's ``gamma_n = n u / (1 - n u)``: the relative error bound of a float32 sum of
+    ``n`` terms in any order (``|fl(sum x) - sum x| <= gamma_{n-1} sum |x|``)."""
+    nu = np.asarray(n, np.float64) * F32_UNIT_ROUNDOFF
+    return nu / (1.0 - nu)
+
+
+def back_deviation_bound(
+    bank: Any, r: np.ndarray, h: np.ndarray, idx: np.ndarray, d_in: int, d_out: int, hidden: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The least squared back-projected deviation in float64, and a bound on its float32 error.
+
+    What ``projection.relaxed.least_deviations_rows`` computes (by XLA's three passes or the
+    fused Pallas kernel, in any summation order), for rows of float32 inputs: ``min_k
+    ||kappa_k(r) - h||^2`` with ``kappa_k(r) = offset_k + B_k^T sigmoid(W r / rho_k + beta_k)``.
+    The bound is a first-order forward error analysis (Higham, *Accuracy and Stability of
+    Numerical Algorithms*, ch. 3) of that arithmetic with the float64 magnitudes of the actual
+    operands, so it grows where the computation is ill-conditioned: large output weights whose
+    products cancel, or a deviation that is a small difference of large coordinates.
+
+    * ``W r`` (``d_in`` terms): ``gamma_{d_in} sum_d |W_jd r_d|``; the scale and bias add
+      ``u |W r / rho|`` and ``u |pre|``; the sigmoid passes ``q (1 - q)`` of that and adds
+      ``SIGMOID_ULPS u q``;
+    * ``y_o = offset_o + sum_j B_jo q_j`` (``hidden + 1`` terms): ``gamma_{hidden + 1} (|offset|
+      + sum |B q|)`` plus ``sum_j |B_jo| dq_j``; ``e_o = y_o - h_o`` adds ``u |e_o|``;
+    * ``sum_o e_o^2``: ``sum_o (2 |e_o| E_o + E_o^2) + gamma_{d_out + 1} sum_o e_o^2``;
+    * the minimum over the row's kernels is off by at most the largest of their bounds.
+
+    Args:
+      bank: an ``ELMBank`` (backward kernels; may be padded beyond the sizes below).
+      r: ``(R, >= d_in)`` robot points; h: ``(R, >= d_out)`` queries; idx: ``(R, M)`` kernels.
+      d_in, d_out, hidden: the kernels' real sizes.
+
+    Returns:
+      ``(b, bound)``: ``(R,)`` float64 least squared deviations and ``(R,)`` bounds such that a
+      float32 evaluation of ``b`` lies within ``bound`` of it.
+    """
+    u = F32_UNIT_ROUNDOFF
+    w = np.asarray(bank.w, np.float64)[:hidden, :d_in]
+    r = np.asarray(r, np.float64)[:, :d_in]
+    h = np.asarray(h, np.float64)[:, :d_out]
+    idx = np.asarray(idx)
+    inv = np.asarray(bank.inv_scale, np.float64)[idx][..., None]  # (R, M, 1)
+    bias = np.asarray(bank.bias, np.float64)[idx][..., :hidden]  # (R, M, H)
+    out = np.asarray(bank.out, np.float64)[idx][..., :d_out, :hidden]  # (R, M, O, H)
+    offset = np.asarray(bank.offset, np.float64)[idx][..., :d_out]  # (R, M, O)
+
+    wx = r @ w.T  # (R, H)
+    err_wx = _gamma(d_in) * (np.abs(r) @ np.abs(w).T)
+    scaled = wx[:, None, :] * inv
+    pre = scaled + bias
+    err_pre = np.abs(inv) * err_wx[:, None, :] + u * (np.abs(scaled) + np.abs(pre))
+    q = _sigmoid(pre)
+    err_q = q * (1.0 - q) * err_pre + SIGMOID_ULPS * u * q
+    y = offset + np.einsum("rmoh,rmh->rmo", out, q)
+    mag = np.abs(offset) + np.einsum("rmoh,rmh->rmo", np.abs(out), q)
+    e = y - h[:, None, :]
+    big_e = _gamma(hidden + 1) * mag + np.einsum("rmoh,rmh->rmo", np.abs(out), err_q)
+    big_e = big_e + u * np.abs(e)
+    b = np.sum(e * e, axis=-1)  # (R, M)
+    bound = np.sum(2.0 * np.abs(e) * big_e + big_e * big_e, axis=-1) + _gamma(d_out + 1) * b
+    return b.min(axis=1), bound.max(axis=1)
+
+
 class _Bank:
     def __init__(self, bank: Any) -> None:
         self.w = np.asarray(bank.w, np.float64)
