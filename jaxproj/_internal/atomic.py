@@ -4,6 +4,11 @@ A write that fails half-way (full disk, an exception in the encoder, Ctrl-C) nev
 half-written target, nor its temporary file: the target keeps its previous content (or stays
 absent).
 
+No writer creates a folder: a target whose folder is missing (or is not a folder) is a
+``ConfigError`` naming the path and the folder (``missing_folder``), the same rule and wording
+as the CLI's output options (``jaxproj.cli.options.output_path``): a typo such as
+``/nope/x.json`` must not create ``/nope``.
+
 ``write_npz`` is the package's one NPZ writer (model files, motion files, the bundled datasets):
 atomic, and deterministic — the same arrays give the same bytes (fixed zip timestamps and
 permissions, no pickles).
@@ -21,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxproj.errors import InputError
+from jaxproj.errors import ConfigError, InputError
 
 
 def _temp_path(path: Path) -> Path:
@@ -40,11 +45,34 @@ def _temp_path(path: Path) -> Path:
         return tmp
 
 
+FOLDER_RULE = "jaxproj creates no folder for an output file: create it first"
+"""Why a missing folder is an error, in the words of every such message."""
+
+
+def missing_folder(path: str | os.PathLike[str]) -> str | None:
+    """What is wrong with the folder of the output file ``path`` (``"folder F does not exist
+    (...)"``, ``"F is not a folder"``), or ``None`` when it is an existing folder."""
+    folder = Path(path).parent
+    if folder.is_dir():
+        return None
+    if folder.exists():
+        return f"{folder} is not a folder"
+    return f"folder {folder} does not exist ({FOLDER_RULE})"
+
+
+def check_folder(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a ``Path`` if its folder exists, else ``ConfigError`` naming both."""
+    problem = missing_folder(path)
+    if problem is not None:
+        raise ConfigError(f"{path}: {problem}")
+    return Path(path)
+
+
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> Path:
     """Write ``path`` atomically.
 
     Args:
-      path: the target file; its folder is created if missing.
+      path: the target file; its folder must exist (``check_folder``: none is created).
       write: called with the path of a fresh temporary file in the same folder, with the same
         extension (encoders such as ffmpeg pick the format from it); it writes the whole content
         there (replacing the empty file).
@@ -53,13 +81,14 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
       ``path`` as a ``Path``.
 
     Raises:
-      InputError: an ``OSError`` while creating the folder, writing or renaming ("cannot write
-        ..."). Any other exception of ``write`` propagates unchanged. In both cases the temporary
-        file is removed and the target is left as it was.
+      ConfigError: the folder of ``path`` does not exist or is not a folder (nothing is
+        created).
+      InputError: an ``OSError`` while writing or renaming ("cannot write ..."). Any other
+        exception of ``write`` propagates unchanged. In both cases the temporary file is
+        removed and the target is left as it was.
     """
-    path = Path(path)
+    path = check_folder(path)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
         tmp = _temp_path(path)
     except OSError as e:
         raise InputError(path, f"cannot write: {e.strerror or e}") from None
@@ -107,7 +136,7 @@ def write_npz(
     """Write ``arrays`` as an NPZ archive (``np.load`` reads it), atomically and deterministically.
 
     Args:
-      path: the target file (``atomic_write``: its folder is created if missing).
+      path: the target file (``atomic_write``: its folder must exist).
       arrays: member name (without ``.npy``) -> array, written in this order; no object arrays.
       compress: deflate each member (level 9) like ``np.savez_compressed``; default stored, like
         ``np.savez``.
@@ -116,6 +145,7 @@ def write_npz(
       ``path`` as a ``Path``.
 
     Raises:
+      ConfigError: the folder of ``path`` does not exist (``atomic_write``).
       InputError: the file cannot be written (``atomic_write``).
     """
     return atomic_write(path, lambda tmp: _write_npz_file(tmp, arrays, compress))

@@ -81,12 +81,11 @@ def output_path(value: str, flag: str, suffixes: tuple[str, ...] = ()) -> Path:
         names = suffixes[0] if len(suffixes) == 1 else ", ".join(suffixes[:-1])
         names += "" if len(suffixes) == 1 else f" or {suffixes[-1]}"
         raise ConfigError(f"{flag} {out}: use a {names} file name")
-    folder = out.parent
-    if not folder.is_dir():
-        raise ConfigError(
-            f"{flag} {out}: folder {folder} does not exist (jaxproj creates no folder for an "
-            "output file: create it first)"
-        )
+    from jaxproj._internal.atomic import missing_folder
+
+    problem = missing_folder(out)  # the Python API's writers apply the same rule
+    if problem is not None:
+        raise ConfigError(f"{flag} {out}: {problem}")
     return out
 
 

@@ -19,7 +19,9 @@ of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, de
   ``lead_in`` of ``save_motion`` are its options): see ``jaxproj.robots.nao_h25.naoqi``.
 
 Every write is atomic (a temporary file in the same folder, then ``os.replace``): a failed write
-never leaves a half-written file. Bad files raise ``InputError`` naming the file and the problem.
+never leaves a half-written file. No folder is created: writing into a folder that does not
+exist is a ``ConfigError`` naming it (the CLI's rule for its outputs). Bad files raise
+``InputError`` naming the file and the problem.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write, write_npz
+from jaxproj._internal.atomic import atomic_write, check_folder, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import N_JOINTS as N_HUMAN_JOINTS
 from jaxproj.robots import NAO_H25, Robot
@@ -200,8 +202,8 @@ def save_motion(
     """Write ``motion`` to ``path``; the format follows the extension (module docstring).
 
     Args:
-      path: ``.npz``, ``.csv`` or one of ``motion.robot.exports`` (NAO: ``.json``); the folder
-        is created if missing.
+      path: ``.npz``, ``.csv`` or one of ``motion.robot.exports`` (NAO: ``.json``); its folder
+        must exist (no folder is created, as for ``jaxproj retarget --out``).
       motion: the motion.
       joints: options of the robot's export (checked whatever the format). NAOqi JSON: which
         joints to write, ``"upper"`` (default, ``naoqi.UPPER_JOINTS``), ``"body"`` (all) or a
@@ -214,7 +216,8 @@ def save_motion(
 
     Raises:
       ConfigError: an unsupported extension, bad ``joints`` / ``lead_in``, a meta key the JSON
-        block reserves (``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``).
+        block reserves (``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``), a folder of
+        ``path`` that does not exist (nothing is created).
       InputError: the file cannot be written (nothing is left behind).
     """
     path = Path(path)
@@ -224,6 +227,7 @@ def save_motion(
         kind = type(motion).__name__
         raise ConfigError(f"motion must be a jaxproj.io.motion_files.Motion, got {kind}")
     options = {s: e.check(robot, joints, lead_in) for s, e in robot.exports.items()}
+    check_folder(path)
     if ext == ".npz":
         return write_npz(path, _npz_arrays(motion))
     if ext == ".csv":

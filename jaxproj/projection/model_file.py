@@ -16,7 +16,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj._internal.atomic import write_npz
+from jaxproj._internal.atomic import check_folder, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.projection.build import Model
 from jaxproj.projection.config import BuildConfig
@@ -57,10 +57,13 @@ def save(model: Model, path: str | Path) -> None:
     The file is written under a temporary name beside ``path`` and then renamed
     (``jaxproj._internal.atomic``), so an interrupted or failed save never leaves a half-written
     model; the zip members carry fixed timestamps, so the same model gives a byte-identical file.
+    No folder is created: the folder of ``path`` must exist (as for ``jaxproj build --out``).
 
     Raises:
+      ConfigError: the folder of ``path`` does not exist or is not a folder (nothing written).
       InputError: the file cannot be written.
     """
+    check_folder(path)  # before any array is copied off the device
     sp = model.projector
     lay = sp.layout
     spec = model.robot

@@ -47,8 +47,8 @@ def _bits(a: np.ndarray) -> np.ndarray:
 
 def test_npz_round_trip_is_lossless(tmp_path):
     m = _motion()
-    out = save_motion(tmp_path / "sub" / "m.npz", m)
-    assert out == tmp_path / "sub" / "m.npz" and out.is_file()
+    out = save_motion(tmp_path / "m.npz", m)
+    assert out == tmp_path / "m.npz" and out.is_file()
     back = load_motion(out)
     np.testing.assert_array_equal(_bits(back.angles), _bits(m.angles))
     assert back.angles.dtype == np.float32 and back.times.dtype == np.float64
@@ -201,9 +201,23 @@ def test_write_is_atomic_when_the_rename_fails(tmp_path, monkeypatch):
 def test_write_into_an_impossible_folder(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    with pytest.raises(InputError, match="cannot write") as e:
+    with pytest.raises(ConfigError, match="is not a folder") as e:
         save_motion(blocker / "m.json", _motion())
     assert str(blocker / "m.json") in str(e.value)
+    assert sorted(os.listdir(tmp_path)) == ["file"]
+
+
+@pytest.mark.parametrize("ext", ["npz", "csv", "json"])
+def test_no_folder_is_created(tmp_path, ext):
+    """A missing folder is the CLI's error (``--out``), not a folder made on the fly: a typo
+    such as ``/nope/x.json`` once created ``/nope``."""
+    target = tmp_path / "a" / "b" / f"m.{ext}"
+    with pytest.raises(ConfigError) as e:
+        save_motion(target, _motion())
+    msg = str(e.value)
+    assert msg.startswith(f"{target}: folder {target.parent} does not exist"), msg
+    assert "creates no folder" in msg and "\n" not in msg
+    assert os.listdir(tmp_path) == []
 
 
 def test_save_rejects_bad_settings(tmp_path):

@@ -239,6 +239,7 @@ def test_save_video_gif_and_mp4_read_back(tmp_path, no_sigint_fork):
     assert back.shape == frames.shape
     assert iio.immeta(gif)["duration"] == 100
     np.testing.assert_allclose(back[2, 16, 10], frames[2, 16, 10], atol=12)  # the square
+    (tmp_path / "sub").mkdir()  # writers create no folder (jaxproj._internal.atomic)
     mp4 = save_video(iter(list(frames)), tmp_path / "sub" / "a.mp4", fps=7.5)  # streamed
     n, shape, fps = _read_mp4(mp4)
     assert (n, shape, fps) == (6, (48, 64, 3), 7.5)
