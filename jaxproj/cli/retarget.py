@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxproj.cli import options
-from jaxproj.errors import ConfigError
+from jaxproj.errors import ConfigError, NoValidFrameError
 from jaxproj.io.formats import format_names
 from jaxproj.projection.config import FULL_READINGS
 
@@ -39,7 +39,11 @@ def add_parsers(sub: Any) -> None:
         help="ik: the analytic IK; relaxed / full: the projector of --model (relaxed: the "
         "most accurate against the IK on held-out people; full: see --full-reading)",
     )
-    pr.add_argument("--model", help="projector file from `jaxproj build` (relaxed / full)")
+    pr.add_argument(
+        "--model",
+        help="projector file from `jaxproj build`, for --method relaxed / full (refused with "
+        "--method ik, which uses no model)",
+    )
     options.add_neighbour_options(pr)
     options.add_full_reading_option(pr)
     pr.add_argument(
@@ -91,12 +95,18 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.io.motion_files import Motion, save_motion
     from jaxproj.io.readers import read_skeleton
     from jaxproj.motion import feasible
-    from jaxproj.motion.retarget import retarget
+    from jaxproj.motion.retarget import MIN_VALID_SHARE, retarget
     from jaxproj.projection import api as engine
 
     model = None
     bones = "upper" if args.bones is None else args.bones
     mirror = bool(args.mirror)
+    if args.method == "ik" and args.model is not None:
+        raise ConfigError(
+            f"--model {args.model} is used by --method relaxed / full only, and --method is ik "
+            "(the default: the analytic IK, no model): add --method relaxed to use the model, "
+            "or leave --model out"
+        )
     if args.method != "ik":
         if args.model is None:
             raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
@@ -115,20 +125,25 @@ def run(args: argparse.Namespace) -> int:
     rec = read_skeleton(
         args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale
     )
-    result = retarget(
-        rec.positions,
-        rec.valid,
-        model=model,
-        method=args.method,
-        n_l=args.L,
-        n_m=args.M,
-        bones=bones,
-        mirror=mirror,
-        smoothing=options.smoothing(args.smoother),
-        times=rec.times,
-        feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
-        full=FULL_READINGS[args.full_reading],
-    )
+    try:
+        result = retarget(
+            rec.positions,
+            rec.valid,
+            model=model,
+            method=args.method,
+            n_l=args.L,
+            n_m=args.M,
+            bones=bones,
+            mirror=mirror,
+            smoothing=options.smoothing(args.smoother),
+            times=rec.times,
+            feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
+            full=FULL_READINGS[args.full_reading],
+        )
+    except NoValidFrameError as e:  # name the file (and the option that most often causes it)
+        hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""
+        problem = f"{e.problem}{hint}; nothing written"
+        raise NoValidFrameError(args.input, problem, e.n_frames) from None
     angles = result.angles
     unfiltered = angles if result.unfiltered is None else result.unfiltered
     before = feasible.feasibility_report(unfiltered, result.times)
@@ -160,16 +175,62 @@ def run(args: argparse.Namespace) -> int:
         f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
         f"{after['max_accel']:.0f} rad/s^2 [{label}]"
     )
-    if args.method != "ik":
-        from jaxproj.projection.confidence import LOW_CONFIDENCE
-
-        print(
-            f"  low-confidence frames (confidence < {LOW_CONFIDENCE:.2f}, the least trusted "
-            f"tenth on people the model never saw): {100 * result.low_confidence_share:.1f} %"
+    if result.valid_share < MIN_VALID_SHARE:
+        options.log(
+            f"jaxproj: warning: {args.input}: only {nv} of {n} frames "
+            f"({100 * result.valid_share:.0f} %) are valid, under the "
+            f"{100 * MIN_VALID_SHARE:.0f} % jaxproj warns at: the others hold or bridge the "
+            "valid poses around them (valid = false in the output); check the recording "
+            "(lost tracking, units)"
         )
+    if args.method != "ik":
+        for line in confidence_lines(args.method, result.low_confidence_valid_share):
+            print(line)
     if plot is not None:
         _plot(plot, args, rec, angles, result, bones, mirror)
     return 0
+
+
+EXPECTED_LOW_SHARE = 0.10
+"""The share of valid frames under ``LOW_CONFIDENCE`` on held-out training people, relaxed
+(the cut-off is their deviation's 90th percentile: ``jaxproj.projection.confidence``)."""
+
+UNLIKE_FACTOR = 1.5
+"""A relaxed share above ``UNLIKE_FACTOR * EXPECTED_LOW_SHARE`` (15 %) is reported as a
+recording unlike the training people, with what to do about it."""
+
+
+def confidence_lines(method: str, share: float) -> list[str]:
+    """What ``jaxproj retarget`` prints about the low-confidence share of the valid frames
+    (``RetargetResult.low_confidence_valid_share``) of ``method`` (relaxed / full): the share,
+    what it means against the held-out training people the cut-off was calibrated on, and what
+    to do when it is well above their tenth."""
+    from jaxproj.projection.confidence import LOW_CONFIDENCE
+
+    head = (
+        f"  low-confidence frames: {100 * share:.1f} % of the valid frames (confidence < "
+        f"{LOW_CONFIDENCE:.2f}; "
+    )
+    if method != "relaxed":
+        return [
+            head + f"the cut-off is calibrated on --method relaxed, under which "
+            f"{100 * EXPECTED_LOW_SHARE:.0f} % of held-out training people's frames fall; "
+            f"--method {method}'s objective value runs lower and flags fewer frames: run "
+            "--method relaxed on this file to judge it)"
+        ]
+    ratio = share / EXPECTED_LOW_SHARE
+    if ratio <= UNLIKE_FACTOR:
+        return [
+            head + f"{100 * EXPECTED_LOW_SHARE:.0f} % of held-out training people's frames fall "
+            "below it: this recording is like the people the model was built from)"
+        ]
+    return [
+        head + f"{ratio:.1f}x the {100 * EXPECTED_LOW_SHARE:.0f} % of held-out training "
+        "people's frames: this recording is unlike the people the model was built from)",
+        "  to trust more of it: build a model that includes people like these (jaxproj build "
+        "--data bundled+FOLDER), check the skeleton (units, joint map, --plot), or try "
+        "--mirror if the person mirrors the robot; the output's confidence marks each frame",
+    ]
 
 
 def _plot(

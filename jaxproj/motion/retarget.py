@@ -16,7 +16,13 @@ documented rule, so a motion never dies halfway and never contains NaN:
   smoother's input); the default offline smoother instead skips its value and bridges the gap
   from the valid frames on both sides;
 * leading invalid frames take the first valid frame's angles (trailing ones the last's);
-* a motion with no valid frame at all takes the robot's standing posture throughout.
+* a motion with no valid frame at all is refused: ``NoValidFrameError`` (a typed
+  ``InputError``, ``jaxproj.errors``) saying how many frames failed which check; such a
+  recording is a wrong file or a wrong unit, not a motion. (The pipeline's own rule, the
+  standing posture throughout, still holds inside a batch: ``jaxproj.eval.evaluate``.)
+
+A motion with only a few valid frames is still retargeted: ``RetargetResult.valid_share`` says
+how many, and ``jaxproj retarget`` warns below ``MIN_VALID_SHARE`` (half the frames).
 
 Smoothing then runs over the driven joints: by default the zero-lag offline smoother
 (``jaxproj.motion.offline``, an RTS smoother of a constant-velocity model: the whole motion is
@@ -39,7 +45,8 @@ from typing import Literal
 import numpy as np
 
 from jaxproj._internal.jit import jit
-from jaxproj.errors import ConfigError
+from jaxproj.errors import ConfigError, NoValidFrameError
+from jaxproj.human.skeleton import MIN_BONE_LENGTH
 from jaxproj.io.readers import MAX_DURATION_S, MIN_STEP_S
 from jaxproj.motion import pipeline
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
@@ -54,6 +61,11 @@ from jaxproj.robots import Robot, get
 Method = Literal["ik", "relaxed", "full"]
 METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
 
+MIN_VALID_SHARE = 0.5
+"""``jaxproj retarget`` warns (stderr, exit 0, the motion written) when fewer than this share
+of a recording's frames are valid: the rest only hold or bridge the valid poses around them.
+No valid frame at all is an error (``NoValidFrameError``)."""
+
 
 @dataclass(frozen=True)
 class RetargetResult:
@@ -67,8 +79,10 @@ class RetargetResult:
         ran it (``feasible=``), else ``None`` (``angles`` are then the unfiltered ones).
       confidence: ``(T,)`` float32 in ``[0, 1]``, each frame's ``projection.confidence`` (from
         the projection's least back-projection deviation; 1 for the IK, 0 where invalid);
-        below ``projection.confidence.LOW_CONFIDENCE`` a frame is less trusted than nine in ten
-        frames of people a model never saw. ``None`` only when built by hand.
+        ``projection.confidence.LOW_CONFIDENCE`` is the cut-off below which a tenth of the
+        frames of held-out training people fall with ``method="relaxed"`` (the one cut-off,
+        calibrated on the relaxed deviation: ``"full"`` reads its own, lower value against it,
+        so it flags fewer frames). ``None`` only when built by hand.
     """
 
     angles: np.ndarray
@@ -83,6 +97,21 @@ class RetargetResult:
         if self.confidence is None or len(self.confidence) == 0:
             return 0.0
         return float(np.mean(self.confidence < LOW_CONFIDENCE))
+
+    @property
+    def low_confidence_valid_share(self) -> float:
+        """Share of the VALID frames with ``confidence < LOW_CONFIDENCE``: the number to set
+        against the tenth of held-out training people's frames the cut-off was calibrated on
+        (``method="relaxed"``); 0 without confidence or valid frames."""
+        if self.confidence is None or not self.valid.any():
+            return 0.0
+        return float(np.mean(self.confidence[self.valid] < LOW_CONFIDENCE))
+
+    @property
+    def valid_share(self) -> float:
+        """Share of the frames that are valid (``jaxproj retarget`` warns below
+        ``MIN_VALID_SHARE``)."""
+        return float(np.mean(self.valid)) if len(self.valid) else 0.0
 
 
 def _bucket(t: int) -> int:
@@ -141,6 +170,9 @@ def retarget(
         model's, an unknown robot, bad ``L`` / ``M``, times not
         increasing by at least ``readers.MIN_STEP_S`` per frame or spanning more than
         ``readers.MAX_DURATION_S``.
+      NoValidFrameError: no frame is valid (``valid`` false, non-finite values or a
+        degenerate skeleton in every frame; ``no_valid_frame_problem`` words it). Checked
+        before anything is traced where ``valid`` or the values alone rule every frame out.
     """
     positions = np.asarray(positions, dtype=np.float32)
     if positions.ndim != 3 or positions.shape[1:] != (20, 3) or positions.shape[0] < 1:
@@ -185,6 +217,9 @@ def retarget(
                 f"{MAX_DURATION_S:g} s (got steps from {np.diff(stamps).min():g} s, span "
                 f"{stamps[-1] - stamps[0]:g} s)"
             )
+    finite = np.isfinite(positions).all(axis=(1, 2))
+    if not (ok_in & finite).any():  # nothing to map: refuse before tracing
+        raise NoValidFrameError("positions", no_valid_frame_problem(ok_in, finite), t)
     size = _bucket(t)
     pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
@@ -205,10 +240,39 @@ def retarget(
         smoother=None if smoothing is None else kind,
         robot=spec,
     )
+    ok_t = np.asarray(ok_out)[:t]
+    if not ok_t.any():  # every usable frame failed the descriptor's own check
+        raise NoValidFrameError("positions", no_valid_frame_problem(ok_in, finite), t)
     angles = np.asarray(angles)[:t]
     unfiltered = None
     if feasible is not None:
         unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
     conf_t = np.asarray(conf, np.float32)[:t]
-    return RetargetResult(angles, np.asarray(ok_out)[:t], stamps, unfiltered, conf_t)
+    return RetargetResult(angles, ok_t, stamps, unfiltered, conf_t)
+
+
+def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
+    """Why no frame of a motion is valid, in words: how many frames hold non-finite values,
+    how many others the reader (``valid``) marked (lost tracking), and how many the
+    descriptor found degenerate.
+
+    Args:
+      marked: ``(T,)`` bool, the ``valid`` given to ``retarget`` (the reader's).
+      finite: ``(T,)`` bool, whether every coordinate of the frame is finite.
+    """
+    t = len(marked)
+    n_nonfinite = int((~finite).sum())
+    n_lost = int((~marked & finite).sum())
+    n_degenerate = t - n_nonfinite - n_lost
+    parts = []
+    if n_nonfinite:
+        parts.append(f"{n_nonfinite} with non-finite coordinates (NaN / inf)")
+    if n_lost:
+        parts.append(f"{n_lost} marked invalid by the reader (lost tracking)")
+    if n_degenerate:
+        parts.append(
+            f"{n_degenerate} with a degenerate skeleton (collapsed joints, bones shorter than "
+            f"{1000 * MIN_BONE_LENGTH:g} mm or coordinates too large: check the units)"
+        )
+    return f"no valid frame among {t}: {', '.join(parts)}"

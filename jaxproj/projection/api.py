@@ -25,7 +25,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxproj._internal.jit import jit
-from jaxproj.errors import ConfigError
+from jaxproj.errors import ConfigError, NonFiniteRowsError
 from jaxproj.projection.build import (
     Model,
     build,
@@ -347,7 +347,9 @@ def project(
 
     Args:
       model: a ``Model``, or a bare ``StackedProjector`` / ``Projector``.
-      descriptors: ``(B, m)`` human descriptors (valid frames).
+      descriptors: ``(B, m)`` human descriptors of valid frames: finite (a row holding NaN
+        or inf is refused, ``NonFiniteRowsError``; ``skeleton.descriptor`` gives zeros, never
+        NaN, at invalid frames: drop them by its ``valid``).
       objective: ``"relaxed"`` or ``"full"``.
       n_l, n_m: ``L`` human and ``M`` robot neighbours.
       full: settings of the full objective (default ``FullConfig()``).
@@ -367,7 +369,14 @@ def project(
 
     Returns:
       ``(angles, value)``: ``(B, n)`` float32 driven-joint angles (rad, within limits) and
-      ``(B,)`` the objective's value (relaxed: back-projected deviation; full: ``f(w*)``).
+      ``(B,)`` the objective's value (relaxed: back-projected deviation; full: ``f(w*)``);
+      never NaN (a finite row far outside the unit-vector range, e.g. 1e30, can give ``inf``:
+      confidence 0).
+
+    Raises:
+      ConfigError: a bad objective, ``L`` / ``M``, shape, ``batch_size`` or device list.
+      NonFiniteRowsError: descriptor rows holding NaN or inf (a ``ConfigError`` naming them),
+        before anything is traced.
     """
     p = model.projector if isinstance(model, Model) else model
     full = FullConfig() if full is None else full
@@ -378,6 +387,9 @@ def project(
     h = np.asarray(descriptors, np.float32)
     if h.ndim != 2 or h.shape[1] != m:
         raise ConfigError(f"descriptors must be (B, {m}), got {h.shape}")
+    finite = np.isfinite(h).all(axis=1)  # host side, before tracing: NaN in would be NaN out
+    if not finite.all():
+        raise NonFiniteRowsError(np.flatnonzero(~finite), len(h))
     if batch_size is None:
         batch_size = default_batch_size(devices, len(h))
     if batch_size < 1:

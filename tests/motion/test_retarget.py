@@ -3,13 +3,15 @@ stage-by-stage pipeline it replaces."""
 
 import numpy as np
 import pytest
+from fuzzing import no_tracing
 
-from jaxproj.errors import ConfigError
+from jaxproj.errors import ConfigError, InputError, NoValidFrameError
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
 from jaxproj.motion import smoothing
 from jaxproj.motion.retarget import retarget
 from jaxproj.projection import api as engine
+from jaxproj.projection.confidence import LOW_CONFIDENCE
 from jaxproj.robots.nao_h25 import ik, robot
 
 FUSED_TOL_RAD = 2e-5
@@ -80,10 +82,35 @@ def test_motions_of_similar_length_share_one_compilation(model, motion, count_co
     assert n["motion"] == 1
 
 
-def test_no_valid_frame_gives_the_standing_posture(model):
-    out = retarget(np.zeros((7, 20, 3), np.float32), model=model)
-    assert not out.valid.any()
-    np.testing.assert_array_equal(out.angles, np.tile(robot.STANDING_POSTURE, (7, 1)))
+def test_no_valid_frame_is_a_typed_error_saying_why(model, motion):
+    """A motion with no valid frame is refused (``NoValidFrameError``, an ``InputError``), with
+    the count of frames that failed each check; where the values alone rule every frame out,
+    before anything is traced."""
+    positions, _ = motion
+    t = 7
+    lost = np.zeros((t, 20, 3), np.float32)  # all-zero: a collapsed skeleton, found in the jit
+    with pytest.raises(NoValidFrameError) as e:
+        retarget(lost, model=model)
+    assert isinstance(e.value, InputError) and e.value.n_frames == t
+    assert str(e.value).startswith(f"positions: no valid frame among {t}: {t} with a degenerate")
+    tiny = positions[:t] * 1e-5  # a unit error: every bone shorter than 1 mm
+    with pytest.raises(NoValidFrameError, match=f"{t} with a degenerate skeleton.*units"):
+        retarget(tiny)
+    mixed = positions[:t].copy()
+    mixed[:3] = np.nan
+    marked = np.zeros(t, bool)
+    with no_tracing() as traced, pytest.raises(NoValidFrameError) as e:
+        retarget(mixed, marked, model=model)
+    assert traced == []
+    assert str(e.value) == (
+        f"positions: no valid frame among {t}: 3 with non-finite coordinates (NaN / inf), "
+        f"{t - 3} marked invalid by the reader (lost tracking)"
+    )
+    # one valid frame is enough: the others take its pose
+    one = retarget(np.concatenate([lost, positions[:1]]), smoothing=None)
+    np.testing.assert_array_equal(one.valid, [False] * t + [True])
+    assert one.valid_share == 1 / (t + 1)
+    np.testing.assert_array_equal(one.angles, np.tile(one.angles[-1], (t + 1, 1)))
 
 
 def test_bad_arguments_are_config_errors(model, motion):
@@ -106,7 +133,11 @@ def test_confidence_and_the_default_offline_smoother(model, motion):
     _, v = engine.project(model, np.asarray(descriptor(positions)[0])[res.valid], "relaxed")
     np.testing.assert_allclose(res.confidence[res.valid], np.exp(-v / 0.174), rtol=1e-5)
     assert (res.confidence[~res.valid] == 0).all() and (~res.valid).any()
-    assert 0.0 <= res.low_confidence_share <= 1.0
+    low = res.confidence < LOW_CONFIDENCE
+    assert res.low_confidence_share == np.mean(low)  # invalid frames (confidence 0) included
+    assert res.low_confidence_valid_share == np.mean(low[res.valid])  # what the CLI reports
+    assert res.low_confidence_valid_share < res.low_confidence_share  # the invalid ones count
+    assert res.valid_share == np.mean(res.valid) < 1.0
     ik_res = retarget(positions, valid)
     np.testing.assert_array_equal(ik_res.confidence, res.valid.astype(np.float32))
     # the default is the offline smoother: the stage-wise pipeline with smoothing.smooth of it
