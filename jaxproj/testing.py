@@ -119,6 +119,54 @@ def _gamma(n: int | np.ndarray) -> np.ndarray:
     return nu / (1.0 - nu)
 
 
+def kernel_output_bound(
+    bank: Any, x: np.ndarray, idx: np.ndarray, d_in: int, d_out: int, hidden: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """ELM kernels' outputs in float64, and a bound on the error of their float32 evaluation.
+
+    ``kappa_k(x) = offset_k + B_k^T sigmoid(W x / rho_k + beta_k)`` (``projection.elm.predict``,
+    or the fused Pallas kernels, in any summation order) for rows of float32 inputs. The bound
+    is a first-order forward error analysis (Higham, *Accuracy and Stability of Numerical
+    Algorithms*, ch. 3) of that arithmetic with the float64 magnitudes of the actual operands,
+    so it grows where the computation is ill-conditioned (large output weights whose products
+    cancel):
+
+    * ``W x`` (``d_in`` terms): ``gamma_{d_in} sum_d |W_jd x_d|``; the scale and bias add
+      ``u |W x / rho|`` and ``u |pre|``; the sigmoid passes ``q (1 - q)`` of that and adds
+      ``SIGMOID_ULPS u q``;
+    * ``y_o = offset_o + sum_j B_jo q_j`` (``hidden + 1`` terms): ``gamma_{hidden + 1}
+      (|offset| + sum |B q|)`` plus ``sum_j |B_jo| dq_j``.
+
+    Args:
+      bank: an ``ELMBank`` (may be padded beyond the sizes below).
+      x: ``(R, >= d_in)`` input points; idx: ``(R, M)`` kernels of each row.
+      d_in, d_out, hidden: the kernels' real sizes.
+
+    Returns:
+      ``(y, err)``: ``(R, M, d_out)`` float64 outputs and bounds on their float32 error.
+    """
+    u = F32_UNIT_ROUNDOFF
+    w = np.asarray(bank.w, np.float64)[:hidden, :d_in]
+    x = np.asarray(x, np.float64)[:, :d_in]
+    idx = np.asarray(idx)
+    inv = np.asarray(bank.inv_scale, np.float64)[idx][..., None]  # (R, M, 1)
+    bias = np.asarray(bank.bias, np.float64)[idx][..., :hidden]  # (R, M, H)
+    out = np.asarray(bank.out, np.float64)[idx][..., :d_out, :hidden]  # (R, M, O, H)
+    offset = np.asarray(bank.offset, np.float64)[idx][..., :d_out]  # (R, M, O)
+
+    wx = x @ w.T  # (R, H)
+    err_wx = _gamma(d_in) * (np.abs(x) @ np.abs(w).T)
+    scaled = wx[:, None, :] * inv
+    pre = scaled + bias
+    err_pre = np.abs(inv) * err_wx[:, None, :] + u * (np.abs(scaled) + np.abs(pre))
+    q = _sigmoid(pre)
+    err_q = q * (1.0 - q) * err_pre + SIGMOID_ULPS * u * q
+    y = offset + np.einsum("rmoh,rmh->rmo", out, q)
+    mag = np.abs(offset) + np.einsum("rmoh,rmh->rmo", np.abs(out), q)
+    err = _gamma(hidden + 1) * mag + np.einsum("rmoh,rmh->rmo", np.abs(out), err_q)
+    return y, err
+
+
 def back_deviation_bound(
     bank: Any, r: np.ndarray, h: np.ndarray, idx: np.ndarray, d_in: int, d_out: int, hidden: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -126,19 +174,11 @@ def back_deviation_bound(
 
     What ``projection.relaxed.least_deviations_rows`` computes (by XLA's three passes or the
     fused Pallas kernel, in any summation order), for rows of float32 inputs: ``min_k
-    ||kappa_k(r) - h||^2`` with ``kappa_k(r) = offset_k + B_k^T sigmoid(W r / rho_k + beta_k)``.
-    The bound is a first-order forward error analysis (Higham, *Accuracy and Stability of
-    Numerical Algorithms*, ch. 3) of that arithmetic with the float64 magnitudes of the actual
-    operands, so it grows where the computation is ill-conditioned: large output weights whose
-    products cancel, or a deviation that is a small difference of large coordinates.
-
-    * ``W r`` (``d_in`` terms): ``gamma_{d_in} sum_d |W_jd r_d|``; the scale and bias add
-      ``u |W r / rho|`` and ``u |pre|``; the sigmoid passes ``q (1 - q)`` of that and adds
-      ``SIGMOID_ULPS u q``;
-    * ``y_o = offset_o + sum_j B_jo q_j`` (``hidden + 1`` terms): ``gamma_{hidden + 1} (|offset|
-      + sum |B q|)`` plus ``sum_j |B_jo| dq_j``; ``e_o = y_o - h_o`` adds ``u |e_o|``;
-    * ``sum_o e_o^2``: ``sum_o (2 |e_o| E_o + E_o^2) + gamma_{d_out + 1} sum_o e_o^2``;
-    * the minimum over the row's kernels is off by at most the largest of their bounds.
+    ||kappa_k(r) - h||^2``. On top of ``kernel_output_bound``'s ``E_o`` for ``y = kappa_k(r)``:
+    ``e_o = y_o - h_o`` adds ``u |e_o|``; ``sum_o e_o^2`` is off by ``sum_o (2 |e_o| E_o +
+    E_o^2) + gamma_{d_out + 1} sum_o e_o^2``; the minimum over the row's kernels by at most the
+    largest of their bounds. It grows where the deviation is a small difference of large
+    coordinates.
 
     Args:
       bank: an ``ELMBank`` (backward kernels; may be padded beyond the sizes below).
@@ -149,31 +189,21 @@ def back_deviation_bound(
       ``(b, bound)``: ``(R,)`` float64 least squared deviations and ``(R,)`` bounds such that a
       float32 evaluation of ``b`` lies within ``bound`` of it.
     """
-    u = F32_UNIT_ROUNDOFF
-    w = np.asarray(bank.w, np.float64)[:hidden, :d_in]
-    r = np.asarray(r, np.float64)[:, :d_in]
-    h = np.asarray(h, np.float64)[:, :d_out]
-    idx = np.asarray(idx)
-    inv = np.asarray(bank.inv_scale, np.float64)[idx][..., None]  # (R, M, 1)
-    bias = np.asarray(bank.bias, np.float64)[idx][..., :hidden]  # (R, M, H)
-    out = np.asarray(bank.out, np.float64)[idx][..., :d_out, :hidden]  # (R, M, O, H)
-    offset = np.asarray(bank.offset, np.float64)[idx][..., :d_out]  # (R, M, O)
-
-    wx = r @ w.T  # (R, H)
-    err_wx = _gamma(d_in) * (np.abs(r) @ np.abs(w).T)
-    scaled = wx[:, None, :] * inv
-    pre = scaled + bias
-    err_pre = np.abs(inv) * err_wx[:, None, :] + u * (np.abs(scaled) + np.abs(pre))
-    q = _sigmoid(pre)
-    err_q = q * (1.0 - q) * err_pre + SIGMOID_ULPS * u * q
-    y = offset + np.einsum("rmoh,rmh->rmo", out, q)
-    mag = np.abs(offset) + np.einsum("rmoh,rmh->rmo", np.abs(out), q)
-    e = y - h[:, None, :]
-    big_e = _gamma(hidden + 1) * mag + np.einsum("rmoh,rmh->rmo", np.abs(out), err_q)
-    big_e = big_e + u * np.abs(e)
+    y, err = kernel_output_bound(bank, r, idx, d_in, d_out, hidden)
+    e = y - np.asarray(h, np.float64)[:, None, :d_out]
+    err = err + F32_UNIT_ROUNDOFF * np.abs(e)
     b = np.sum(e * e, axis=-1)  # (R, M)
-    bound = np.sum(2.0 * np.abs(e) * big_e + big_e * big_e, axis=-1) + _gamma(d_out + 1) * b
+    bound = np.sum(2.0 * np.abs(e) * err + err * err, axis=-1) + _gamma(d_out + 1) * b
     return b.min(axis=1), bound.max(axis=1)
+
+
+def sq_distance_bound(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """A bound on the float32 error of squared distances computed as ``|x|^2 - 2 x.p + |p|^2``
+    (``projection.search``'s form, by any kernel and summation order): ``gamma_{d+2} (|x|^2 +
+    2 sum_i |x_i p_i| + |p|^2)`` for ``x (..., d)`` and ``p (..., d)`` (broadcast), float64."""
+    x, p = np.asarray(x, np.float64), np.asarray(p, np.float64)
+    mag = np.sum(x * x, axis=-1) + 2.0 * np.sum(np.abs(x * p), axis=-1) + np.sum(p * p, axis=-1)
+    return _gamma(x.shape[-1] + 2) * mag
 
 
 class _Bank:
