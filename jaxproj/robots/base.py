@@ -41,6 +41,16 @@ DescriptorIK = Callable[..., jax.Array]
 """IK of all driven joints: ``(d, bones)`` with ``d`` ``(..., 3 * n_bones)`` descriptors of the
 bone subset ``bones`` -> ``(..., n_driven)`` float32 angles, rad (within limits, finite)."""
 
+SPEED_KINDS: tuple[str, ...] = ("rated", "no-load")
+"""Names of ``Robot.speed_limits``: ``"rated"``, the speeds a joint keeps at its motor's nominal
+torque (what a motion meant for the robot should respect); ``"no-load"``, the theoretical maxima
+(``Robot.velocity_limits``)."""
+
+RATED_FRACTION = 0.75
+"""Rated / no-load speed of a joint whose rated speed is not published (``Robot.speed_limits``,
+and robot data filling the gaps of ``rated_speeds``). The NAO's published ratios lie on both
+sides: 0.74 for its arm and head motors, 0.79 for its leg motors."""
+
 CHAIN_SETS: tuple[str, ...] = ("upper", "whole")
 """Names of ``Robot.chain_set``: ``"upper"``, one projector per chain (``Robot.chains``);
 ``"whole"``, one chain over all driven joints (``Robot.whole_chain``)."""
@@ -206,6 +216,9 @@ class Robot:
       chains: how the IK factorises (``Chain``); together they drive each driven joint once.
       ik: IK of all driven joints from a descriptor (``DescriptorIK``), or ``None``.
       velocity_limits: ``(n_joints,)`` maximum joint speeds, rad/s (> 0), or ``None``.
+      rated_speeds: ``(n_joints,)`` joint speeds at the motors' nominal torque, rad/s
+        (``0 < rated <= velocity_limits``), or ``None`` (``speed_limits("rated")`` then takes
+        ``RATED_FRACTION`` of ``velocity_limits``).
       acceleration_limits: ``(n_joints,)`` rad/s^2 (> 0), or ``None``.
       coupled_joints: ``(leader, follower)`` pairs driven by one motor (follower := leader).
       loose_joints: driven joints whose IK truth is ill-conditioned in some poses (left out of
@@ -235,6 +248,7 @@ class Robot:
     chains: tuple[Chain, ...]
     ik: DescriptorIK | None = None
     velocity_limits: np.ndarray | None = None
+    rated_speeds: np.ndarray | None = None
     acceleration_limits: np.ndarray | None = None
     coupled_joints: tuple[tuple[str, str], ...] = ()
     loose_joints: tuple[str, ...] = ()
@@ -267,13 +281,16 @@ class Robot:
             raise ConfigError(f"driven_joints {unknown} are not in joint_names")
         self._check_chains(driven)
         limits = {}
-        for what in ("velocity_limits", "acceleration_limits"):
+        for what in ("velocity_limits", "rated_speeds", "acceleration_limits"):
             value = getattr(self, what)
             if value is not None:
                 value = _vector(value, n, what)
                 if (value <= 0).any():
                     raise ConfigError(f"{what} must be > 0")
             limits[what] = value
+        rated, vmax = limits["rated_speeds"], limits["velocity_limits"]
+        if rated is not None and (vmax is None or (rated > vmax).any()):
+            raise ConfigError("rated_speeds need velocity_limits and must not exceed them")
         for pair in self.coupled_joints:
             if len(pair) != 2 or any(j not in index for j in pair):
                 raise ConfigError(f"coupled_joints: {pair!r} is not a (leader, follower) of joints")
@@ -440,6 +457,20 @@ class Robot:
         if self.velocity_limits is None:
             raise ConfigError(f"robot {self.name!r} has no velocity limits (needed here)")
         return self.velocity_limits
+
+    def speed_limits(self, speeds: str = "rated") -> np.ndarray:
+        """``(n_joints,)`` float32 speed limits, rad/s, of a ``SPEED_KINDS`` name: ``"rated"``,
+        ``rated_speeds`` (``RATED_FRACTION * velocity_limits`` where the robot has none);
+        ``"no-load"``, ``velocity_limits``. ConfigError for an unknown name or a robot without
+        velocity limits."""
+        if speeds not in SPEED_KINDS:
+            raise ConfigError(f"speeds must be one of {SPEED_KINDS}, got {speeds!r}")
+        vmax = self.require_velocity_limits()
+        if speeds == "no-load":
+            return vmax
+        if self.rated_speeds is not None:
+            return self.rated_speeds
+        return (np.float32(RATED_FRACTION) * vmax).astype(np.float32)
 
     def driven_to_full(self, q_driven: jax.Array) -> jax.Array:
         """``(..., n_driven)`` driven angles -> ``(..., n_joints)`` float32; the rest standing."""
