@@ -15,6 +15,7 @@ Aldebaran-generated V5 URDF, cross-checked); see the MJCF ``assets/nao_h25.xml``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
@@ -23,8 +24,8 @@ import mujoco
 import numpy as np
 
 from jaxproj.errors import ConfigError, InputError
+from jaxproj.robots.base import RATED_FRACTION, mj_joint_ids
 from jaxproj.robots.base import joint_qpos_index as _qpos_index
-from jaxproj.robots.base import mj_joint_ids
 
 NAME = "NAO H25 V5"
 
@@ -91,6 +92,37 @@ UPPER = np.array([_LIMITS[n][1] for n in JOINT_NAMES], dtype=np.float32)
 """(26,) upper joint limits, rad (LHand/RHand: 1)."""
 VELOCITY_LIMITS = np.array([_VMAX[n] for n in JOINT_NAMES], dtype=np.float32)
 """(26,) no-load maximum joint speeds, rad/s."""
+
+# Rated ("nominal") joint speeds at the motors' nominal torque, rad/s: Aldebaran, "Description
+# of the motors" (NAO documentation 2010, hardware/motor_type.html; mirror
+# ii.tudelft.nl/naodoc/site_en/reddoc/hardware/motor_type.html): RE-Max 17 (11,900 rpm no-load,
+# 8,810 rpm nominal) at 150.27:1 351.77 deg/s (ShoulderPitch, ElbowYaw, HeadYaw) and at 173.22:1
+# 305.16 deg/s (ShoulderRoll, ElbowRoll, HeadPitch); RE-Max 24 (8,000 / 6,330 rpm) at 201.3:1
+# 188.67 deg/s (HipYawPitch, HipRoll, AnkleRoll) and at 130.85:1 290.25 deg/s (HipPitch,
+# KneePitch, AnklePitch). The motor / reduction of each joint is the one whose no-load speed is
+# _VMAX's (shared/reference/nao_h25_kinematics.md section 3.2, "Notes on vmax"); the V4/V5
+# joints use the same motors and ratios. WristYaw (A-max 12) and Hand: no rated speed published,
+# base.RATED_FRACTION (0.75) x no-load.
+_RATED_DEG_S: dict[str, float] = {
+    "HeadYaw": 351.77, "HeadPitch": 305.16,
+    "ShoulderPitch": 351.77, "ShoulderRoll": 305.16, "ElbowYaw": 351.77, "ElbowRoll": 305.16,
+    "HipYawPitch": 188.67, "HipRoll": 188.67, "HipPitch": 290.25, "KneePitch": 290.25,
+    "AnklePitch": 290.25, "AnkleRoll": 188.67,
+}  # fmt: skip
+
+
+def _rated(name: str) -> float:
+    side = name[1:] if name[:1] in "LR" and name[1:] in _RATED_DEG_S else name
+    if side in _RATED_DEG_S:
+        return math.radians(_RATED_DEG_S[side])
+    return RATED_FRACTION * _VMAX[name]
+
+
+RATED_SPEEDS = np.array([_rated(n) for n in JOINT_NAMES], dtype=np.float32)
+"""(26,) rated joint speeds, rad/s: Aldebaran's nominal speeds (6.1395 rad/s ShoulderPitch,
+ElbowYaw, HeadYaw; 5.3260 ShoulderRoll, ElbowRoll, HeadPitch; 3.2929 / 5.0658 for the legs),
+0.75 x no-load for WristYaw and Hand (none published). ``jaxproj.motion.feasible``'s default
+cap."""
 
 DRIVEN_JOINTS: tuple[str, ...] = (
     "HeadYaw", "HeadPitch",

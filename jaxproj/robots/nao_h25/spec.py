@@ -66,6 +66,7 @@ NAO_H25 = Robot(
     chains=ik.CHAINS,
     ik=ik.solve_driven,
     velocity_limits=robot.VELOCITY_LIMITS,
+    rated_speeds=robot.RATED_SPEEDS,
     coupled_joints=(robot.COUPLED_JOINTS,),
     loose_joints=LOOSE_JOINTS,
     mjcf=MJCF,
