@@ -43,6 +43,7 @@ def test_nao_is_built_from_its_module_constants() -> None:
     for mine, theirs in ((r.lower, robot.LOWER), (r.upper, robot.UPPER),
                          (r.standing, robot.STANDING_POSTURE),
                          (r.velocity_limits, robot.VELOCITY_LIMITS),
+                         (r.rated_speeds, robot.RATED_SPEEDS),
                          (r.driven_index, robot.DRIVEN_INDEX)):  # fmt: skip
         assert mine.dtype == theirs.dtype and _bits(mine) == _bits(theirs)
         assert not mine.flags.writeable
@@ -74,6 +75,32 @@ def test_nao_helpers_match_the_ik_module() -> None:
     np.testing.assert_array_equal(coupled[:, follow], q[:, lead])
 
 
+def test_nao_rated_speeds_are_aldebarans_nominal_speeds() -> None:
+    """Aldebaran's nominal speeds (deg/s of the motor page) where published; 0.75 x no-load for
+    WristYaw and Hand; the left and right sides alike; ``speed_limits`` picks either kind."""
+    rated = NAO_H25.speed_limits("rated")
+    assert rated is NAO_H25.rated_speeds
+    assert NAO_H25.speed_limits("no-load") is NAO_H25.velocity_limits
+    published = {"HeadYaw": 351.77, "LShoulderPitch": 351.77, "RElbowYaw": 351.77,
+                 "HeadPitch": 305.16, "RShoulderRoll": 305.16, "LElbowRoll": 305.16,
+                 "LHipRoll": 188.67, "RKneePitch": 290.25}  # fmt: skip
+    for name, deg_s in published.items():
+        assert rated[robot.IDX[name]] == pytest.approx(np.radians(deg_s), rel=1e-6)
+    for name in ("LWristYaw", "RHand"):
+        i = robot.IDX[name]
+        assert rated[i] == pytest.approx(0.75 * robot.VELOCITY_LIMITS[i], rel=1e-6)
+    ratio = rated / robot.VELOCITY_LIMITS
+    assert ((ratio > 0.73) & (ratio < 0.80)).all()
+    left = [i for i, n in enumerate(robot.JOINT_NAMES) if n[0] == "L"]
+    right = [robot.IDX["R" + robot.JOINT_NAMES[i][1:]] for i in left]
+    np.testing.assert_array_equal(rated[left], rated[right])
+    # a robot with no rated speeds gets 0.75 x no-load; an unknown kind is refused
+    toy = make_toy_robot()
+    np.testing.assert_allclose(toy.speed_limits(), 0.75 * toy.velocity_limits, rtol=1e-7)
+    with pytest.raises(ConfigError, match="speeds must be one of"):
+        NAO_H25.speed_limits("peak")
+
+
 # --- validation ---------------------------------------------------------------------------------
 
 
@@ -98,6 +125,8 @@ def _fields() -> dict:
         ({"chains": (Chain("head", ("tail",), DRIVEN[:2]), *CHAINS[1:])}, "unknown or no bones"),
         ({"chains": (Chain("head", ("neck",), DRIVEN[1::-1]), *CHAINS[1:])}, "order"),
         ({"velocity_limits": np.zeros(9)}, "velocity_limits must be > 0"),
+        ({"rated_speeds": np.full(9, 6.0)}, "must not exceed"),
+        ({"rated_speeds": np.full(9, 2.0), "velocity_limits": None}, "need velocity_limits"),
         ({"coupled_joints": (("waist", "tail"),)}, "coupled_joints"),
         ({"loose_joints": ("waist",)}, "loose_joints"),
         ({"exports": {".csv": naoqi.EXPORT}}, "exports"),
