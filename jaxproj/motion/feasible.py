@@ -3,12 +3,18 @@
 A projected (or IK) motion follows the person frame by frame, and a Kinect skeleton can move a
 joint target by a large angle in one frame (tracking noise, an ill-defined elbow yaw, a lost
 frame filled by holding the last pose). A robot cannot follow: its joints have speed limits
-(``Robot.velocity_limits``, rad/s; every function here takes ``robot=``, default the NAO H25).
+(``Robot.speed_limits``, rad/s; every function here takes ``robot=``, default the NAO H25).
 ``make_feasible`` turns a motion into one the robot can play
 while staying as close as it can to it:
 
 * positions within ``[robot.lower, robot.upper]`` on every frame (hard);
-* speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * velocity_limits`` per joint (hard);
+* speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * robot.speed_limits(speeds)`` per joint
+  (hard). By default (``speeds="rated"``) the cap is the rated speed, the speed a joint keeps at
+  its motor's nominal torque (``Robot.rated_speeds``; the NAO's: Aldebaran's nominal speeds,
+  74-79 % of no-load, else 0.75 x no-load), times ``SPEED_FRACTIONS["rated"]``;
+  ``speeds="no-load"`` caps at ``SPEED_FRACTIONS["no-load"]`` (90 %) of the no-load maxima
+  (``Robot.velocity_limits``), the default before rated speeds (``jaxproj retarget --speeds
+  no-load``);
 * acceleration ``|v_t - v_{t-1}| / ((dt_t + dt_{t-1}) / 2) <= accel`` (``v_t`` the speed of
   step ``t``), a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint).
   The NAO's documentation gives no acceleration limit; the bound is ours: full speed in ~0.1 s,
@@ -57,6 +63,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import jax
 import jax.numpy as jnp
@@ -68,6 +75,10 @@ from jaxproj.robots import NAO_H25, Robot
 
 ACCEL_LIMIT = 80.0
 """rad/s^2: the acceleration bound of ``FeasibleConfig`` on every joint (ours; see module doc)."""
+
+SPEED_FRACTIONS: dict[str, float] = {"rated": 1.0, "no-load": 0.9}
+"""``FeasibleConfig.speed_fraction`` when left out, per ``speeds``: the rated speeds in full,
+90 % of the no-load ones (the cap before rated speeds)."""
 
 Arms = tuple[tuple[int, int], ...]
 """Per elbow, ``(yaw, roll)`` joint positions in the configuration (``_arms``; static)."""
@@ -83,7 +94,10 @@ class FeasibleConfig:
     """Settings of ``make_feasible`` (validated when constructed; ``ConfigError`` otherwise).
 
     Attributes:
-      speed_fraction: fraction of ``Robot.velocity_limits`` (no-load speeds) allowed, in (0, 1].
+      speeds: the speed limits capped (``Robot.speed_limits``): ``"rated"`` (default, the
+        speeds at the motors' nominal torque) or ``"no-load"`` (the theoretical maxima).
+      speed_fraction: fraction of those speeds allowed, in (0, 1]; ``None``:
+        ``SPEED_FRACTIONS[speeds]`` (the constructed config holds the number).
       accel: acceleration bound, rad/s^2, every joint.
       straight_elbow: ``(lo, hi)`` rad of ``|elbow roll|``: below ``lo`` the elbow yaw target is
         the held yaw, above ``hi`` it is the input's, smoothstep in between.
@@ -93,7 +107,8 @@ class FeasibleConfig:
       zero_phase: average the forward pass with a backward (time-reversed) pass.
     """
 
-    speed_fraction: float = 0.9
+    speeds: str = "rated"
+    speed_fraction: float | None = None
     accel: float = ACCEL_LIMIT
     straight_elbow: tuple[float, float] = (math.radians(5.0), math.radians(20.0))
     wrap_band: float = math.radians(5.0)
@@ -101,7 +116,11 @@ class FeasibleConfig:
     zero_phase: bool = True
 
     def __post_init__(self) -> None:
-        if not 0.0 < float(self.speed_fraction) <= 1.0:
+        if self.speeds not in SPEED_FRACTIONS:
+            raise ConfigError(f"speeds={self.speeds!r} must be one of {tuple(SPEED_FRACTIONS)}")
+        if self.speed_fraction is None:
+            object.__setattr__(self, "speed_fraction", SPEED_FRACTIONS[self.speeds])
+        if not 0.0 < float(cast(float, self.speed_fraction)) <= 1.0:
             raise ConfigError(f"speed_fraction={self.speed_fraction} must lie in (0, 1]")
         if not (np.isfinite(self.accel) and float(self.accel) > 0.0):
             raise ConfigError(f"accel={self.accel} must be a positive number of rad/s^2")
@@ -114,14 +133,15 @@ class FeasibleConfig:
             raise ConfigError(f"wrap_patience={self.wrap_patience} must be >= 0 s")
 
     def params(self, robot: Robot = NAO_H25) -> jax.Array:
-        """``(5, n_joints)`` float32 rows of ``robot``: lower, upper, speed limit, accel, and
+        """``(5, n_joints)`` float32 rows of ``robot``: lower, upper, speed limit
+        (``speed_fraction * robot.speed_limits(speeds)``), accel, and
         (first 4 columns) ``straight_elbow`` lo / hi, ``wrap_band``, ``wrap_patience``: the
         traced argument of the filter.
 
         Raises:
           ConfigError: the robot has no velocity limits, or fewer than 4 joints.
         """
-        vmax = robot.require_velocity_limits()
+        vmax = cast(float, self.speed_fraction) * robot.speed_limits(self.speeds)
         if robot.n_joints < 4:
             raise ConfigError(f"the feasibility filter needs >= 4 joints, {robot.name} has "
                               f"{robot.n_joints}")  # fmt: skip
@@ -132,7 +152,7 @@ class FeasibleConfig:
                 [
                     robot.lower,
                     robot.upper,
-                    self.speed_fraction * vmax,
+                    vmax,
                     np.full(robot.n_joints, self.accel, np.float32),
                     extra,
                 ]
@@ -142,7 +162,7 @@ class FeasibleConfig:
 
 
 DEFAULT_FEASIBLE = FeasibleConfig()
-"""The defaults: 90 % of the no-load speeds, 80 rad/s^2, zero-phase."""
+"""The defaults: the rated speeds, 80 rad/s^2, zero-phase."""
 
 
 def _smoothstep(x: jax.Array, lo: jax.Array, hi: jax.Array) -> jax.Array:
@@ -375,8 +395,10 @@ def feasibility_report(
     Returns:
       dict: ``frames``; ``speed_violation_frames`` (frames whose step from the previous frame
       exceeds ``velocity_limits`` on some joint); ``max_speed_ratio`` and ``worst_joint``
-      (largest speed / limit); ``max_step_deg`` and ``max_step_joint`` (largest frame-to-frame
-      change); ``steps_over_30deg``; ``accel_violation_frames`` (acceleration above
+      (largest speed / limit); ``rated_speed_ratio`` and ``rated_worst_joint`` (the same
+      against the rated speeds, ``robot.speed_limits("rated")``); ``max_step_deg`` and
+      ``max_step_joint`` (largest frame-to-frame change); ``steps_over_30deg``;
+      ``accel_violation_frames`` (acceleration above
       ``config.accel`` by more than 1 %); ``max_accel`` (rad/s^2); ``limit_violation_frames``
       (a joint outside ``[lower, upper]`` by more than 1e-6 rad).
     """
@@ -386,6 +408,7 @@ def feasibility_report(
     dt = np.diff(t)[:, None]
     speed = np.abs(step) / dt
     ratio = speed / robot.require_velocity_limits()
+    rated = speed / robot.speed_limits("rated")
     out: dict = {"frames": int(len(q))}
     if len(step):
         wj = int(np.argmax(ratio.max(axis=0)))
@@ -394,12 +417,15 @@ def feasibility_report(
             speed_violation_frames=int((ratio > 1.0 + 1e-6).any(axis=1).sum()),
             max_speed_ratio=float(ratio.max()),
             worst_joint=robot.joint_names[wj],
+            rated_speed_ratio=float(rated.max()),
+            rated_worst_joint=robot.joint_names[int(np.argmax(rated.max(axis=0)))],
             max_step_deg=float(np.degrees(np.abs(step).max())),
             max_step_joint=robot.joint_names[sj],
             steps_over_30deg=int((np.abs(step) > math.radians(30.0)).any(axis=1).sum()),
         )
     else:
         out.update(speed_violation_frames=0, max_speed_ratio=0.0, worst_joint="",
+                   rated_speed_ratio=0.0, rated_worst_joint="",
                    max_step_deg=0.0, max_step_joint="", steps_over_30deg=0)  # fmt: skip
     if len(step) > 1:
         v = step / dt
