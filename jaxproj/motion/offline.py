@@ -43,6 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxproj._internal.jit import full_precision
 from jaxproj.errors import ConfigError
 
 
@@ -101,6 +102,7 @@ OFFLINE_SMOOTHING = OfflineSmoothing()
 """The default smoother of the offline tools (``retarget``, ``evaluate``, the demo)."""
 
 
+@full_precision
 def rts_motion(y: jax.Array, valid: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
     """The RTS smoother of one padded motion (traceable; call it inside a jitted function).
 

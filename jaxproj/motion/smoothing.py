@@ -46,7 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from jaxproj._internal.jit import jit
+from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError
 from jaxproj.motion.offline import OFFLINE_SMOOTHING, OfflineSmoothing, check_steps, rts_motion
 
@@ -141,6 +141,7 @@ def step(
     return s_t, b_t
 
 
+@full_precision
 def smooth_motion(y: jax.Array, length: jax.Array, gains: jax.Array) -> jax.Array:
     """The traceable core of ``smooth`` (call it inside a jitted function).
 

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from jaxproj._internal.jit import jit
+from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError, NonFiniteRowsError
 from jaxproj.projection.build import (
     Model,
@@ -144,6 +144,7 @@ def search_batch(batch: int, sub: int) -> int:
     return out
 
 
+@full_precision
 def project_batch(
     p: AnyProjector,
     h: jax.Array,

@@ -572,3 +572,55 @@ def test_fused_back_projection_matches_xla(chain_model):
             correct[:, c, j] &= same
     assert np.all(np.any(correct, axis=-1)), np.argwhere(~np.any(correct, axis=-1))
     assert np.all(np.isfinite(np.asarray(v_k)))
+
+
+def _dot_precisions(jaxpr) -> list:
+    """The ``precision`` of every ``dot_general`` in a (closed) jaxpr, sub-jaxprs included."""
+    from jax.extend import core as jcore
+
+    found = []
+    for eqn in jaxpr.eqns:
+        if eqn.primitive.name == "dot_general":
+            found.append(eqn.params["precision"])
+        for v in eqn.params.values():
+            for sub in v if isinstance(v, tuple | list) else (v,):
+                if isinstance(sub, jcore.ClosedJaxpr):
+                    found += _dot_precisions(sub.jaxpr)
+                elif isinstance(sub, jcore.Jaxpr):
+                    found += _dot_precisions(sub)
+    return found
+
+
+@pytest.mark.parametrize("objective", ["relaxed", "full"])
+def test_core_keeps_full_precision_in_a_plain_jit(chain_model, objective):
+    """``project_batch`` traced by a caller's own ``jax.jit`` under the lowest default matmul
+    precision (bfloat16 passes) still multiplies at full float32 precision: every product of its
+    program says HIGHEST (on a GPU the default would be TF32 or bf16; on this CPU the setting
+    changes no number, so the program itself is checked), and the relaxed answers of that plain
+    ``jax.jit`` are the float64 reference's under the near-tie rule (the full objective's
+    program is only traced: its numbers are checked against the reference elsewhere, and its
+    compile costs CI ~30 s)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxproj.testing import StackedReference
+
+    sp = chain_model.projector
+    h = _descriptors([6], actions=[3, 10])[::7][:24]
+    highest = (jax.lax.Precision.HIGHEST, jax.lax.Precision.HIGHEST)
+
+    def users_fn(p, x):
+        return engine.project_batch(p, x, objective, 5, 5, impl="xla")
+
+    with jax.default_matmul_precision("bfloat16"):
+        low = jax.make_jaxpr(lambda a, b: jnp.dot(a, b))(jnp.ones((2, 2)), jnp.ones((2, 2)))
+        assert _dot_precisions(low.jaxpr) != [highest]  # the walk sees a lowered product
+        dots = _dot_precisions(jax.make_jaxpr(users_fn)(sp, jnp.asarray(h)).jaxpr)
+        if objective == "relaxed":
+            r, _ = jax.jit(users_fn)(sp, jnp.asarray(h))
+    assert len(dots) >= 3 and all(d == highest for d in dots), dots
+    if objective == "relaxed":
+        ref = StackedReference(sp)
+        pairs = zip(h, np.asarray(r), strict=True)
+        verdicts = [ref.judge(x, q, 5, 5, np.radians(0.01)) for x, q in pairs]
+        assert "differs" not in verdicts, verdicts
