@@ -10,11 +10,11 @@ lists them; ``DEFAULT`` is the name of the default robot (``"nao_h25"``).
 from __future__ import annotations
 
 from jaxproj.errors import ConfigError
-from jaxproj.robots.base import Chain, Export, Mjcf, Robot
+from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_coupled
 from jaxproj.robots.nao_h25.spec import NAO_H25
 
-__all__ = ["DEFAULT", "NAO_H25", "Chain", "Export", "Mjcf", "Robot", "get", "names", "register",
-           "unregister"]  # fmt: skip
+__all__ = ["DEFAULT", "NAO_H25", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot", "clip_coupled",
+           "get", "names", "register", "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""

@@ -148,6 +148,90 @@ class Export:
     read: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any], Any]]
 
 
+@dataclass(frozen=True)
+class CoupledLimit:
+    """A joint's range as a piecewise-linear function of another joint's angle.
+
+    The range of ``joint`` at a configuration is ``[lower(q_by), upper(q_by)]``, each the linear
+    interpolation of its knots at the angle of ``by`` (``jnp.interp``: constant beyond the end
+    knots), intersected with ``joint``'s own ``[Robot.lower, Robot.upper]``. A controller that
+    enforces such an envelope (NAOqi's head anti-collision table) clips the follower to it; so
+    does ``clip_coupled``.
+
+    Attributes:
+      joint: the limited joint (the follower).
+      by: the joint whose angle sets the range (the leader); never itself a follower.
+      knots: ``(k,)`` angles of ``by``, rad, strictly increasing (k >= 2).
+      lower, upper: ``(k,)`` the range of ``joint`` at each knot, rad (``lower <= upper``).
+      source: where the table comes from (a citation).
+    """
+
+    joint: str
+    by: str
+    knots: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        k = np.asarray(self.knots).shape
+        arrays = {}
+        for what in ("knots", "lower", "upper"):
+            a = np.array(getattr(self, what), dtype=np.float32)
+            if a.ndim != 1 or a.shape != k or len(a) < 2 or not np.isfinite(a).all():
+                raise ConfigError(f"coupled limit of {self.joint!r}: {what} must be (k >= 2,) "
+                                  f"finite, like knots {k}, got {a.shape}")  # fmt: skip
+            a.flags.writeable = False
+            arrays[what] = a
+        if (np.diff(arrays["knots"]) <= 0).any():
+            raise ConfigError(f"coupled limit of {self.joint!r}: knots must increase strictly")
+        if (arrays["lower"] > arrays["upper"]).any():
+            raise ConfigError(f"coupled limit of {self.joint!r}: lower > upper at some knot")
+        if self.joint == self.by:
+            raise ConfigError(f"coupled limit of {self.joint!r}: a joint cannot limit itself")
+        for what, a in arrays.items():
+            object.__setattr__(self, what, a)
+
+    def bounds(self, lead: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """``(lo, hi)``: the follower's range at leader angles ``lead`` (``(...,)``, jnp)."""
+        lead = jnp.asarray(lead, jnp.float32)
+        lo = jnp.interp(lead, jnp.asarray(self.knots), jnp.asarray(self.lower))
+        hi = jnp.interp(lead, jnp.asarray(self.knots), jnp.asarray(self.upper))
+        return lo, hi
+
+
+def clip_coupled(robot: Robot, angles: jax.typing.ArrayLike, *, driven: bool = False) -> jax.Array:
+    """Clip each follower of ``robot.coupled_limits`` to its range at its leader's angle.
+
+    Traceable (jnp only, no host sync); float32. Only followers move: their leaders (and every
+    other joint) are returned unchanged, so clip the leaders to their own limits first
+    (``Robot.clip`` / ``Robot.clip_driven`` do both).
+
+    Args:
+      robot: the robot.
+      angles: ``(..., n_joints)`` configurations, or with ``driven`` ``(..., n_driven)`` driven
+        angles (a leader that is not driven is read at ``robot.standing``; a follower that is
+        not driven is left alone: the standing posture lies inside every coupled range).
+      driven: whether ``angles`` are driven angles.
+
+    Returns:
+      ``angles`` as float32 with every follower inside its coupled range.
+    """
+    q = jnp.asarray(angles, dtype=jnp.float32)
+    names = robot.driven_joints if driven else robot.joint_names
+    for limit in robot.coupled_limits:
+        if limit.joint not in names:
+            continue
+        j = names.index(limit.joint)
+        if limit.by in names:
+            lead = q[..., names.index(limit.by)]
+        else:
+            lead = jnp.full(q.shape[:-1], robot.standing[robot.index(limit.by)], jnp.float32)
+        lo, hi = limit.bounds(lead)
+        q = q.at[..., j].set(jnp.clip(q[..., j], lo, hi))
+    return q
+
+
 def _vector(value: object, n: int, what: str) -> np.ndarray:
     a = np.array(value, dtype=np.float32)
     if a.shape != (n,):
@@ -232,6 +316,9 @@ class Robot:
       elbow_pairs: ``(yaw, roll)`` joint pairs of elbows whose yaw is ill-defined when the
         elbow is straight (``jaxproj.motion.feasible``'s elbow rules); none: no such rule.
       ik_constants: constants of the IK that model files record (meta ``"ik"``); JSON numbers.
+      coupled_limits: ranges of joints that depend on another joint's angle (``CoupledLimit``,
+        e.g. the NAO's head anti-collision envelope), applied by ``clip`` / ``clip_driven``
+        (``clip_coupled``); a follower is limited by one leader, never itself a leader.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -258,6 +345,7 @@ class Robot:
     whole_chain: Chain | None = None
     elbow_pairs: tuple[tuple[str, str], ...] = ()
     ik_constants: Mapping[str, float] = field(default_factory=dict)
+    coupled_limits: tuple[CoupledLimit, ...] = ()
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -304,6 +392,7 @@ class Robot:
         for pair in self.elbow_pairs:
             if len(pair) != 2 or any(j not in index for j in pair):
                 raise ConfigError(f"elbow_pairs: {pair!r} is not a (yaw, roll) pair of joints")
+        self._check_coupled_limits(index, standing)
         whole = self.whole_chain
         if whole is None:
             bones = tuple(dict.fromkeys(b for c in self.chains for b in c.bones))
@@ -325,12 +414,32 @@ class Robot:
         set_(self, "whole_chain", whole)
         set_(self, "elbow_pairs", tuple((a, b) for a, b in self.elbow_pairs))
         set_(self, "ik_constants", dict(self.ik_constants))
+        set_(self, "coupled_limits", tuple(self.coupled_limits))
         for what, value in limits.items():
             set_(self, what, value)
         set_(self, "_index", index)
         driven_index = np.array([index[j] for j in driven], dtype=np.int32)
         driven_index.flags.writeable = False
         set_(self, "_driven_index", driven_index)
+
+    def _check_coupled_limits(self, index: Mapping[str, int], standing: np.ndarray) -> None:
+        limits = tuple(self.coupled_limits)
+        if not all(isinstance(c, CoupledLimit) for c in limits):
+            raise ConfigError("coupled_limits must be a tuple of CoupledLimit")
+        followers = [c.joint for c in limits]
+        if len(set(followers)) != len(followers):
+            raise ConfigError(f"coupled_limits limit a joint twice: {followers}")
+        for c in limits:
+            if c.joint not in index or c.by not in index:
+                raise ConfigError(f"coupled limit {c.joint!r} by {c.by!r}: unknown joint")
+            if c.by in followers:
+                raise ConfigError(f"coupled limit by {c.by!r}: a leader cannot be a follower")
+            lo, hi = (
+                float(np.interp(standing[index[c.by]], c.knots, b)) for b in (c.lower, c.upper)
+            )
+            if not lo <= standing[index[c.joint]] <= hi:
+                raise ConfigError(f"the standing posture is outside the coupled range of "
+                                  f"{c.joint!r}")  # fmt: skip
 
     def _check_chains(self, driven: tuple[str, ...]) -> None:
         chains = tuple(self.chains)
@@ -477,16 +586,19 @@ class Robot:
         return driven_to_full(self.standing, self.driven_index, q_driven)
 
     def clip(self, angles: jax.Array) -> jax.Array:
-        """``(..., n_joints)`` configurations clipped to ``[lower, upper]`` (jnp, float32)."""
+        """``(..., n_joints)`` configurations clipped to ``[lower, upper]``, then every follower
+        of ``coupled_limits`` to its range (``clip_coupled``); jnp, float32, traceable."""
         q = jnp.asarray(angles, dtype=jnp.float32)
         lo = jnp.broadcast_to(self.lower, q.shape)
-        return jnp.clip(q, lo, jnp.broadcast_to(self.upper, q.shape))
+        return clip_coupled(self, jnp.clip(q, lo, jnp.broadcast_to(self.upper, q.shape)))
 
     def clip_driven(self, angles: jax.Array) -> jax.Array:
-        """``(..., n_driven)`` driven angles clipped to their limits (jnp, float32)."""
+        """``(..., n_driven)`` driven angles clipped to their limits, then to the coupled
+        ranges (``clip_coupled``); jnp, float32, traceable."""
         q = jnp.asarray(angles, dtype=jnp.float32)
         lo = jnp.broadcast_to(self.lower[self.driven_index], q.shape)
-        return jnp.clip(q, lo, jnp.broadcast_to(self.upper[self.driven_index], q.shape))
+        q = jnp.clip(q, lo, jnp.broadcast_to(self.upper[self.driven_index], q.shape))
+        return clip_coupled(self, q, driven=True)
 
     def from_columns(self, names: Sequence[str], columns: np.ndarray) -> np.ndarray:
         """``(T, len(names))`` angle columns placed by joint name into ``(T, n_joints)`` float32

@@ -60,11 +60,16 @@ def test_nao_helpers_match_the_ik_module() -> None:
     drv = q[:, robot.DRIVEN_INDEX]
     assert _bits(NAO_H25.driven_to_full(drv)) == _bits(ik.driven_to_full(drv))
     assert _bits(jax.jit(NAO_H25.driven_to_full)(drv)) == _bits(ik.driven_to_full(drv))
-    np.testing.assert_array_equal(NAO_H25.clip(q), np.clip(q, robot.LOWER, robot.UPPER))
-    np.testing.assert_array_equal(
-        NAO_H25.clip_driven(drv),
-        np.clip(drv, robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]),
-    )
+    # the box limits, then HeadPitch into the head envelope at the clipped HeadYaw (NumPy)
+    boxed = np.clip(q, robot.LOWER, robot.UPPER)
+    yaw, pitch = robot.IDX["HeadYaw"], robot.IDX["HeadPitch"]
+    env = [np.interp(boxed[:, yaw], robot.HEAD_ENVELOPE_YAW, b)
+           for b in (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)]  # fmt: skip
+    boxed[:, pitch] = np.clip(boxed[:, pitch], *env)
+    tol = 8 * 2.0**-24  # float32 interpolation (a few roundings) of angles below 1 rad
+    np.testing.assert_allclose(NAO_H25.clip(q), boxed, rtol=0, atol=tol)
+    np.testing.assert_allclose(NAO_H25.clip_driven(drv), boxed[:, robot.DRIVEN_INDEX], rtol=0,
+                               atol=tol)  # fmt: skip
     # each chain's IK is ik.solve_chain on its own columns
     x = rng.normal(size=(5, 15)).astype(np.float32)
     for chain in NAO_H25.chains:

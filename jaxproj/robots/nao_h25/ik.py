@@ -47,8 +47,9 @@ pure function of one descriptor and the same input always gives the same output)
   neck up). Inputs need not be unit length (mean-shift modes are averages): each bone vector is
   normalised first.
 
-Every angle is clamped to its joint limits; joints outside ``DRIVEN_JOINTS`` are held at
-``robot.STANDING_POSTURE``. The result never contains NaN.
+Every angle is clamped to its joint limits, and HeadPitch to the head anti-collision envelope
+at the clamped HeadYaw (``robot.HEAD_ENVELOPE``, NAOqi's table); joints outside
+``DRIVEN_JOINTS`` are held at ``robot.STANDING_POSTURE``. The result never contains NaN.
 """
 
 from __future__ import annotations
@@ -221,6 +222,8 @@ def driven_angles(d: jax.Array, bone_index: tuple[int, ...]) -> jax.Array:
     head_yaw = jnp.arctan2(n[..., 1], n[..., 2])
     head_yaw = jnp.clip(head_yaw, _LO["HeadYaw"], _HI["HeadYaw"])
     head_pitch = jnp.clip(head_pitch, _LO["HeadPitch"], _HI["HeadPitch"])
+    env_lo, env_hi = robot.HEAD_ENVELOPE.bounds(head_yaw)  # NAOqi's anti-collision envelope
+    head_pitch = jnp.clip(head_pitch, env_lo, env_hi)
     left = _arm(lu, lf, "L")
     right = _arm(ru, rf, "R")
     out = jnp.stack([head_yaw, head_pitch, *left, *right], axis=-1)

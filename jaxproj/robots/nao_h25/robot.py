@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from jaxproj.errors import ConfigError, InputError
-from jaxproj.robots.base import RATED_FRACTION, mj_joint_ids
+from jaxproj.robots.base import RATED_FRACTION, CoupledLimit, mj_joint_ids
 from jaxproj.robots.base import joint_qpos_index as _qpos_index
 
 NAME = "NAO H25 V5"
@@ -153,6 +153,43 @@ STANDING_POSTURE = np.array([_STANDING[n] for n in JOINT_NAMES], dtype=np.float3
 
 COUPLED_JOINTS: tuple[str, str] = ("LHipYawPitch", "RHipYawPitch")
 """One motor drives both; RHipYawPitch := LHipYawPitch (LHipYawPitch has priority)."""
+
+# HeadPitch range as a function of HeadYaw: the head anti-collision table of ALD-JOINTS ("H25 -
+# Joints V5 & V4", "anti collision"), via shared/reference/nao_h25_kinematics.md section 3.1:
+# yaw (deg) -> pitch min / max (deg), symmetric in yaw, linear in between.
+_HEAD_ENVELOPE_DEG: tuple[tuple[float, float, float], ...] = (
+    (0.0, -38.5, 29.51),
+    (27.85, -38.5, 24.18),
+    (43.32, -31.40, 21.20),
+    (51.74, -27.50, 18.91),
+    (62.45, -24.64, 17.19),
+    (87.49, -18.91, 11.46),
+    (119.52, -25.73, 18.91),
+)
+_ENV = np.array(_HEAD_ENVELOPE_DEG[:0:-1] + _HEAD_ENVELOPE_DEG, np.float64)
+_ENV[: len(_HEAD_ENVELOPE_DEG) - 1, 0] *= -1.0  # mirror: yaw -119.52 .. 119.52 deg
+HEAD_ENVELOPE_YAW = np.radians(_ENV[:, 0]).astype(np.float32)
+"""(13,) HeadYaw knots of the head envelope, rad (-119.52 .. 119.52 deg, symmetric)."""
+HEAD_ENVELOPE_PITCH_MIN = np.radians(_ENV[:, 1]).astype(np.float32)
+"""(13,) lowest HeadPitch at each knot of ``HEAD_ENVELOPE_YAW``, rad."""
+HEAD_ENVELOPE_PITCH_MAX = np.radians(_ENV[:, 2]).astype(np.float32)
+"""(13,) highest HeadPitch at each knot of ``HEAD_ENVELOPE_YAW``, rad. NAOqi clips HeadPitch to
+``[min, max]`` interpolated linearly at the current HeadYaw (the head shell would hit the
+shoulders otherwise); ``HEAD_ENVELOPE`` is this table as a ``CoupledLimit``."""
+for _a in (HEAD_ENVELOPE_YAW, HEAD_ENVELOPE_PITCH_MIN, HEAD_ENVELOPE_PITCH_MAX):
+    _a.flags.writeable = False
+
+HEAD_ENVELOPE = CoupledLimit(
+    joint="HeadPitch",
+    by="HeadYaw",
+    knots=HEAD_ENVELOPE_YAW,
+    lower=HEAD_ENVELOPE_PITCH_MIN,
+    upper=HEAD_ENVELOPE_PITCH_MAX,
+    source='Aldebaran, "H25 - Joints V5 & V4", head anti collision table '
+    "(shared/reference/nao_h25_kinematics.md section 3.1)",
+)
+"""NAOqi's head anti-collision envelope as robot data: HeadPitch's range as a function of
+HeadYaw (``Robot.coupled_limits`` of ``jaxproj.robots.NAO_H25``; the IK clips to it too)."""
 
 # Link lengths (m), ALD-LINKS H25 V3.3 (= V4/V5 URDF).
 NECK_OFFSET_Z = 0.1265

@@ -75,5 +75,6 @@ NAO_H25 = Robot(
     whole_chain=ik.WHOLE_BODY,
     elbow_pairs=ELBOW_PAIRS,
     ik_constants=IK_CONSTANTS,
+    coupled_limits=(robot.HEAD_ENVELOPE,),
 )
 """The NAO H25 V5: 26 joints, 10 driven (head, arms to the elbow), three chains, NAOqi JSON."""
