@@ -44,13 +44,32 @@ def test_output_respects_limits_speed_and_acceleration(zero_phase: bool, fps: fl
     rep = feasibility_report(out, times, cfg)
     assert rep["limit_violation_frames"] == 0
     assert rep["speed_violation_frames"] == 0
-    # the configured fraction of the no-load speed, up to float32 round-off
+    # the configured fraction of the rated speed, up to float32 round-off; and (the fraction's
+    # headroom) never above the rated speed itself, with no tolerance
     speed = np.abs(np.diff(out.astype(np.float64), axis=0)) * fps
-    assert (speed <= cfg.speed_fraction * robot.VELOCITY_LIMITS * (1 + 1e-4) + 1e-4).all()
+    assert (speed <= cfg.speed_fraction * robot.RATED_SPEEDS * (1 + 1e-4) + 1e-4).all()
+    assert (speed <= robot.RATED_SPEEDS).all() and rep["rated_speed_ratio"] <= 1.0
+    assert before["rated_speed_ratio"] > 1.0
     assert rep["accel_violation_frames"] == 0 and rep["max_accel"] <= cfg.accel * 1.01
     # joints that never move are left exactly as they are
     still = np.setdiff1d(np.arange(len(robot.JOINT_NAMES)), DRIVEN)
     np.testing.assert_array_equal(out[:, still], q[:, still])
+
+
+def test_rated_speeds_by_default_no_load_on_request() -> None:
+    """The default caps at 99 % of the rated speeds; ``speeds="no-load"`` keeps the former cap,
+    90 % of the no-load speeds, which lets the arms move faster than rated."""
+    assert DEFAULT_FEASIBLE.speeds == "rated" and DEFAULT_FEASIBLE.speed_fraction == 0.99
+    np.testing.assert_allclose(DEFAULT_FEASIBLE.params()[2], 0.99 * robot.RATED_SPEEDS, rtol=1e-6)
+    free = FeasibleConfig(speeds="no-load")
+    assert free.speed_fraction == 0.9
+    np.testing.assert_allclose(free.params()[2], 0.9 * robot.VELOCITY_LIMITS, rtol=1e-6)
+    assert FeasibleConfig(speeds="no-load", speed_fraction=0.5).speed_fraction == 0.5
+    q = _jerky_motion(120)
+    times = np.arange(len(q)) / 30.0
+    fast = feasibility_report(make_feasible(q, times, config=free), times)
+    assert fast["speed_violation_frames"] == 0 and fast["max_speed_ratio"] <= 0.9 + 1e-4
+    assert fast["rated_speed_ratio"] > 1.1  # faster than the rated speeds
 
 
 def test_a_feasible_motion_is_followed_closely() -> None:
@@ -89,11 +108,13 @@ def test_elbow_yaw_flicker_at_the_range_ends_is_ignored_and_a_real_move_followed
     q[25:31, yaw] = bottom  # wrap-around flicker
     q[70:, yaw] = bottom  # then the target really stays at the other end
     out = make_feasible(q, t)
-    # flicker (frames 10..30; the backward pass waits its patience before frame 70): held
-    assert np.abs(out[:45, yaw] - top).max() < math.radians(2.0)
+    # flicker (frames 10..30): held. The real move is followed by the backward pass too: it
+    # waits its patience after frame 70, then crosses the 239 deg range at the rated speed in
+    # ~0.7 s (21 frames), leaving the top end from frame ~40 on
+    assert np.abs(out[:40, yaw] - top).max() < math.radians(2.0)
     assert abs(out[-1, yaw] - bottom) < 1e-3  # a real move is followed
     plain = make_feasible(q, t, config=FeasibleConfig(wrap_patience=0.0))
-    assert np.abs(plain[:45, yaw] - top).max() > math.radians(30.0)  # without the rule it moves
+    assert np.abs(plain[:40, yaw] - top).max() > math.radians(30.0)  # without the rule it moves
 
 
 def test_elbow_yaw_of_a_straight_arm_is_held() -> None:
@@ -155,7 +176,8 @@ def test_bad_arguments_raise_config_errors() -> None:
         make_feasible(bad, t)
     with pytest.raises(ConfigError, match="lengths"):
         make_feasible(q[None], t[None], np.array([0]))
-    for kw in ({"speed_fraction": 0.0}, {"accel": -1.0}, {"straight_elbow": (0.3, 0.1)},
+    for kw in ({"speed_fraction": 0.0}, {"speeds": "peak"}, {"accel": -1.0},
+               {"straight_elbow": (0.3, 0.1)},
                {"wrap_band": -0.1}, {"wrap_patience": -1.0}):  # fmt: skip
         with pytest.raises(ConfigError):
             FeasibleConfig(**kw)
