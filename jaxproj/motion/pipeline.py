@@ -9,12 +9,15 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     smooth              the zero-lag offline smoother (``offline.rts_motion``: invalid frames'
                         values skipped, gaps bridged) or the paper's causal double exponential
                         smoother (``smoothing.smooth_motion``, on the filled motion)
-    clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``)
+    clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``) and
+                        its coupled ranges (``Robot.coupled_limits``: the NAO's head envelope)
     stand_if_lost       a motion with no valid frame -> the robot's standing posture
     feasible            ``feasible.make_feasible`` on the full configuration (host side: it
                         resamples irregular times on a grid before its own jitted filter)
 
-``finish`` composes fill -> smooth -> clip -> stand for one motion, ``motion`` composes the whole
+``finish`` composes fill -> smooth -> clip -> stand for one motion (the clip to the limits and
+coupled ranges runs on every path through ``finish`` and ``frame``, smoothed or not: no
+output of retarget, evaluate or streaming leaves them), ``motion`` composes the whole
 pipeline for one motion (descriptor -> map -> finish -> all ``n_joints``), ``frame`` is one
 frame of the same stages with the smoother's ``step`` (causal). No function here is jitted: the
 callers jit at their entry points and add the batch axis (``jax.vmap``) where they call it.
@@ -25,8 +28,9 @@ The callers, and the options that keep each one's answers as they were measured:
 
 * ``jaxproj.motion.retarget`` jits ``motion`` on a recording padded to a length bucket. Every
   frame is mapped (invalid ones too; their answers are then replaced by ``fill_invalid``). The
-  smoother is optional (``smooth=``); the clip comes with it (the smoother's trend term can
-  overshoot the limits; the mappings themselves answer within them). ``standing="last"``: a
+  smoother is optional (``smooth=``); the clip runs with or without it (the smoother's trend
+  term can overshoot the limits; the mappings answer within them but, for a projection, not
+  always within the coupled ranges). ``standing="last"``: a
   motion with no valid frame becomes the standing posture after the smoother and the clip, so
   it is exactly the standing posture. ``feasible`` runs afterwards on the host, optional.
 * ``jaxproj.eval.evaluate`` maps only the valid frames of all its motions at once
@@ -34,9 +38,9 @@ The callers, and the options that keep each one's answers as they were measured:
   into padded motions and runs ``finish`` vmapped over them. ``standing="first"``: a motion
   with no valid frame is set to the standing posture BEFORE the smoother (as evaluate has
   always done it; with a dead band ``eta > 0`` the smoother holds a constant motion exactly, so
-  the two orders differ only for ``eta = 0``). Smoothing and its clip are optional as in
-  retarget; ``feasible`` is reported beside the scores (``evaluate.feasibility_block``), not
-  scored as the summary.
+  the two orders differ only for ``eta = 0``). Smoothing is optional as in retarget;
+  ``feasible`` is reported beside the scores (``evaluate.feasibility_block``), not scored as
+  the summary.
 * ``jaxproj.motion.streaming`` runs ``frame``: one frame, causal. It cannot look ahead, so
   invalid frames differ from ``fill_invalid``'s rule: an invalid frame leaves the smoother's
   state untouched (the output repeats; ``retarget`` instead feeds the held pose to the
@@ -143,10 +147,10 @@ def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
 
 
 def clip_to_limits(q: jax.Array, robot: Robot = NAO_H25) -> jax.Array:
-    """``(..., n_driven)`` driven angles clipped to ``robot``'s limits (float32 limits)."""
-    lo = jnp.broadcast_to(robot.lower_driven, q.shape)
-    hi = jnp.broadcast_to(robot.upper_driven, q.shape)
-    return jnp.clip(q, lo, hi)
+    """``(..., n_driven)`` driven angles clipped to ``robot``'s limits (float32 limits), then
+    each follower of ``robot.coupled_limits`` to its range at its leader (``Robot.clip_driven``:
+    the NAO's HeadPitch to the head anti-collision envelope at its HeadYaw)."""
+    return robot.clip_driven(q)
 
 
 def stand_if_lost(q: jax.Array, valid: jax.Array, robot: Robot = NAO_H25) -> jax.Array:
@@ -173,7 +177,8 @@ def finish(
       valid: ``(T,)`` bool (padding frames false).
       length: ``()`` int, the true length (the smoother leaves later frames as they are).
       gains: ``(3,)`` or ``(T, 3)`` smoother gains (``smoothing.frame_gains``); ``None``: no
-        smoothing and no clip.
+        smoothing (the clip still runs: the mappings answer within the joint limits, not
+        always within the coupled ranges, e.g. a projection's answer and the head envelope).
       standing: ``"first"`` (evaluate) or ``"last"`` (retarget); see the module doc.
       robot: the robot (its limits and standing posture).
       smoother: the ``kind`` of the settings ``gains`` came from: ``"paper"`` or ``"offline"``.
@@ -188,7 +193,7 @@ def finish(
     filled = q
     if gains is not None:
         q = smooth_any(q, valid, length, gains, smoother)
-        q = clip_to_limits(q, robot)
+    q = clip_to_limits(q, robot)
     if standing == "last":
         q = stand_if_lost(q, valid, robot)
     return filled, q
