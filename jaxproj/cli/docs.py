@@ -10,6 +10,7 @@ after changing an option or its help::
     python -m jaxproj.cli.docs --check    # exit 1 (and say which) when the section is stale
 
 ``tests/integration/test_cli_docs.py`` fails when the page and the parser's ``--help`` differ.
+argparse's layout may change with the Python version: generate with the Python CI runs.
 """
 
 from __future__ import annotations
