@@ -18,6 +18,20 @@ of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, de
 - the robot's exports (NAO: ``.json``, NAOqi's ``angleInterpolation`` arguments; ``joints`` and
   ``lead_in`` of ``save_motion`` are its options): see ``jaxproj.robots.nao_h25.naoqi``.
 
+The CSV and the robot's exports are files for the robot: ``save_motion`` writes their angles
+``EXPORT_MARGIN`` (2e-4 rad, 0.011 deg) inside each joint's range, ``[lower + margin, upper -
+margin]`` (``export_angles``; and, for a robot with coupled ranges such as the NAO's head
+envelope, inside those), so that a validator that checks a robot's URDF limits strictly never
+rejects a frame clamped at a limit. Why 2e-4: ``Robot.lower`` / ``upper`` are the documentation's
+4-decimal values; the NAO's URDF (qibullet 1.4.6 ``nao.urdf``, the Aldebaran-generated one)
+differs from them by up to 5.2e-5 rad on the head and arms (HeadPitch's -0.671952 against
+-0.6720) and 1.7e-4 rad on the legs, except RKneePitch, whose URDF range copies the left knee's
+(0.011 rad narrower; the legs of a retargeted motion stay at the standing posture, far from
+their limits). ``margin=None`` writes the angles as they are. Clipping to a fixed range never
+lengthens a step between two frames, so it moves no joint faster; a follower brought back into
+its coupled range after its leader was clipped moves by at most the range's slope times that
+clip (the NAO's head: <= 5e-5 rad, where HeadYaw meets its limit). The NPZ stays lossless.
+
 Every write is atomic (a temporary file in the same folder, then ``os.replace``): a failed write
 never leaves a half-written file. No folder is created: writing into a folder that does not
 exist is a ``ConfigError`` naming it (the CLI's rule for its outputs). Bad files raise
@@ -39,15 +53,19 @@ import numpy as np
 from jaxproj._internal.atomic import atomic_write, check_folder, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import N_JOINTS as N_HUMAN_JOINTS
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import NAO_H25, Robot, clip_coupled
 from jaxproj.robots.export import MetaValue, check_meta, check_times
 
-__all__ = ["DEFAULT_FPS", "FORMATS", "MetaValue", "Motion", "exact_strings", "formats",
-           "load_motion", "save_motion"]  # fmt: skip
+__all__ = ["DEFAULT_FPS", "EXPORT_MARGIN", "FORMATS", "MetaValue", "Motion", "exact_strings",
+           "export_angles", "formats", "load_motion", "save_motion"]  # fmt: skip
 
 FORMATS: tuple[str, ...] = (".npz", ".csv")
 """File extensions ``save_motion`` / ``load_motion`` accept for every robot; a robot's exports
 add theirs (``formats``: ``.npz``, ``.csv``, ``.json`` for the NAO)."""
+
+EXPORT_MARGIN = 2e-4
+"""rad: how far inside each joint's ``[lower, upper]`` the CSV and the robot's exports hold
+every angle (module doc: covers the NAO URDF's limits, which differ from ours by <= 1.7e-4)."""
 
 DEFAULT_FPS = 15.0
 """Frame rate assumed where a file has no times (``jaxproj retarget`` output; MSR Action3D rate)
@@ -198,6 +216,7 @@ def save_motion(
     *,
     joints: str | Sequence[str] = "upper",
     lead_in: float | None = None,
+    margin: float | None = EXPORT_MARGIN,
 ) -> Path:
     """Write ``motion`` to ``path``; the format follows the extension (module docstring).
 
@@ -210,14 +229,17 @@ def save_motion(
         sequence of names (written in that order). NPZ and CSV always hold every joint.
       lead_in: NAOqi JSON: seconds before the first pose (> 0; ``None``: the export's default,
         ``naoqi.DEFAULT_LEAD_IN_S`` = 1 s); NAOqi times are ``times - times[0] + lead_in``.
+      margin: CSV and the robot's exports: rad inside each joint's range the angles are
+        written at (``export_angles``; default ``EXPORT_MARGIN``); ``None``: as they are. The
+        NPZ always holds the motion's own angles.
 
     Returns:
       ``path`` as a ``Path``.
 
     Raises:
-      ConfigError: an unsupported extension, bad ``joints`` / ``lead_in``, a meta key the JSON
-        block reserves (``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``), a folder of
-        ``path`` that does not exist (nothing is created).
+      ConfigError: an unsupported extension, bad ``joints`` / ``lead_in`` / ``margin``, a meta
+        key the JSON block reserves (``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``), a
+        folder of ``path`` that does not exist (nothing is created).
       InputError: the file cannot be written (nothing is left behind).
     """
     path = Path(path)
@@ -227,16 +249,52 @@ def save_motion(
         kind = type(motion).__name__
         raise ConfigError(f"motion must be a jaxproj.io.motion_files.Motion, got {kind}")
     options = {s: e.check(robot, joints, lead_in) for s, e in robot.exports.items()}
+    _check_margin(robot, margin)
     check_folder(path)
     if ext == ".npz":
         return write_npz(path, _npz_arrays(motion))
+    angles = motion.angles if margin is None else export_angles(robot, motion.angles, margin)
     if ext == ".csv":
-        return atomic_write(path, lambda tmp: _write_csv(tmp, motion))
+        return atomic_write(path, lambda tmp: _write_csv(tmp, motion, angles))
     text = robot.exports[ext].write(
-        robot, motion.angles, motion.times, motion.valid, motion.meta, options[ext],
+        robot, angles, motion.times, motion.valid, motion.meta, options[ext],
         confidence=motion.confidence,
     )  # fmt: skip
     return atomic_write(path, lambda tmp: _write_text(tmp, text))
+
+
+def _check_margin(robot: Robot, margin: float | None) -> None:
+    if margin is None:
+        return
+    ok = isinstance(margin, (int, float)) and not isinstance(margin, bool) and margin >= 0
+    if not ok or not (robot.lower + 2 * float(margin) <= robot.upper).all():
+        raise ConfigError(
+            f"margin must be None or a number of rad >= 0 that leaves every joint a range, got "
+            f"{margin!r}"
+        )
+
+
+def export_angles(robot: Robot, angles: np.ndarray, margin: float = EXPORT_MARGIN) -> np.ndarray:
+    """The angles a robot file holds: ``(T, n_joints)`` clipped to ``[lower + margin, upper -
+    margin]`` (float32 bounds rounded inwards, so that each written value is at least ``margin``
+    inside in exact arithmetic too), then each follower of ``robot.coupled_limits`` into its
+    range at its leader's angle, and clipped to the margin once more: where a coupled range
+    overlaps the follower's margin band (the NAO's head envelope does at every HeadYaw) the
+    result lies in both.
+
+    Returns:
+      ``(T, n_joints)`` float32 (a new array).
+    """
+    m = float(margin)
+    lo64 = robot.lower.astype(np.float64) + m
+    hi64 = robot.upper.astype(np.float64) - m
+    lo, hi = lo64.astype(np.float32), hi64.astype(np.float32)
+    lo = np.where(lo < lo64, np.nextafter(lo, np.float32(np.inf)), lo)
+    hi = np.where(hi > hi64, np.nextafter(hi, np.float32(-np.inf)), hi)
+    q = np.clip(np.asarray(angles, np.float32), lo, hi)
+    if robot.coupled_limits:
+        q = np.clip(np.asarray(clip_coupled(robot, q)), lo, hi)
+    return q.astype(np.float32)
 
 
 def _write_text(tmp: Path, text: str) -> None:
@@ -280,8 +338,8 @@ def exact_strings(values: np.ndarray) -> list[str]:
     return out
 
 
-def _write_csv(tmp: Path, motion: Motion) -> None:
-    cells = exact_strings(motion.angles)
+def _write_csv(tmp: Path, motion: Motion, angles: np.ndarray) -> None:
+    cells = exact_strings(angles)
     n = motion.robot.n_joints
     conf = [] if motion.confidence is None else exact_strings(motion.confidence)
     extra = ["confidence"] if conf else []

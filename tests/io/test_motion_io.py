@@ -69,8 +69,8 @@ def test_npz_round_trip_is_lossless(tmp_path):
 
 
 def test_csv_round_trip_is_bit_exact_and_plain(tmp_path):
-    m = _motion()
-    out = save_motion(tmp_path / "m.csv", m)
+    m = _motion()  # angles far outside the joint ranges: margin=None writes them as they are
+    out = save_motion(tmp_path / "m.csv", m, margin=None)
     with open(out, newline="") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["time", *robot.JOINT_NAMES]
@@ -82,6 +82,37 @@ def test_csv_round_trip_is_bit_exact_and_plain(tmp_path):
     assert back.valid.all() and back.positions is None and dict(back.meta) == {}
     # readable values: the shortest float32 form where it is exact (0.1 -> "0.1")
     assert rows[1][1 + 6] == "0.1"
+
+
+@pytest.mark.parametrize("ext", [".csv", ".json"])
+def test_robot_files_hold_angles_a_margin_inside_the_limits(tmp_path, ext):
+    """CSV and NAOqi JSON hold every angle EXPORT_MARGIN inside [lower, upper] (a strict
+    URDF-limit check passes) and HeadPitch inside the head envelope; angles already inside
+    are written bit-exactly; the NPZ keeps the motion's own angles."""
+    m = _motion()  # frame 0 holds huge values, others normal(0.8 rad) noise: many beyond a limit
+    margin = motion_io.EXPORT_MARGIN
+    assert margin == 2e-4
+    out = save_motion(tmp_path / f"m{ext}", m, joints="body")
+    back = load_motion(out).angles.astype(np.float64)
+    lo, hi = robot.LOWER.astype(np.float64), robot.UPPER.astype(np.float64)
+    assert (back >= lo + margin).all() and (back <= hi - margin).all()
+    env_lo = np.interp(back[:, 0], robot.HEAD_ENVELOPE_YAW, robot.HEAD_ENVELOPE_PITCH_MIN)
+    env_hi = np.interp(back[:, 0], robot.HEAD_ENVELOPE_YAW, robot.HEAD_ENVELOPE_PITCH_MAX)
+    assert (back[:, 1] >= env_lo - 1e-6).all() and (back[:, 1] <= env_hi + 1e-6).all()
+    inside = (m.angles >= lo + margin) & (m.angles <= hi - margin)
+    inside[:, 1] = False  # HeadPitch also depends on the (clipped) HeadYaw
+    assert 0.2 < inside.mean() < 0.9  # the test motion has both kinds
+    np.testing.assert_array_equal(_bits(back.astype(np.float32))[inside], _bits(m.angles)[inside])
+    moved = ~inside
+    moved[:, 1] = False
+    assert (back[moved] != m.angles[moved]).all()  # outside the margin band: clipped
+    np.testing.assert_array_equal(
+        _bits(load_motion(save_motion(tmp_path / "m.npz", m)).angles), _bits(m.angles)
+    )
+    with pytest.raises(ConfigError, match="margin"):
+        save_motion(tmp_path / f"x{ext}", m, margin=0.6)  # HeadPitch's range is 1.19 rad
+    with pytest.raises(ConfigError, match="margin"):
+        save_motion(tmp_path / f"x{ext}", m, margin=-1e-4)
 
 
 def test_exact_strings_read_back_bit_exactly():
@@ -96,7 +127,7 @@ def test_exact_strings_read_back_bit_exactly():
 @pytest.mark.parametrize("joints", ["upper", "body", ["RElbowRoll", "HeadYaw", "LKneePitch"]])
 def test_json_is_naoqi_angle_interpolation(tmp_path, joints):
     m = _motion()
-    out = save_motion(tmp_path / "m.json", m, joints=joints, lead_in=1.5)
+    out = save_motion(tmp_path / "m.json", m, joints=joints, lead_in=1.5, margin=None)
     with open(out) as fh:
         doc = json.load(fh)
     assert set(doc) == {"names", "angleLists", "timeLists", "isAbsolute", "jaxproj"}

@@ -15,6 +15,10 @@ standing posture and restores the original times from ``t0`` / ``lead_in_s``.
 
 ``jaxproj.io.motion_files`` (``save_motion`` / ``load_motion`` of a ``.json`` path) calls
 ``EXPORT``; the functions take the ``Robot`` (the NAO) for its joint names and posture.
+``save_motion`` hands them angles already held ``motion_files.EXPORT_MARGIN`` (2e-4 rad) inside
+every joint's range and inside the head envelope, so a strict URDF-limit check passes; the
+angles are otherwise the motion's, so a ``jaxproj retarget`` output keeps its speed limits
+(``jaxproj.motion.feasible``: the rated speeds by default).
 """
 
 from __future__ import annotations
