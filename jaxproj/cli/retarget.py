@@ -72,8 +72,16 @@ def add_parsers(sub: Any) -> None:
         "--feasible",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="make the output robot-feasible: joint limits, 90%% of the NAO's speed limits, "
+        help="make the output robot-feasible: joint limits, the speed limits of --speeds, "
         "80 rad/s^2 (jaxproj.motion.feasible)",
+    )
+    pr.add_argument(
+        "--speeds",
+        default="rated",
+        choices=("rated", "no-load"),
+        help="speed limits of --feasible: rated = 99%% of the NAO's rated speeds (at nominal "
+        "torque, 74-79%% of no-load); no-load = 90%% of its no-load speeds (faster, closer to "
+        "the person; the former default)",
     )
     pr.add_argument(
         "--joints",
@@ -137,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
             mirror=mirror,
             smoothing=options.smoothing(args.smoother),
             times=rec.times,
-            feasible=feasible.DEFAULT_FEASIBLE if args.feasible else None,
+            feasible=feasible.FeasibleConfig(speeds=args.speeds) if args.feasible else None,
             full=FULL_READINGS[args.full_reading],
         )
     except NoValidFrameError as e:  # name the file (and the option that most often causes it)
@@ -153,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         "smoothed": args.smoother != "none",
         "smoother": args.smoother,
         "feasible": bool(args.feasible),
+        "speeds": args.speeds,
         "source": str(args.input),
         "time_source": rec.time_source,
         "fps": round(rec.fps, 6),
@@ -173,7 +182,8 @@ def run(args: argparse.Namespace) -> int:
         f"  speed-limit frames {before['speed_violation_frames']} -> "
         f"{after['speed_violation_frames']}, max step {before['max_step_deg']:.1f} -> "
         f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
-        f"{after['max_accel']:.0f} rad/s^2 [{label}]"
+        f"{after['max_accel']:.0f} rad/s^2, max speed / rated {before['rated_speed_ratio']:.2f} "
+        f"-> {after['rated_speed_ratio']:.2f} [{label}]"
     )
     if result.valid_share < MIN_VALID_SHARE:
         options.log(
