@@ -7,7 +7,9 @@ frame filled by holding the last pose). A robot cannot follow: its joints have s
 ``make_feasible`` turns a motion into one the robot can play
 while staying as close as it can to it:
 
-* positions within ``[robot.lower, robot.upper]`` on every frame (hard);
+* positions within ``[robot.lower, robot.upper]`` and the coupled ranges
+  (``Robot.coupled_limits``: the NAO's HeadPitch within the head anti-collision envelope at its
+  HeadYaw) on every frame (hard);
 * speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * robot.speed_limits(speeds)`` per joint
   (hard). By default (``speeds="rated"``) the cap is the rated speed, the speed a joint keeps at
   its motor's nominal torque (``Robot.rated_speeds``; the NAO's: Aldebaran's nominal speeds,
@@ -30,9 +32,15 @@ The filter, per joint, is a forward ``lax.scan`` that starts at rest on the firs
 frame, moves towards the target with the speed that still lets it stop at the target (and at the
 joint limits) under the acceleration bound, clipped to the acceleration window and the speed
 limit. Alone it lags a moving target; ``zero_phase`` (default) also runs it backwards in time
-and averages the two: every constraint above is convex in the trajectory (bounds on linear maps
-of ``q``), so the average of two feasible trajectories is feasible, and the lag of one pass
-cancels the lead of the other.
+and averages the two: every constraint above but the coupled ranges is convex in the trajectory
+(bounds on linear maps of ``q``), so the average of two feasible trajectories is feasible, and
+the lag of one pass cancels the lead of the other. A coupled range is a bound that moves with
+its leader: each pass moves the follower no faster towards a bound than lets it stop before the
+tightest value that bound takes over the angles the leader can reach meanwhile (this step plus
+a full braking time, at the leader's speed limit), and holds it inside the range at the
+leader's angle of each step (the position limit wins over the speed and acceleration bounds,
+as at a fixed limit). Since the NAO's head envelope is not convex, the average (and the
+read-back below) is clipped to it once more (``base.clip_coupled``).
 
 The elbow yaw, handled explicitly on the target before the scan step, for each ``(yaw, roll)`` pair
 of ``Robot.elbow_pairs`` (the NAO's two elbows; a robot without pairs gets no such rule):
@@ -72,7 +80,7 @@ import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import NAO_H25, Robot, clip_coupled
 
 ACCEL_LIMIT = 80.0
 """rad/s^2: the acceleration bound of ``FeasibleConfig`` on every joint (ours; see module doc)."""
@@ -208,26 +216,65 @@ def _elbow_targets(
     return y, jnp.stack(new_away)
 
 
-def _forward(y: jax.Array, dt: jax.Array, params: jax.Array, arms: Arms) -> jax.Array:
-    """One forward pass of the filter over a ``(T, n_joints)`` motion with steps ``dt`` ``(T,)``
-    and the elbow pairs ``arms``."""
+def _coupled_bounds(
+    q: jax.Array, vmax: jax.Array, horizon: jax.Array, lo: jax.Array, hi: jax.Array, robot: Robot
+) -> tuple[jax.Array, jax.Array]:
+    """``(lo, hi)`` ``(n_joints,)`` with each follower of ``robot.coupled_limits`` narrowed to
+    the tightest of its ranges over the angles its leader can reach from ``q`` ``(n_joints,)``
+    at speeds up to ``vmax`` within the follower's ``horizon`` (s; both ``(n_joints,)``): a
+    piecewise-linear bound is extreme at an end of that window or at a knot inside it."""
+    for limit in robot.coupled_limits:
+        j, k = robot.index(limit.joint), robot.index(limit.by)
+        a, b = q[k] - vmax[k] * horizon[j], q[k] + vmax[k] * horizon[j]
+        lo_a, hi_a = limit.bounds(a)
+        lo_b, hi_b = limit.bounds(b)
+        knots = jnp.asarray(limit.knots)
+        inside = (knots >= a) & (knots <= b)
+        env_lo = jnp.maximum(
+            jnp.maximum(lo_a, lo_b), jnp.max(jnp.where(inside, limit.lower, -jnp.inf))
+        )
+        env_hi = jnp.minimum(
+            jnp.minimum(hi_a, hi_b), jnp.min(jnp.where(inside, limit.upper, jnp.inf))
+        )
+        lo = lo.at[j].set(jnp.minimum(jnp.maximum(lo[j], env_lo), hi[j]))
+        hi = hi.at[j].set(jnp.maximum(jnp.minimum(hi[j], env_hi), lo[j]))
+    return lo, hi
+
+
+def _forward(
+    y: jax.Array, dt: jax.Array, params: jax.Array, arms: Arms, robot: Robot = NAO_H25
+) -> jax.Array:
+    """One forward pass of the filter over a ``(T, n_joints)`` motion with steps ``dt`` ``(T,)``,
+    the elbow pairs ``arms`` and ``robot``'s coupled ranges."""
     lo, hi, vmax, amax = params[0], params[1], params[2], params[3]
-    q0 = jnp.clip(y[0], lo, hi)
+    q0 = clip_coupled(robot, jnp.clip(y[0], lo, hi))
 
     def body(carry, inp):
         q, v, dt_prev, away = carry
         target, step = inp
         target, away = _elbow_targets(target, q, away, step, params, arms)
-        target = jnp.clip(target, lo, hi)
+        target = clip_coupled(robot, jnp.clip(target, lo, hi))
         err = target - q
         # the speed that reaches the target this step, capped so that the joint can still stop
         # at the target and inside its limits under the acceleration bound
         cap = _stop_speed(jnp.abs(err), amax, step)
         want = jnp.sign(err) * jnp.minimum(jnp.abs(err) / step, cap)
-        want = jnp.clip(want, -_stop_speed(q - lo, amax, step), _stop_speed(hi - q, amax, step))
         window = amax * 0.5 * (step + dt_prev)
-        v_new = jnp.clip(jnp.clip(want, v - window, v + window), -vmax, vmax)
-        q_new = jnp.clip(q + v_new * step, lo, hi)
+
+        def move(lo_b: jax.Array, hi_b: jax.Array) -> jax.Array:
+            w = jnp.clip(
+                want, -_stop_speed(q - lo_b, amax, step), _stop_speed(hi_b - q, amax, step)
+            )
+            return jnp.clip(jnp.clip(w, v - window, v + window), -vmax, vmax)
+
+        v_new = move(lo, hi)
+        if robot.coupled_limits:
+            # a follower brakes for the tightest of its ranges wherever its leader can go while
+            # it brakes (leaders are never followers: their v_new is final)
+            horizon = step + vmax / amax  # this step, then braking from full speed
+            v_new = move(*_coupled_bounds(q + v_new * step, vmax, horizon, lo, hi, robot))
+        # position limits are hard: a follower stays inside its range at its leader's new angle
+        q_new = clip_coupled(robot, jnp.clip(q + v_new * step, lo, hi))
         v_new = (q_new - q) / step
         return (q_new, v_new, step, away), q_new
 
@@ -266,12 +313,12 @@ def feasible_motion(
     hold = jnp.minimum(t, last)
     dt = jnp.where(live & (t > 0), dt, dt[jnp.minimum(1, last)])
     dt = jnp.where(dt > 0, dt, 1.0)
-    out = _forward(y[hold], dt, params, arms)
+    out = _forward(y[hold], dt, params, arms, robot)
     if zero_phase:
         rev = jnp.where(live, last - t, 0)  # frame s of the reversed motion is frame last - s
         dt_rev = jnp.where(live & (t > 0), dt[jnp.minimum(last - t + 1, last)], dt[1])
-        back = _forward(y[rev], dt_rev, params, arms)[rev]
-        out = 0.5 * (out + back)
+        back = _forward(y[rev], dt_rev, params, arms, robot)[rev]
+        out = clip_coupled(robot, 0.5 * (out + back))  # a coupled range need not be convex
     return jnp.where(live[:, None], out, y)
 
 
@@ -377,7 +424,10 @@ def make_feasible(
         w = np.clip(x - i0, 0.0, 1.0)[:, None]
         on_grid = (w < 1e-6)[:, 0]
         mixed = (1.0 - w) * grid_out[b, i0] + w * grid_out[b, i1]
-        out[b, : n[b]] = np.where(on_grid[:, None], grid_out[b, i0], mixed)
+        read = np.where(on_grid[:, None], grid_out[b, i0], mixed)
+        if robot.coupled_limits and not on_grid.all():  # between grid points: back in range
+            read = np.asarray(clip_coupled(robot, read))
+        out[b, : n[b]] = read
     return out[0] if one else out
 
 
@@ -403,7 +453,8 @@ def feasibility_report(
       ``max_step_joint`` (largest frame-to-frame change); ``steps_over_30deg``;
       ``accel_violation_frames`` (acceleration above
       ``config.accel`` by more than 1 %); ``max_accel`` (rad/s^2); ``limit_violation_frames``
-      (a joint outside ``[lower, upper]`` by more than 1e-6 rad).
+      (a joint outside ``[lower, upper]``, or a follower outside its coupled range at its
+      leader's angle (``Robot.coupled_limits``), by more than 1e-6 rad).
     """
     q = np.asarray(angles, np.float64)
     t = np.asarray(times, np.float64)
@@ -438,5 +489,10 @@ def feasibility_report(
     else:
         out["accel_violation_frames"], out["max_accel"] = 0, 0.0
     outside = np.maximum(robot.lower - q, q - robot.upper)
+    for limit in robot.coupled_limits:
+        lead, j = q[:, robot.index(limit.by)], robot.index(limit.joint)
+        env_lo = np.interp(lead, limit.knots, limit.lower)
+        env_hi = np.interp(lead, limit.knots, limit.upper)
+        outside[:, j] = np.maximum(outside[:, j], np.maximum(env_lo - q[:, j], q[:, j] - env_hi))
     out["limit_violation_frames"] = int((outside > 1e-6).any(axis=1).sum())
     return out
