@@ -59,7 +59,7 @@ def main() -> None:
     }
     ref = StackedReference(sp)
     want = np.stack([ref.project(x, "relaxed", 10, 10)[0] for x in q])
-    out = {"device": device, "queries": len(q), "landmarks": list(model.landmarks)}
+    out = {"device": device, "queries": len(q), "landmarks": dict(model.landmarks)}
     for name, r in answers.items():
         d = np.degrees(np.abs(r - want)).max(axis=1)
         verdicts = [ref.judge(x, a, 10, 10, np.radians(1e-3)) for x, a in zip(q, r, strict=True)]
