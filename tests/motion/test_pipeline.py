@@ -2,6 +2,8 @@
 the transformations (jit, vmap), and its three callers (retarget, streaming, evaluate) agreeing
 where the module doc says they should."""
 
+import json
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -221,6 +223,34 @@ def test_retarget_feasible_is_the_filter_of_the_unfiltered_motion(model, sequenc
     np.testing.assert_array_equal(safe.unfiltered, plain.angles)
     np.testing.assert_array_equal(safe.angles, feasible.make_feasible(plain.angles, plain.times))
     assert not np.array_equal(safe.angles, plain.angles)
+
+
+def test_exported_motion_respects_the_rated_speeds_and_the_limit_margin(sequences, tmp_path):
+    """A fast motion (the raw per-frame IK of a wave) made feasible with the defaults and
+    written as NAOqi JSON and CSV: every step in the files at most the joint's rated speed,
+    every angle EXPORT_MARGIN inside its range."""
+    from jaxproj.io.motion_files import EXPORT_MARGIN, Motion, save_motion
+
+    seq = sequences[0]
+    r = retarget(seq.positions, seq.valid, smoothing=None, feasible=feasible.DEFAULT_FEASIBLE)
+    assert r.unfiltered is not None
+    rated = robot.RATED_SPEEDS.astype(np.float64)
+    raw_speed = np.abs(np.diff(r.unfiltered, axis=0)) / np.diff(r.times)[:, None]
+    assert (raw_speed / rated).max() > 1.5  # the input is fast: the test can fail
+    assert (np.isclose(r.unfiltered, robot.LOWER) | np.isclose(r.unfiltered, robot.UPPER)).any()
+    m = Motion(r.angles, r.times, r.valid)
+    doc = json.loads(save_motion(tmp_path / "m.json", m, joints="body").read_text())
+    rows = save_motion(tmp_path / "m.csv", m).read_text().splitlines()
+    csv = np.array([[float(c) for c in row.split(",")] for row in rows[1:]])
+    for names, angles, times in (
+        (doc["names"], np.array(doc["angleLists"]).T, np.array(doc["timeLists"][0])),
+        (rows[0].split(",")[1:], csv[:, 1:], csv[:, 0]),
+    ):
+        idx = [robot.IDX[n] for n in names]
+        speed = np.abs(np.diff(angles, axis=0)) / np.diff(times)[:, None]
+        assert (speed <= rated[idx]).all()
+        assert (angles >= robot.LOWER[idx].astype(np.float64) + EXPORT_MARGIN).all()
+        assert (angles <= robot.UPPER[idx].astype(np.float64) - EXPORT_MARGIN).all()
 
 
 def test_frame_gains_of_one_motion_and_of_a_batch_agree():
