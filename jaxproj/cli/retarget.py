@@ -229,7 +229,7 @@ def confidence_lines(method: str, share: float) -> list[str]:
             "--method relaxed on this file to judge it)"
         ]
     ratio = share / EXPECTED_LOW_SHARE
-    if ratio <= UNLIKE_FACTOR:
+    if round(100 * share, 1) <= round(100 * UNLIKE_FACTOR * EXPECTED_LOW_SHARE, 1):  # as printed
         return [
             head + f"{100 * EXPECTED_LOW_SHARE:.0f} % of held-out training people's frames fall "
             "below it: this recording is like the people the model was built from)"

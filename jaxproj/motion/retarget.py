@@ -254,8 +254,8 @@ def retarget(
 
 def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
     """Why no frame of a motion is valid, in words: how many frames hold non-finite values,
-    how many others the reader (``valid``) marked (lost tracking), and how many the
-    descriptor found degenerate.
+    how many others ``valid`` marked (a reader marks lost tracking and non-finite values, and
+    zeroes them), and how many the descriptor found degenerate.
 
     Args:
       marked: ``(T,)`` bool, the ``valid`` given to ``retarget`` (the reader's).
@@ -269,7 +269,7 @@ def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
     if n_nonfinite:
         parts.append(f"{n_nonfinite} with non-finite coordinates (NaN / inf)")
     if n_lost:
-        parts.append(f"{n_lost} marked invalid by the reader (lost tracking)")
+        parts.append(f"{n_lost} marked invalid (lost tracking or non-finite values)")
     if n_degenerate:
         parts.append(
             f"{n_degenerate} with a degenerate skeleton (collapsed joints, bones shorter than "

@@ -235,6 +235,12 @@ BAD_FILES: list[tuple[str, str, bytes | str | None, list[str]]] = [
      ["line 15: found 2 values, expected 3"]),
     ("bvh-token", "tok.txt", _BVH_HIERARCHY + "MOTION\nFrames: 1\nFrame Time: 0.1\n1 x 3\n",
      ["line 14, column 2: non-numeric token 'x'"]),
+    # readable, but not one valid frame: refused (issue 42), not a standing pose with exit 0
+    ("all-nan-npz", "nan.npz", npz_file(np.full((50, 20, 3), np.nan)),
+     ["no valid frame among 50: 50 marked invalid (lost tracking or non-finite values); "
+      "nothing written"]),
+    ("all-lost-msr", "lost.txt", msr_file(np.zeros((3, 20, 3))),
+     ["no valid frame among 3: 3 marked invalid (lost tracking or non-finite values)"]),
 ]  # fmt: skip
 
 
@@ -264,6 +270,18 @@ class TestCliBattery:
         assert_one_line_error(code, err, str(src), *words)
         assert not out.exists()
 
+    def test_bvh_scale_that_leaves_no_valid_frame(self, tmp_path, capsys):
+        """``--bvh-scale 0.00001``: every bone shorter than 1 mm, so no valid frame: one line
+        naming the file, the count and the option to check; exit 2, nothing written."""
+        src = Path(__file__).resolve().parents[1] / "data" / "cmu_bvh" / "131_03_every6.bvh"
+        out = tmp_path / "out.json"
+        code, stdout, err = run_cli(capsys, "retarget", src, "--bvh-scale", "0.00001", "--out", out)
+        assert_one_line_error(
+            code, err, f"{src}: no valid frame among 184: 184 with a degenerate skeleton",
+            "bones shorter than 1 mm", "check --bvh-scale", "nothing written",
+        )  # fmt: skip
+        assert stdout == "" and not out.exists()
+
     def test_unreadable_file(self, tmp_path, capsys, monkeypatch):
         """A file the process may not read (monkeypatched: the tests may run as root)."""
         src = tmp_path / "locked.txt"
@@ -291,9 +309,14 @@ class TestCliBattery:
         pos = make_frames(kinds, seed)
         with tempfile.TemporaryDirectory() as tmp:
             src = write_recording(Path(tmp), fmt, pos, seed % 8)
-            out = Path(tmp) / f"motion.{out_ext}"
+            out = Path(tmp) / f"motion.{out_ext}"  # may be the input itself (csv, npz)
+            before = out.read_bytes() if out.exists() else None
             code = main(["retarget", str(src), "--out", str(out)]
                         + ([] if smooth else ["--no-smooth"]))  # fmt: skip
+            if "ok" not in kinds:  # no usable frame: an error (exit 2), nothing written
+                assert code == 2
+                assert (out.read_bytes() if out.exists() else None) == before
+                return
             assert code == 0
             m = load_motion(out)
         assert m.angles.shape == (len(kinds), 26) and np.isfinite(m.angles).all()
@@ -321,7 +344,8 @@ class TestCliFromOutside:
     def test_bad_inputs_from_a_child_process(self, tmp_path):
         cases = {case[0]: case for case in BAD_FILES}
         runs = []
-        for key in ("missing", "directory", "rows-not-20", "corrupt-npz", "utk-frame-huge"):
+        for key in ("missing", "directory", "rows-not-20", "corrupt-npz", "utk-frame-huge",
+                    "all-nan-npz"):  # fmt: skip
             _, name, content, words = cases[key]
             src = _make(tmp_path, name, content)
             argv = ["retarget", str(src), "--out", str(tmp_path / f"{key}.npz")]

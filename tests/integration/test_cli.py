@@ -5,11 +5,13 @@ import numpy as np
 import pytest
 
 from jaxproj.cli import build_parser, main, projector
+from jaxproj.cli.retarget import EXPECTED_LOW_SHARE, confidence_lines
 from jaxproj.eval import evaluate
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
 from jaxproj.io.readers import MSR_TO_SDK
 from jaxproj.projection import api as engine
+from jaxproj.projection.confidence import LOW_CONFIDENCE
 from jaxproj.robots.nao_h25 import ik, robot
 
 
@@ -135,13 +137,36 @@ def test_retarget_utkinect_to_robot_files_with_time_and_no_speed_violation(tmp_p
 
 
 def test_retarget_csv_and_no_valid_frame(tmp_path, capsys):
+    """A recording without one valid frame is an error naming the file, not a standing pose
+    written with exit 0; one with a few valid frames is written, with a warning."""
     src = tmp_path / "lost.csv"
     np.savetxt(src, np.zeros((4, 60)), delimiter=",")
     out = tmp_path / "o.npz"
-    assert _run(capsys, "retarget", str(src), "--out", str(out))[0] == 0
-    res = np.load(out)
-    assert not res["valid"].any()
-    np.testing.assert_array_equal(res["angles"], np.tile(robot.STANDING_POSTURE, (4, 1)))
+    code, stdout, err = _run(capsys, "retarget", str(src), "--out", str(out))
+    assert code == 2 and stdout == "" and not out.exists()
+    lines = err.strip().splitlines()
+    assert lines == [
+        f"jaxproj: error: {src}: no valid frame among 4: 4 marked invalid (lost tracking or "
+        "non-finite values); nothing written"
+    ]
+    # one valid frame of four: written, and a warning on stderr (under MIN_VALID_SHARE)
+    seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
+    rows = np.zeros((4, 60))
+    rows[2] = seq.positions[0].reshape(-1)
+    np.savetxt(src, rows, delimiter=",")
+    code, stdout, err = _run(capsys, "retarget", str(src), "--out", str(out))
+    assert code == 0 and "4 frames (1 valid" in stdout
+    np.testing.assert_array_equal(np.load(out)["valid"], [False, False, True, False])
+    assert err.strip().splitlines() == [
+        f"jaxproj: warning: {src}: only 1 of 4 frames (25 %) are valid, under the 50 % jaxproj "
+        "warns at: the others hold or bridge the valid poses around them (valid = false in the "
+        "output); check the recording (lost tracking, units)"
+    ]
+    # half the frames valid: no warning
+    rows[0] = seq.positions[1].reshape(-1)
+    np.savetxt(src, rows, delimiter=",")
+    code, _, err = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth")
+    assert code == 0 and err == ""
 
 
 @pytest.mark.parametrize(
@@ -202,7 +227,16 @@ def test_build_then_retarget_with_the_model(tmp_path, capsys, monkeypatch):
     for method in ("relaxed", "full"):
         dst = tmp_path / f"{method}.npz"
         argv = ["retarget", str(src), "--out", str(dst), "--method", method, "--model", str(model)]
-        assert _run(capsys, *argv, "--no-smooth", "--no-feasible", "--L", "5", "--M", "5")[0] == 0
+        code, out, _ = _run(capsys, *argv, "--no-smooth", "--no-feasible", "--L", "5", "--M", "5")
+        assert code == 0
+        # the low-confidence line: the share of the valid frames, read against the held-out
+        # training people's tenth (relaxed); full is told that the cut-off is relaxed's
+        with np.load(dst) as z:
+            share = np.mean(z["confidence"][z["valid"]] < LOW_CONFIDENCE)
+        low = [line for line in out.splitlines() if "low-confidence" in line]
+        assert len(low) == 1 and f"frames: {100 * share:.1f} % of the valid frames" in low[0]
+        assert confidence_lines(method, share)[0] == low[0]
+        assert ("calibrated on --method relaxed" in low[0]) == (method == "full")
         angles = np.load(dst)["angles"]
         assert np.isfinite(angles).all()
         assert (angles >= robot.LOWER).all() and (angles <= robot.UPPER).all()
@@ -216,6 +250,32 @@ def test_build_then_retarget_with_the_model(tmp_path, capsys, monkeypatch):
         capsys, "retarget", str(src), "--out", str(tmp_path / "x.npz"), "--method", "relaxed"
     )
     assert code == 2 and "--model" in err
+    # and a model with the IK (the default method) is refused, not silently ignored
+    for extra in ([], ["--method", "ik"]):
+        argv = ["retarget", str(src), "--out", str(tmp_path / "x.npz"), "--model", str(model)]
+        code, _, err = _run(capsys, *argv, *extra)
+        assert code == 2 and err.strip().splitlines() == [
+            f"jaxproj: error: --model {model} is used by --method relaxed / full only, and "
+            "--method is ik (the default: the analytic IK, no model): add --method relaxed to "
+            "use the model, or leave --model out"
+        ]
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_the_confidence_line_says_what_the_share_means_and_what_to_do():
+    """Relaxed: against the tenth of held-out training people's frames the cut-off was
+    calibrated on; well above it (over 15 %), what to do. Full: that the cut-off is relaxed's."""
+    like = confidence_lines("relaxed", EXPECTED_LOW_SHARE)
+    assert len(like) == 1 and "10.0 % of the valid frames" in like[0]
+    assert "this recording is like the people the model was built from" in like[0]
+    assert len(confidence_lines("relaxed", 1.5 * EXPECTED_LOW_SHARE)) == 1
+    unlike = confidence_lines("relaxed", 0.25)
+    assert "2.5x the 10 % of held-out training people's frames" in unlike[0]
+    assert "unlike the people the model was built from" in unlike[0]
+    assert len(unlike) == 2 and "--data bundled+FOLDER" in unlike[1] and "--mirror" in unlike[1]
+    full = confidence_lines("full", 0.25)
+    assert len(full) == 1 and "25.0 % of the valid frames" in full[0]
+    assert "calibrated on --method relaxed" in full[0] and "unlike" not in full[0]
 
 
 def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):

@@ -31,7 +31,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxproj
-from jaxproj.errors import ConfigError, InputError
+from jaxproj.errors import ConfigError, InputError, NonFiniteRowsError, NoValidFrameError
 from jaxproj.io import datasets
 from jaxproj.io.motion_files import load_motion
 from jaxproj.motion.feasible import FeasibleConfig
@@ -105,18 +105,24 @@ class TestNeverNaN:
         if reader_valid:
             valid_in[seed % len(kinds)] = False  # and one frame the file marked invalid
         model = None if chains is None else models[chains]
+        ok = np.array([k == "ok" for k in kinds]) & (valid_in if reader_valid else True)
         for smoothing in (None, PAPER_SMOOTHING):
             for feasible in (None, FeasibleConfig()):
-                res = retarget(
-                    pos,
-                    valid_in if reader_valid else None,
-                    model=model,
-                    method=method,
-                    n_l=L,
-                    n_m=M,
-                    smoothing=smoothing,
-                    feasible=feasible,
-                )
+                try:
+                    res = retarget(
+                        pos,
+                        valid_in if reader_valid else None,
+                        model=model,
+                        method=method,
+                        n_l=L,
+                        n_m=M,
+                        smoothing=smoothing,
+                        feasible=feasible,
+                    )
+                except NoValidFrameError as e:  # nothing usable: refused, saying why
+                    assert not ok.any() and e.n_frames == len(kinds)
+                    assert str(e).startswith(f"positions: no valid frame among {len(kinds)}: ")
+                    continue
                 assert res.angles.shape == (len(kinds), 26) and res.angles.dtype == np.float32
                 assert np.isfinite(res.angles).all() and np.isfinite(res.times).all()
                 assert _in_limits(res.angles)
@@ -124,12 +130,35 @@ class TestNeverNaN:
                 if reader_valid:
                     usable &= valid_in
                 assert not res.valid[~usable].any()
-                ok = np.array([k == "ok" for k in kinds]) & (valid_in if reader_valid else True)
-                assert res.valid[ok].all()
-                if not res.valid.any():  # nothing usable: the standing posture throughout
-                    np.testing.assert_allclose(
-                        res.angles, np.tile(robot.STANDING_POSTURE, (len(kinds), 1)), atol=1e-6
-                    )
+                assert res.valid[ok].all() and res.valid.any()
+
+    @pytest.mark.parametrize("chains", ["upper", "whole"])
+    def test_project_refuses_non_finite_rows_and_never_answers_nan(self, models, chains):
+        """``project`` on NaN / inf rows: ``NonFiniteRowsError`` (a ``ConfigError``) naming the
+        rows, before anything is traced, where it answered NaN angles and values (issue 42);
+        finite rows far outside the descriptor's range answer finite angles, values never NaN."""
+        model = models[chains]
+        with no_tracing() as traced, pytest.raises(NonFiniteRowsError) as e:
+            engine.project(model, np.full((5, 15), np.nan), "relaxed")
+        assert traced == [] and isinstance(e.value, ConfigError)
+        assert e.value.rows.tolist() == [0, 1, 2, 3, 4]
+        assert str(e.value).startswith("descriptors must be finite: row(s) 0, 1, 2, 3, 4 of 5 ")
+        seq = datasets.msr_action3d(subjects=[2], actions=[5])[0]
+        d = np.asarray(datasets.valid_descriptors(seq.positions))[:40].copy()
+        d[7, 3], d[30, 0] = np.inf, np.nan  # one bad value in a row is enough
+        d[8:20] = -np.inf
+        for objective in ("relaxed", "full"):
+            with no_tracing() as traced, pytest.raises(NonFiniteRowsError) as e:
+                engine.project(model, d, objective, n_l=L, n_m=M, batch_size=64)
+            assert traced == [] and e.value.rows.tolist() == [7, *range(8, 20), 30]
+            assert "row(s) 7, 8, 9, 10, 11, ... (14 rows) of 40 hold NaN or inf" in str(e.value)
+        # finite but absurd rows (1e30, float32's largest): finite angles in the limits, no NaN
+        huge = np.concatenate([np.full((2, 15), 1e30), np.full((2, 15), -3.4e38), d[:2]])
+        for objective in ("relaxed", "full"):
+            q, v = engine.project(model, huge, objective, n_l=L, n_m=M, batch_size=64)
+            assert np.isfinite(q).all() and not np.isnan(v).any()
+            assert (q >= robot.LOWER[robot.DRIVEN_INDEX]).all()
+            assert (q <= robot.UPPER[robot.DRIVEN_INDEX]).all()
 
     def test_projection_configuration_errors_come_before_tracing(self, models):
         model = models["upper"]
@@ -358,8 +387,24 @@ class TestAtomicWrites:
             report.write_json(path, {"a": object()})
         assert path.read_text() == before
         assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
-        with pytest.raises(InputError, match="cannot write"):
+        with pytest.raises(ConfigError, match="is not a folder"):
             report.write_json(path / "below_a_file.json", {"a": 1})
+
+    def test_no_writer_creates_a_folder(self, models, tmp_path):
+        """One policy for the CLI and the Python API (issue 42): a missing folder is a
+        ``ConfigError`` naming the file and the folder; nothing is created (``jaxproj.save``
+        once made ``a/b/``, ``save_motion("/nope/x.json")`` made ``/nope``)."""
+        for target in (tmp_path / "a" / "b" / "p.npz", tmp_path / "a" / "r.json"):
+            with pytest.raises(ConfigError) as e:
+                if target.suffix == ".npz":
+                    jaxproj.save(models["upper"], target)
+                else:
+                    report.write_json(target, {"a": 1})
+            assert str(e.value) == (
+                f"{target}: folder {target.parent} does not exist (jaxproj creates no folder "
+                "for an output file: create it first)"
+            )
+        assert list(tmp_path.iterdir()) == []
 
 
 # --- determinism ----------------------------------------------------------------------------------

@@ -104,7 +104,7 @@ def test_no_valid_frame_is_a_typed_error_saying_why(model, motion):
     assert traced == []
     assert str(e.value) == (
         f"positions: no valid frame among {t}: 3 with non-finite coordinates (NaN / inf), "
-        f"{t - 3} marked invalid by the reader (lost tracking)"
+        f"{t - 3} marked invalid (lost tracking or non-finite values)"
     )
     # one valid frame is enough: the others take its pose
     one = retarget(np.concatenate([lost, positions[:1]]), smoothing=None)
