@@ -80,6 +80,7 @@ import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
+from jaxproj.io.motion_files import EXPORT_MARGIN
 from jaxproj.robots import NAO_H25, Robot, clip_coupled
 
 ACCEL_LIMIT = 80.0
@@ -116,6 +117,9 @@ class FeasibleConfig:
       wrap_patience: seconds a target must stay at the opposite end before the filter follows
         it there (shorter visits keep the held end).
       zero_phase: average the forward pass with a backward (time-reversed) pass.
+      limit_margin: rad inside each joint's ``[lower, upper]`` the filter keeps the motion
+        (default ``motion_files.EXPORT_MARGIN``, 2e-4: the margin the robot files hold, so that
+        writing them clips nothing and the filter's braking to a limit stays within ``accel``).
     """
 
     speeds: str = "rated"
@@ -125,6 +129,7 @@ class FeasibleConfig:
     wrap_band: float = math.radians(5.0)
     wrap_patience: float = 0.3
     zero_phase: bool = True
+    limit_margin: float = EXPORT_MARGIN
 
     def __post_init__(self) -> None:
         if self.speeds not in SPEED_FRACTIONS:
@@ -140,11 +145,14 @@ class FeasibleConfig:
             raise ConfigError(f"straight_elbow={self.straight_elbow} must be 0 <= lo < hi (rad)")
         if not 0.0 <= float(self.wrap_band) < math.pi:
             raise ConfigError(f"wrap_band={self.wrap_band} must lie in [0, pi) rad")
+        if not 0.0 <= float(self.limit_margin) < 0.1:
+            raise ConfigError(f"limit_margin={self.limit_margin} must lie in [0, 0.1) rad")
         if not float(self.wrap_patience) >= 0.0:
             raise ConfigError(f"wrap_patience={self.wrap_patience} must be >= 0 s")
 
     def params(self, robot: Robot = NAO_H25) -> jax.Array:
-        """``(5, n_joints)`` float32 rows of ``robot``: lower, upper, speed limit
+        """``(5, n_joints)`` float32 rows of ``robot``: lower and upper (``limit_margin``
+        inside), speed limit
         (``speed_fraction * robot.speed_limits(speeds)``), accel, and
         (first 4 columns) ``straight_elbow`` lo / hi, ``wrap_band``, ``wrap_patience``: the
         traced argument of the filter.
@@ -161,8 +169,8 @@ class FeasibleConfig:
         return jnp.asarray(
             np.stack(
                 [
-                    robot.lower,
-                    robot.upper,
+                    robot.lower + np.float32(self.limit_margin),
+                    robot.upper - np.float32(self.limit_margin),
                     vmax,
                     np.full(robot.n_joints, self.accel, np.float32),
                     extra,
