@@ -43,6 +43,10 @@ def test_output_respects_limits_speed_and_acceleration(zero_phase: bool, fps: fl
     assert out.dtype == np.float32 and out.shape == q.shape and np.isfinite(out).all()
     rep = feasibility_report(out, times, cfg)
     assert rep["limit_violation_frames"] == 0
+    margin = np.float32(cfg.limit_margin)  # 2e-4 rad inside, as the robot files hold it
+    assert (
+        margin > 0 and (out >= robot.LOWER + margin).all() and (out <= robot.UPPER - margin).all()
+    )
     assert rep["speed_violation_frames"] == 0
     # the configured fraction of the rated speed, up to float32 round-off; and (the fraction's
     # headroom) never above the rated speed itself, with no tolerance
@@ -148,7 +152,11 @@ def test_batch_with_padding_equals_one_by_one_and_is_deterministic() -> None:
         np.testing.assert_allclose(out[i, : len(q)], one, rtol=0, atol=1e-6)
     again = make_feasible(batch, times, np.array(lengths))
     np.testing.assert_array_equal(np.nan_to_num(out), np.nan_to_num(again))
-    np.testing.assert_array_equal(make_feasible(qs[2], times[2, :1]), qs[2])  # one frame
+    # one frame: the input, held the limit margin inside the joint ranges (it has angles at a limit)
+    m = np.float32(DEFAULT_FEASIBLE.limit_margin)
+    one_frame = np.clip(qs[2], robot.LOWER + m, robot.UPPER - m)
+    assert (one_frame != qs[2]).any()
+    np.testing.assert_array_equal(make_feasible(qs[2], times[2, :1]), one_frame)
 
 
 def test_irregular_time_steps_are_respected() -> None:

@@ -251,6 +251,9 @@ def test_exported_motion_respects_the_rated_speeds_and_the_limit_margin(sequence
         assert (speed <= rated[idx]).all()
         assert (angles >= robot.LOWER[idx].astype(np.float64) + EXPORT_MARGIN).all()
         assert (angles <= robot.UPPER[idx].astype(np.float64) - EXPORT_MARGIN).all()
+        accel = np.abs(np.diff(speed * np.sign(np.diff(angles, axis=0)), axis=0))
+        accel /= 0.5 * (np.diff(times)[1:] + np.diff(times)[:-1])[:, None]
+        assert accel.max() <= 1.01 * feasible.DEFAULT_FEASIBLE.accel  # the margin clips nothing
 
 
 def test_frame_gains_of_one_motion_and_of_a_batch_agree():
