@@ -1,4 +1,6 @@
-"""``jaxproj render``: a robot motion file -> an MP4 / GIF video (``jaxproj.viz.render``)."""
+"""``jaxproj render``: a robot motion file -> an MP4 / GIF video in real time
+(``jaxproj.viz.render``); prints what it drew (the human beside the NAO only where the file holds
+human positions)."""
 
 from __future__ import annotations
 
@@ -33,7 +35,11 @@ def add_parsers(sub: Any) -> None:
         help="one panel's WIDTHxHEIGHT, pixels",
     )
     p.add_argument(
-        "--fps", type=float, default=None, help="playback rate (None: the motion's rate / stride)"
+        "--fps",
+        type=float,
+        default=None,
+        help="the video's frame rate; it plays in real time by the motion's times at any rate, "
+        "a gap held on its last frame (None: the motion's rate / stride, at most 50 for a .gif)",
     )
     p.set_defaults(func=run)
 
@@ -45,8 +51,10 @@ def run(args: argparse.Namespace) -> int:
     out = options.output_path(args.out, "--out")
     render.check_video_path(out)  # before the (slow) rendering
     motion = load_motion(args.motion)
-    path, n, backend, fps = render.render_to_file(
+    done = render.render_to_file(
         motion, out, fps=args.fps, backend=args.backend, size=args.size, stride=args.stride
     )
-    print(f"{args.motion}: {n} frames -> {path} [backend={backend}, {fps:g} fps]")
+    span = float(motion.times[-1] - motion.times[0])
+    print(f"{args.motion}: {motion.n_frames} frames over {span:.2f} s -> {done.path}: "
+          f"{done.describe()}")  # fmt: skip
     return 0

@@ -23,8 +23,11 @@ Backends of the robot panel (``render_frames(..., backend=)``):
 Videos (``save_video``): ``.mp4`` (H.264 through imageio's ffmpeg plugin, needs the
 ``imageio-ffmpeg`` package: ``pip install "jaxproj[video]"``) or ``.gif`` (imageio's Pillow
 plugin; GIF delays are whole centiseconds, and Pillow merges identical consecutive frames, adding
-their delays). Writes are atomic. The default playback rate is the motion's frame rate divided by
-the stride.
+their delays). Writes are atomic. A video plays in real time, by the motion's ``times``
+(``playback``): its clock ticks at ``fps`` (default the motion's median frame rate divided by the
+stride; at most ``MAX_GIF_FPS`` for a GIF), each tick shows the latest frame at or before it, so
+a gap in the recording (frames the tracker dropped) is held on its last frame for as long as it
+lasted rather than skipped.
 
 The panels live in ``jaxproj.viz.panels`` (matplotlib) and here (MuJoCo), the video writers in
 ``jaxproj.viz.video``; this module re-exports their public names.
@@ -56,10 +59,15 @@ from jaxproj.viz.panels import (
     _StickRobotPanel,
 )
 from jaxproj.viz.video import (
+    MAX_GIF_FPS,
     VIDEO_FORMATS,
+    Playback,
     _gif_bytes,
     _require_ffmpeg,
+    check_gif_fps,
     check_video_path,
+    gif_delays_ms,
+    playback,
     save_video,
 )
 
@@ -218,18 +226,20 @@ def _robot_panel(
 
 
 class _Frames:
-    """The frames of a motion, produced one at a time (``iter``), and the backend used."""
+    """The frames of a motion, produced one at a time (``iter``), and the backend used.
+
+    ``index``: the motion frames to draw, in order."""
 
     def __init__(
         self,
         motion: Motion,
         backend: str,
         size: tuple[int, int],
-        stride: int,
+        index: np.ndarray,
         camera: Camera,
     ):
         self.motion = motion
-        self.index = np.arange(0, motion.n_frames, stride)
+        self.index = np.asarray(index)
         self.robot = _robot_panel(backend, size, camera)
         self.backend = self.robot.name
         self.human = None
@@ -292,7 +302,8 @@ def render_frames(
     """
     _check_motion(motion)
     size, stride, camera = _check_options(backend, size, stride, camera)
-    return np.stack(list(_Frames(motion, backend, size, stride, camera)))
+    index = np.arange(0, motion.n_frames, stride)
+    return np.stack(list(_Frames(motion, backend, size, index, camera)))
 
 
 class Rendered(NamedTuple):
@@ -301,11 +312,35 @@ class Rendered(NamedTuple):
     path: Path
     """The video file."""
     frames: int
-    """Frames written."""
+    """Motion frames drawn (each once; ``playback``)."""
     backend: str
     """Robot panel backend used: ``"mujoco"`` or ``"matplotlib"``."""
     fps: float
-    """Playback rate, frames per second."""
+    """The video's clock, frames per second."""
+    seconds: float = 0.0
+    """How long the video plays (real time: the motion's span plus one frame)."""
+    longest_hold_s: float = 0.0
+    """The longest time one frame stays on screen (a gap in the recording is held)."""
+    human: bool = False
+    """Whether the human skeleton was drawn (the motion holds ``positions``) beside the NAO."""
+
+    def describe(self) -> str:
+        """What the video shows, in words (``jaxproj render`` prints it)."""
+        who = (
+            "human skeleton (left) and NAO (right) side by side"
+            if self.human
+            else "the NAO only (the motion holds no human positions: only an NPZ with "
+            "`positions` has them)"
+        )
+        gap = (
+            f", longest gap held {self.longest_hold_s:.2f} s"
+            if self.longest_hold_s > 1.5 / self.fps
+            else ""
+        )
+        return (
+            f"{who}; real time: {self.seconds:.2f} s at {self.fps:g} fps, {self.frames} motion "
+            f"frames drawn{gap}; backend={self.backend}"
+        )
 
 
 class RenderOptions(TypedDict, total=False):
@@ -331,22 +366,36 @@ def render_to_file(
     """``render_motion`` for a ``Motion``, telling what it did (the ``jaxproj render`` command).
 
     Returns:
-      ``Rendered(path, frames, backend, fps)``.
+      ``Rendered(path, frames, backend, fps, seconds, longest_hold_s, human)``.
     """
     out = Path(out)
     _check_motion(motion)
-    if check_video_path(out) == ".mp4":
+    ext = check_video_path(out)
+    if ext == ".mp4":
         _require_ffmpeg()
     size, stride, camera = _check_options(backend, size, stride, camera)
-    rate = motion.fps / stride if fps is None else float(fps)
-    if not (math.isfinite(rate) and rate > 0):
-        raise ConfigError(f"fps must be a finite number > 0, got {fps}")
-    frames = _Frames(motion, backend, size, stride, camera)
+    sched = playback(motion.times, _rate(motion, stride, fps, ext), stride)
+    frames = _Frames(motion, backend, size, sched.frames, camera)
     try:
-        path = save_video(frames, out, rate)
+        path = save_video(frames, out, sched.fps, sched.holds)
     finally:
         frames.close()
-    return Rendered(path, len(frames), frames.backend, rate)
+    return Rendered(path, len(frames), frames.backend, sched.fps, sched.seconds,
+                    sched.longest_hold_s, frames.human is not None)  # fmt: skip
+
+
+def _rate(motion: Motion, stride: int, fps: float | None, ext: str) -> float:
+    """The video's clock: ``fps``, or the motion's rate / stride (at most ``MAX_GIF_FPS`` for a
+    GIF); ConfigError for a bad one."""
+    if fps is None:
+        rate = motion.fps / stride
+        return min(rate, MAX_GIF_FPS) if ext == ".gif" else rate
+    rate = float(fps)
+    if not (math.isfinite(rate) and rate > 0):
+        raise ConfigError(f"fps must be a finite number > 0, got {fps}")
+    if ext == ".gif":
+        check_gif_fps(rate)
+    return rate
 
 
 def render_motion(
@@ -359,10 +408,11 @@ def render_motion(
     Args:
       motion: a ``Motion`` or a ``.npz`` / ``.csv`` / ``.json`` motion file.
       out: ``.mp4`` or ``.gif`` (see ``save_video``).
-      **options: ``RenderOptions``, as in ``render_to_file``: ``fps``, the playback rate,
-        default the motion's frame rate (``Motion.fps``) divided by ``stride``, so the video
-        plays in real time; ``backend``, ``size``, ``stride``, ``camera`` as in
-        ``render_frames``.
+      **options: ``RenderOptions``, as in ``render_to_file``: ``fps``, the video's clock,
+        default the motion's frame rate (``Motion.fps``) divided by ``stride`` (at most
+        ``MAX_GIF_FPS`` for a GIF); the video plays in real time by the motion's ``times`` at
+        any ``fps`` (``playback``: a gap is held on its last frame); ``backend``, ``size``,
+        ``stride``, ``camera`` as in ``render_frames``.
 
     Returns:
       ``out`` as a ``Path``. Frames are streamed to MP4 (constant memory), gathered for GIF.
@@ -382,28 +432,38 @@ def show(motion: Motion, *, fps: float | None = None, **kwargs: Any) -> Any:
 
     Args:
       motion: the motion.
-      fps: playback rate (default as ``render_motion``).
+      fps: the clip's clock (default as ``render_motion`` for a GIF); it plays in real time.
       **kwargs: ``backend``, ``size``, ``stride``, ``camera`` of ``render_frames``.
 
     Returns:
       ``IPython.display.HTML`` holding an inline looping GIF when IPython is installed (a
-      notebook displays it), else the ``(N, H, W, 3)`` uint8 frames.
+      notebook displays it), else the ``(N, H, W, 3)`` uint8 frames of ``render_frames``.
     """
-    frames = render_frames(motion, **kwargs)
+    unknown = set(kwargs) - {"backend", "size", "stride", "camera"}
+    if unknown:
+        raise TypeError(f"show() got unexpected keyword arguments {sorted(unknown)}")
     try:
         from IPython.display import HTML
     except ImportError:
-        return frames
-    rate = motion.fps / int(kwargs.get("stride", 1)) if fps is None else float(fps)
-    data = base64.b64encode(_gif_bytes(frames, rate)).decode("ascii")
+        return render_frames(motion, **kwargs)
+    _check_motion(motion)
+    size, stride, camera = _check_options(
+        kwargs.get("backend", "auto"), kwargs.get("size", DEFAULT_SIZE),
+        kwargs.get("stride", 1), kwargs.get("camera"),
+    )  # fmt: skip
+    sched = playback(motion.times, _rate(motion, stride, fps, ".gif"), stride)
+    frames = list(_Frames(motion, kwargs.get("backend", "auto"), size, sched.frames, camera))
+    data = base64.b64encode(_gif_bytes(frames, sched.fps, sched.holds)).decode("ascii")
     return HTML(f'<img src="data:image/gif;base64,{data}" alt="jaxproj motion"/>')
 
 
 __all__ = [
     "BACKENDS",
+    "MAX_GIF_FPS",
     "CENTRE_COLOR",
     "DEFAULT_SIZE",
     "LEFT_COLOR",
+    "Playback",
     "RIGHT_COLOR",
     "VIDEO_FORMATS",
     "Backend",
@@ -412,6 +472,8 @@ __all__ = [
     "RenderOptions",
     "Rendered",
     "check_video_path",
+    "gif_delays_ms",
+    "playback",
     "render_frames",
     "render_motion",
     "render_to_file",

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from jaxproj.cli import main
-from jaxproj.errors import ConfigError, InputError
+from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import J
 from jaxproj.io.motion_files import Motion, save_motion
 from jaxproj.robots.nao_h25 import robot
@@ -272,7 +272,7 @@ def test_save_video_errors(tmp_path, monkeypatch):
         save_video(_frames(2), tmp_path / "v.gif", fps=0)
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    with pytest.raises(InputError, match="cannot write"):
+    with pytest.raises(ConfigError, match="is not a folder"):  # writers create no folder
         save_video(_frames(2), blocker / "v.gif", fps=10)
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # not installed
     with pytest.raises(ConfigError, match="pip install imageio-ffmpeg"):
@@ -284,9 +284,79 @@ def test_render_motion_plays_in_real_time(tmp_path, no_sigint_fork):
     path = save_motion(tmp_path / "m.npz", m)
     out = render_motion(path, tmp_path / "m.mp4", backend="matplotlib", size=SIZE, stride=2)
     assert _read_mp4(out) == (3, (SIZE[1], 2 * SIZE[0], 3), 15.0)  # 30 fps / stride 2
-    res = render.render_to_file(m, tmp_path / "m.gif", backend="matplotlib", size=SIZE, fps=5)
-    assert (res.frames, res.backend, res.fps) == (6, "matplotlib", 5.0)
-    assert iio.imread(res.path, index=None).shape == (6, SIZE[1], 2 * SIZE[0], 3)
+    # --fps sets the clock, not the speed: 15 ticks/s over 5/30 s show frames 0, 2, 4
+    res = render.render_to_file(m, tmp_path / "m.gif", backend="matplotlib", size=SIZE, fps=15)
+    assert (res.frames, res.backend, res.fps, res.human) == (3, "matplotlib", 15.0, True)
+    assert iio.imread(res.path, index=None).shape == (3, SIZE[1], 2 * SIZE[0], 3)
+    assert _gif_delays(res.path) == [70, 60, 70]  # 1/15 s each, rounded at the boundaries
+    assert res.seconds == pytest.approx(0.2)
+
+
+def _gif_delays(path) -> list[int]:
+    """Each frame's delay (ms) as stored in the GIF."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        out = []
+        for i in range(im.n_frames):
+            im.seek(i)
+            out.append(int(im.info["duration"]))
+    return out
+
+
+GAP_TIMES = np.array([0.0, 0.1, 0.2, 1.0, 1.1])
+"""A 10 fps recording with a 0.8 s gap (the tracker lost the person): 1.1 s long."""
+
+
+def test_playback_holds_a_gap_on_its_last_frame():
+    p = render.playback(GAP_TIMES + 3.0, fps=10.0)  # times may start anywhere
+    assert p.frames.tolist() == [0, 1, 2, 3, 4] and p.holds.tolist() == [1, 1, 8, 1, 1]
+    assert (p.ticks, p.seconds, p.longest_hold_s) == (12, pytest.approx(1.2), pytest.approx(0.8))
+    # a slower clock: the latest frame at or before each tick; frames between ticks are skipped
+    p = render.playback(GAP_TIMES, fps=5.0)  # ticks at 0, 0.2, .. 1.0
+    assert p.frames.tolist() == [0, 2, 3] and p.holds.tolist() == [1, 4, 1]
+    # uniform times at rate / stride: every stride-th frame once
+    p = render.playback(np.arange(7) / 30.0, fps=15.0, stride=2)
+    assert p.frames.tolist() == [0, 2, 4, 6] and p.holds.tolist() == [1, 1, 1, 1]
+    # a file's rounding (times 1e-9 s late) does not drop a frame
+    p = render.playback(np.arange(4) / 15.0 + np.array([0, 1e-9, 1e-9, 1e-9]), fps=15.0)
+    assert p.frames.tolist() == [0, 1, 2, 3]
+    with pytest.raises(ConfigError, match="fps"):
+        render.playback(GAP_TIMES, fps=0.0)
+
+
+def test_gif_delays_round_at_the_boundaries():
+    # 7.5 fps: 13.33 cs a frame; rounding each delay (13 cs) would lose 1 cs every 3 frames
+    assert render.gif_delays_ms([1, 1, 1], 7.5) == [130, 140, 130]  # 0.4 s, as 3 / 7.5
+    assert sum(render.gif_delays_ms([1] * 742, 7.5)) == round(742 / 7.5 * 100) * 10
+
+
+def test_video_of_a_motion_with_a_gap_lasts_the_recording(tmp_path, no_sigint_fork):
+    q = [robot.STANDING_POSTURE, _arm_up()] * 2 + [robot.STANDING_POSTURE]
+    m = Motion(np.stack(q), GAP_TIMES, np.ones(5, bool), None, {"method": "ik"})
+    assert m.fps == pytest.approx(10.0)  # the median step
+    res = render.render_to_file(m, tmp_path / "g.gif", backend="matplotlib", size=SIZE)
+    assert (res.frames, res.fps, res.human) == (5, m.fps, False)
+    assert _gif_delays(res.path) == [100, 100, 800, 100, 100]  # frame 2 held over the gap
+    assert sum(_gif_delays(res.path)) == 1200  # 1.1 s of recording + the last frame's 0.1 s
+    assert res.longest_hold_s == pytest.approx(0.8) and "longest gap held 0.80 s" in (
+        res.describe()
+    )
+    mp4 = render.render_to_file(m, tmp_path / "g.mp4", backend="matplotlib", size=SIZE)
+    n, _, fps = _read_mp4(mp4.path)
+    assert (n, fps) == (12, pytest.approx(10.0))  # 1.2 s at 10 fps: frame 2 shown 8 times
+
+
+def test_gif_rate_is_capped_for_real_time(tmp_path):
+    m = _motion([robot.STANDING_POSTURE, _arm_up()] * 6 + [robot.STANDING_POSTURE],
+                positions=False, fps=120.0)  # 13 frames, 0.1 s  # fmt: skip
+    res = render.render_to_file(m, tmp_path / "fast.gif", backend="matplotlib", size=SIZE)
+    assert res.fps == render.MAX_GIF_FPS  # not 120: browsers play 1 cs delays as 10 cs
+    assert res.frames == 6 and res.seconds == pytest.approx(0.12)  # ticks at 0, 0.02, .. 0.1
+    assert _gif_delays(res.path) == [20] * 6
+    with pytest.raises(ConfigError, match="at most 50 frames/s"):
+        render.render_to_file(m, tmp_path / "x.gif", backend="matplotlib", size=SIZE, fps=60)
+    assert not (tmp_path / "x.gif").exists()
 
 
 def test_show_without_and_with_ipython(monkeypatch):
@@ -329,7 +399,8 @@ def test_cli_render(tmp_path, capsys, no_sigint_fork):
     )
     assert code == 0, err
     assert stdout.count("\n") == 1 and "3 frames" in stdout and "backend=matplotlib" in stdout
-    assert str(out) in stdout
+    assert str(out) in stdout and "human skeleton (left) and NAO (right)" in stdout
+    assert "real time: 0.20 s at 15 fps" in stdout
     assert iio.imread(out, index=None).shape == (3, 90, 240, 3)
     # a NAOqi JSON (no human positions) to MP4, every second frame
     js = save_motion(tmp_path / "wave.json", m)
@@ -338,7 +409,9 @@ def test_cli_render(tmp_path, capsys, no_sigint_fork):
         capsys, "render", str(js), "--out", str(mp4), "--backend", "matplotlib",
         "--size", "64x48", "--stride", "2",
     )  # fmt: skip
-    assert code == 0 and "2 frames" in stdout
+    assert code == 0 and "2 motion frames drawn" in stdout
+    assert "the NAO only (the motion holds no human positions" in stdout  # what it drew
+    assert "human skeleton" not in stdout
     assert _read_mp4(mp4)[:2] == (2, (48, 64, 3))
 
 
