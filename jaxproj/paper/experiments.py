@@ -259,7 +259,7 @@ def _held_out_metrics(
 
 def landmark_size_study(
     train_descriptors: np.ndarray,
-    sizes: Sequence[int] = (1644, 961, 86),
+    sizes: Sequence[int | None] = (1644, 961, 86),
     *,
     objective: engine.Objective = "relaxed",
     key: jax.Array,
@@ -275,7 +275,9 @@ def landmark_size_study(
 
     Args:
       train_descriptors: ``(N, m)`` valid training descriptors.
-      sizes: target landmark counts (the mean-shift bandwidth is bisected to reach each).
+      sizes: target landmark counts (the mean-shift bandwidth is bisected to reach each);
+        ``None``: ``config`` itself, with its own sizes (``BuildConfig()``: the default model's
+        bandwidths), its row's ``"target"`` ``None``.
       objective: projection objective.
       key: ``jax.random`` key of the POSE_8 motion noise (the same motion for every size).
       eval_descriptors: optional ``(E, m)`` held-out valid descriptors.
@@ -289,8 +291,10 @@ def landmark_size_study(
 
     Returns:
       ``{"objective", "L", "M", "sizes": [row, ...]}``, one row per size with ``"target"``,
-      ``"landmarks"`` (count reached by the chains the target drove, ``_targeted_landmarks``:
-      the arms' mean; the head's fixed count is not it), ``"landmarks_per_chain"``,
+      ``"landmarks"`` (count reached by the chains a size target drives, ``_targeted_landmarks``:
+      the mean of the two arm chains of a per-chain model, whose head keeps its fixed
+      bandwidth; a report should show ``"landmarks_per_chain"`` beside it),
+      ``"landmarks_per_chain"``,
       ``"bandwidth"``, ``"build_s"``, ``"pose8_static_M_max"``,
       ``"pose8_static_M_avg"`` (the noise-free pose), ``"pose8_M_max"`` (max M_max over the
       POSE_8 motion, the value ``report.plot_landmark_size`` draws), ``"pose8_M_max_mean"``,
@@ -300,8 +304,13 @@ def landmark_size_study(
     """
     base = config or engine.BuildConfig()
     rows = []
+    # the chains a size target drives (any valid size: only which chains it sets matters)
+    driven = dataclasses.replace(base, landmarks=100, bandwidth=None)
     for size in sizes:
-        cfg = dataclasses.replace(base, landmarks=int(size), bandwidth=None)
+        if size is None:
+            cfg = base
+        else:
+            cfg = dataclasses.replace(base, landmarks=int(size), bandwidth=None)
         if built is not None and cfg in built:
             model, build_s = built[cfg]
         else:
@@ -317,8 +326,8 @@ def landmark_size_study(
         pose = res["poses"]["POSE_8"][objective]
         motion = res["motions"]["POSE_8"][objective]
         row = {
-            "target": int(size),
-            "landmarks": _targeted_landmarks(cfg, model.landmarks),
+            "target": None if size is None else int(size),
+            "landmarks": _targeted_landmarks(driven, model.landmarks),
             "landmarks_per_chain": model.landmarks,
             "bandwidth": list(model.bandwidth),
             "build_s": build_s,
@@ -335,7 +344,7 @@ def landmark_size_study(
             row.update(_held_out_metrics(model, eval_descriptors, objective, ll, mm))
         rows.append(row)
         if progress:
-            print(f"landmarks {size}: {k} reached, build {build_s:.1f} s", flush=True)
+            print(f"landmarks {size}: {model.landmarks} reached, build {build_s:.1f} s", flush=True)
     return {"objective": objective, "L": n_l, "M": n_m, "sizes": rows}
 
 
@@ -380,23 +389,23 @@ def efficiency_study(
     its outputs are ready (``timing.time_calls``), divided by the batch size. Accuracy: all of
     ``descriptors`` projected (``engine.project``) and compared with their IK.
 
-    The batch is ``batch`` halved until its estimated working set fits ``max_bytes``: a
-    vmapped projection gathers its ``L x M`` backward kernels per query (~5.8 kB each for
-    hidden 96, m 15), so 4096 queries at ``L = M = 50`` would need ~60 GB. Each row reports the
-    batch it used.
+    The batch is ``batch`` halved until the estimated working set of the largest ``L`` fits
+    ``max_bytes`` (a vmapped projection gathers its ``L x M`` backward kernels per query, ~5.8 kB
+    each for hidden 96, m 15, so 4096 queries at ``L = M = 50`` would need ~60 GB), and every
+    ``L`` is timed at that one batch, so that the rows' times compare. Each row reports it.
 
     Args:
       model: a ``Model`` or a bare ``Projector`` (upper-body bones).
       descriptors: ``(B, m)`` valid descriptors.
       ls: neighbourhood sizes (``L = M``), each ``<=`` the landmark count.
       objective: ``"relaxed"`` or ``"full"``.
-      batch: largest number of queries per call.
+      batch: largest number of queries per call (halved to fit ``max_bytes``).
       repeats: timed calls per size.
       full: settings of the full objective.
       max_bytes: memory budget of one batch (estimate).
 
     Returns:
-      ``{"objective", "batch", "device", "n_queries", "rows": [{"L", "M", "batch",
+      ``{"objective", "batch" (the one used), "device", "n_queries", "rows": [{"L", "M", "batch",
       "us_per_projection", "compile_s", "first_call_s", "M_avg_median", "M_avg_mean",
       "M_max_p95"}, ...]}``.
 
@@ -417,11 +426,11 @@ def efficiency_study(
         engine.check_neighbours(p, n, n)
     full = FullConfig() if full is None else full
     truth = _ik(h, bones)
+    b = int(batch)
+    while b > 1 and b * _bytes_per_query(p, max(ls), max(ls)) > max_bytes:
+        b //= 2
     rows = []
     for n in ls:
-        b = int(batch)
-        while b > 1 and b * _bytes_per_query(p, n, n) > max_bytes:
-            b //= 2
         chunk = jnp.asarray(np.resize(h, (b, h.shape[1])))
         # the arguments as engine.project passes them, so its call reuses this executable
         compiled, compile_s = compile_timed(
@@ -448,7 +457,7 @@ def efficiency_study(
         )
     return {
         "objective": objective,
-        "batch": int(batch),
+        "batch": b,
         "device": str(jax.devices()[0]),
         "n_queries": int(len(h)),
         "rows": rows,

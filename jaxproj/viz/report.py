@@ -10,9 +10,10 @@ Plots written by ``write_report``:
 * ``efficiency.png`` — time per projection and accuracy against L = M (when measured);
 * ``per_joint_error.png`` — p50 / p95 error per driven joint of the projection methods.
 
-Tables: ``summary_table`` (the headline M_avg / M_max), ``where_error_table`` (M_max with and
-without ElbowYaw, task-space errors per arm) and ``per_joint_table`` (p50 / p95 per driven
-joint), all from the per-method blocks of ``jaxproj.eval.metrics.summarize_errors``.
+Tables (``jaxproj.viz.tables``, re-exported here): ``summary_table`` (the headline M_avg /
+M_max), ``where_error_table`` (M_max with and without ElbowYaw, task-space errors per arm) and
+``per_joint_table`` (p50 / p95 per driven joint), all from the per-method blocks of
+``jaxproj.eval.metrics.summarize_errors``.
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ import numpy as np
 from jaxproj._internal.atomic import atomic_write
 from jaxproj.human.skeleton import BONES, J, body_frame
 from jaxproj.robots.nao_h25 import robot
+from jaxproj.viz.tables import per_joint_table as per_joint_table  # re-exported
+from jaxproj.viz.tables import summary_table as summary_table
+from jaxproj.viz.tables import where_error_table as where_error_table
 
 _NAO_SITES = (
     "torso", "neck", "l_shoulder", "l_elbow", "l_wrist", "l_hand",
@@ -66,6 +70,24 @@ def _save(plt, fig, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def suptitle(fig: Any, title: str, margin: float = 0.02, fontsize: float | None = None) -> Any:
+    """``fig.suptitle(title)``, wrapped at word breaks onto as many lines as it takes to fit the
+    figure's width less ``margin`` (a fraction) on each side, measured on the figure's renderer
+    (a long title, e.g. ``retarget --plot``'s file name and time source, was clipped at both
+    edges). Returns the title's ``Text``."""
+    import textwrap
+
+    text = fig.suptitle(title) if fontsize is None else fig.suptitle(title, fontsize=fontsize)
+    renderer = fig.canvas.get_renderer()
+    room = fig.bbox.width * (1.0 - 2.0 * margin)
+    width = len(title)
+    while text.get_window_extent(renderer).width > room and width > 10:
+        width = int(width * 0.9)
+        text.set_text("\n".join(line for part in title.split("\n")
+                                 for line in textwrap.wrap(part, width)))  # fmt: skip
+    return text
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -229,7 +251,7 @@ def plot_motion(
     ax.set_ylabel("error vs IK (deg)")
     ax.legend(fontsize=7, ncol=3)
     ax.grid(alpha=0.3)
-    fig.suptitle(title)
+    suptitle(fig, title)
     _save(plt, fig, path)
 
 
@@ -300,12 +322,20 @@ def plot_retarget(
         ax.legend(fontsize=7, ncol=4, loc="upper right")
         ax.grid(alpha=0.3)
     ax.set_xlabel(f"time (s); solid: {label}, dashed: per-frame IK")
-    fig.suptitle(title)
+    suptitle(fig, title)
     _save(plt, fig, path)
 
 
-def plot_distributions(path: Path, predictions: dict[str, np.ndarray], truth: np.ndarray) -> None:
-    """CDFs of M_avg and M_max per method; ``predictions[m]`` and ``truth``: ``(F, 10)``."""
+def plot_distributions(
+    path: Path,
+    predictions: dict[str, np.ndarray],
+    truth: np.ndarray,
+    title: str = "Error distributions on held-out subjects (valid frames)",
+) -> None:
+    """CDFs of M_avg and M_max per method on a logarithmic error axis (one scale over its whole
+    range: no kink where a symlog axis turns linear); ``predictions[m]`` and ``truth``:
+    ``(F, 10)``. Frames with an error of exactly 0 count in the fraction but have no place on a
+    log axis (the curve starts at the smallest non-zero error)."""
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for name, pred in predictions.items():
@@ -313,18 +343,27 @@ def plot_distributions(path: Path, predictions: dict[str, np.ndarray], truth: np
         for ax, vals in zip(axes, (err.mean(axis=1), err.max(axis=1)), strict=True):
             v = np.sort(vals)
             ax.plot(v, np.arange(1, len(v) + 1) / len(v), color=_COLORS.get(name), label=name)
-    for ax, label in zip(axes, ("M_avg (deg)", "M_max (deg)"), strict=True):
+    for ax, label in zip(axes, ("M_avg (deg, log scale)", "M_max (deg, log scale)"), strict=True):
         ax.set_xlabel(label)
         ax.set_ylabel("fraction of frames")
-        ax.set_xscale("symlog", linthresh=1.0)
-        ax.grid(alpha=0.3)
+        ax.set_xscale("log")
+        ax.set_ylim(0.0, 1.0)
+        ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
-    fig.suptitle("Error distributions on held-out subjects (valid frames)")
+    suptitle(fig, title)
     _save(plt, fig, path)
 
 
-def plot_landmark_size(path: Path, study: dict) -> None:
-    """``study``: ``{"sizes": [{"landmarks": K, "M_avg_median": .., "M_max_p95": ..}, ...]}``."""
+def _size_label(row: dict) -> str:
+    """A landmark-size row's target, in words."""
+    return "default" if row.get("target") is None else str(row["target"])
+
+
+def plot_landmark_size(path: Path, study: dict, title: str | None = None) -> None:
+    """``study``: ``{"sizes": [{"landmarks": K, "M_avg_median": .., "M_max_p95": ..}, ...]}``
+    (``experiments.landmark_size_study``: ``landmarks`` is the mean of the two arm chains of a
+    per-chain model, the x axis says so; each point is labelled by its target, ``default`` for
+    the row of ``target`` ``None``)."""
     plt = _plt()
     rows = sorted(study["sizes"], key=lambda r: r["landmarks"])
     k = [r["landmarks"] for r in rows]
@@ -333,46 +372,54 @@ def plot_landmark_size(path: Path, study: dict) -> None:
     ax.plot(k, [r["M_max_p95"] for r in rows], "s--", label="p95 M_max")
     if "pose8_M_max" in rows[0]:
         ax.plot(k, [r["pose8_M_max"] for r in rows], "^:", label="POSE_8 motion, max M_max")
+    for r in rows:
+        if "target" in r:
+            ax.annotate(
+                f"target {_size_label(r)}", (r["landmarks"], r["M_avg_median"]),
+                textcoords="offset points", xytext=(0, 6), ha="center", fontsize=7,
+            )  # fmt: skip
     ax.set_xscale("log")
-    ax.set_xlabel("landmarks")
+    per_chain = "left_arm" in rows[0].get("landmarks_per_chain", {})
+    ax.set_xlabel("landmarks per arm chain (mean of left and right)" if per_chain else "landmarks")
     ax.set_ylabel("error vs IK (deg)")
+    ax.set_ylim(bottom=0.0)
     ax.grid(alpha=0.3)
     ax.legend()
-    ax.set_title("Landmark-set size (relaxed, held-out subjects)")
+    suptitle(fig, title or "Landmark-set size (relaxed, held-out subjects)", fontsize=10)
     _save(plt, fig, path)
 
 
-def plot_efficiency(path: Path, study: dict) -> None:
-    """``study``: ``{"rows": [{"L": .., "us_per_projection": .., "M_avg_median": ..}, ...]}``."""
+def plot_efficiency(path: Path, study: dict, title: str | None = None) -> None:
+    """``study``: ``{"rows": [{"L": .., "batch": .., "us_per_projection": ..,
+    "M_avg_median": ..}, ...]}`` (``experiments.efficiency_study``). Both axes start at 0, so
+    that a change of a few hundredths of a degree is drawn as the flat line it is; the batch
+    size of the timed calls is in the title when every point shares it, else at each point."""
     plt = _plt()
     rows = study["rows"]
     fig, ax = plt.subplots(figsize=(6, 4))
     ls = [r["L"] for r in rows]
-    ax.plot(ls, [r["us_per_projection"] for r in rows], "o-", color="tab:blue")
+    us = [r["us_per_projection"] for r in rows]
+    acc = [r["M_avg_median"] for r in rows]
+    ax.plot(ls, us, "o-", color="tab:blue")
     ax.set_xlabel("L = M")
     ax.set_ylabel("us per projection", color="tab:blue")
+    ax.set_ylim(0.0, 1.15 * max(us))
     ax2 = ax.twinx()
-    ax2.plot(ls, [r["M_avg_median"] for r in rows], "s--", color="tab:orange")
+    ax2.plot(ls, acc, "s--", color="tab:orange")
     ax2.set_ylabel("median M_avg (deg)", color="tab:orange")
+    ax2.set_ylim(0.0, 1.5 * max(acc) if max(acc) > 0 else 1.0)
+    batches = sorted({int(r["batch"]) for r in rows if "batch" in r})
+    if len(batches) > 1:
+        for r in rows:
+            ax.annotate(
+                f"batch {r['batch']}", (r["L"], r["us_per_projection"]),
+                textcoords="offset points", xytext=(0, 6), ha="center", fontsize=7,
+            )  # fmt: skip
     ax.grid(alpha=0.3)
-    ax.set_title(f"Efficiency vs neighbourhood size ({study.get('device', '')})")
+    head = title or f"Efficiency vs neighbourhood size ({study.get('device', '')})"
+    batch = f"\nbatch {batches[0]} per timed call" if len(batches) == 1 else ""
+    suptitle(fig, head + batch, fontsize=10)
     _save(plt, fig, path)
-
-
-def summary_table(summary: dict, methods: list[str] | None = None) -> str:
-    """Markdown table of ``summary.<method>.<M_avg|M_max>.<stat>``."""
-    methods = methods or list(summary)
-    lines = [
-        "| method | M_avg median | M_avg mean | M_avg p95 | M_max median | M_max p95 | M_max max |",
-        "|---|---:|---:|---:|---:|---:|---:|",
-    ]
-    for m in methods:
-        a, x = summary[m]["M_avg"], summary[m]["M_max"]
-        lines.append(
-            f"| {m} | {a['median']:.2f} | {a['mean']:.2f} | {a['p95']:.2f} | "
-            f"{x['median']:.2f} | {x['p95']:.2f} | {x['max']:.1f} |"
-        )
-    return "\n".join(lines)
 
 
 def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) -> None:
@@ -404,53 +451,6 @@ def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) 
     ax.legend(fontsize=8, ncol=len(methods))
     ax.set_title("Error per driven joint (valid frames): median and 95th percentile")
     _save(plt, fig, path)
-
-
-def _mp(d: dict, digits: int = 1) -> str:
-    """``"median / p95"`` of a ``describe`` dict."""
-    return f"{d['median']:.{digits}f} / {d['p95']:.{digits}f}"
-
-
-def where_error_table(summary: dict, methods: list[str] | None = None) -> str:
-    """Markdown table: where each method's error is.
-
-    Per method: p95 of M_max with and without the two ElbowYaw joints (deg), then per arm
-    (L / R) the hand (wrist point) and elbow position errors (cm) and the upper-arm and forearm
-    direction errors (deg) as ``median / p95``; from ``summary.<method>`` blocks of
-    ``jaxproj.eval.metrics.summarize_errors``.
-    """
-    methods = methods or list(summary)
-    lines = [
-        "| method | M_max p95 | M_max p95 without ElbowYaw | hand L (cm) | hand R (cm) "
-        "| elbow L (cm) | elbow R (cm) | upper arm L (deg) | upper arm R (deg) "
-        "| forearm L (deg) | forearm R (deg) |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for m in methods:
-        b = summary[m]
-        ts = b["task_space"]
-        cells = [f"{b['M_max']['p95']:.1f}", f"{b['M_max_no_elbow_yaw']['p95']:.1f}"]
-        for key, digits in (("hand_cm", 2), ("elbow_cm", 2), ("upper_arm_deg", 1),
-                            ("forearm_deg", 1)):  # fmt: skip
-            cells += [_mp(ts["left"][key], digits), _mp(ts["right"][key], digits)]
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def per_joint_table(summary: dict, methods: list[str] | None = None) -> str:
-    """Markdown table: ``p50 / p95`` error (deg) per driven joint (rows) and method (columns)."""
-    methods = methods or list(summary)
-    lines = [
-        "| joint | " + " | ".join(methods) + " |",
-        "|---|" + "---:|" * len(methods),
-    ]
-    for j in robot.DRIVEN_JOINTS:
-        cells = [
-            f"{summary[m]['per_joint'][j]['p50']:.1f} / {summary[m]['per_joint'][j]['p95']:.1f}"
-            for m in methods
-        ]
-        lines.append(f"| {j} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 def write_json(path: Path, report: dict) -> None:

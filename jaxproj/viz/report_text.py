@@ -15,9 +15,10 @@ def smoother_label(settings: dict | None) -> str:
             f"{settings['gamma']:g}, eta {settings['eta']:g}")  # fmt: skip
 
 
-def confidence_md(blocks: dict) -> list[str]:
+def confidence_md(blocks: dict, caption: str = "") -> list[str]:
     """Markdown: error against the per-frame confidence by decile, per projection objective
-    (``evaluate``'s ``"confidence"`` blocks); ``[]`` without any."""
+    (``evaluate``'s ``"confidence"`` blocks), ``caption`` (a line) above the table; ``[]``
+    without any block."""
     if not blocks:
         return []
     lines = [
@@ -30,6 +31,7 @@ def confidence_md(blocks: dict) -> list[str]:
         "below exp(-1), the least trusted tenth of training people's frames on models that "
         "never saw them.",
         "",
+        *([caption, ""] if caption else []),
         "| method | decile | confidence up to | median M_max | p95 M_max | share M_max > 30 |",
         "|---|---:|---:|---:|---:|---:|",
     ]
@@ -77,12 +79,51 @@ def pose_notes(bp: dict, objective: str = "relaxed") -> list[str]:
         "about the arm can be far from that angle; the error without ElbowYaw is the pose's "
         "real error. The motions' largest M_max is likewise one frame's worst joint, which is "
         "why it need not fall as landmarks are added (the landmark-size table's POSE_8 column: "
-        "the mean M_avg is the steadier measure)."
-        + (
-            f" The other {len(far)} lie far from every landmark (the nearest "
-            f"{min(far):.0f}-{max(far):.0f} deg away: the training people never held those "
-            "poses), where the kernels extrapolate: there the error is the projection's own."
-            if far
-            else ""
-        ),
+        "the mean M_avg is the steadier measure)." + _far_note(far),
     ]
+
+
+def _far_note(far: list[float]) -> str:
+    """The sentence on the poses whose worst joint is not an ElbowYaw: how far their nearest
+    landmarks are (one value, or a range where they differ at the printed precision)."""
+    if not far:
+        return ""
+    lo, hi = f"{min(far):.0f}", f"{max(far):.0f}"
+    span = lo if lo == hi else f"{lo}-{hi}"
+    if len(far) == 1:
+        return (f" The other one lies far from every landmark (its nearest {span} deg away: the "
+                "training people never held that pose), where the kernels extrapolate: there "
+                "the error is the projection's own.")  # fmt: skip
+    return (f" The other {len(far)} lie far from every landmark (their nearest {span} deg away: "
+            "the training people never held those poses), where the kernels extrapolate: there "
+            "the error is the projection's own.")  # fmt: skip
+
+
+def _cell(value: float | None, fmt: str) -> str:
+    """A table cell: ``value`` formatted, or ``n/a`` where there is none."""
+    return "n/a" if value is None or value != value else format(value, fmt)
+
+
+def smoothness_md(smoothness: dict) -> list[str]:
+    """Markdown rows of the jerk / lag table (``evaluate``'s ``"smoothness"``): ``n/a`` where a
+    row has no such value (the IK, the reference, is neither smoothed nor lagged against
+    itself), never ``nan``."""
+    rows = []
+    for m, v in smoothness.items():
+        cells = [
+            _cell(v.get("jerk_raw"), ".3g"),
+            _cell(v.get("jerk_smoothed"), ".3g"),
+            _cell(v.get("lag_frames_raw"), "+.2f"),
+            _cell(v.get("lag_frames_smoothed"), "+.2f"),
+        ]
+        label = "ik (the reference: its own jerk; not smoothed)" if m == "ik" else m
+        rows.append(f"| {label} | " + " | ".join(cells) + " |")
+    return rows
+
+
+def bandwidths(values: dict[str, float] | list[float], digits: int = 4) -> str:
+    """Bandwidths at ``digits`` significant digits, ``head 0.01125 / left_arm 0.01875 / ...``
+    (a dict) or ``0.01125 / 0.01875`` (a list), not 17 digits of float noise."""
+    if isinstance(values, dict):
+        return " / ".join(f"{k} {v:.{digits}g}" for k, v in values.items())
+    return " / ".join(f"{v:.{digits}g}" for v in values)

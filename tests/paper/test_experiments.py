@@ -181,15 +181,16 @@ def test_landmark_size_study_reuses_a_model_the_caller_built(model_with_poses, m
     given = dataclasses.replace(base, landmarks=300)
     res = experiments.landmark_size_study(
         train,
-        sizes=(300, 30),
+        sizes=(None, 300, 30),  # None: ``config`` itself, with its own (default) sizes
         key=jax.random.PRNGKey(0),
         config=base,
         n_l=5,
         n_m=5,
-        built={given: (model_with_poses, 12.5)},
+        built={given: (model_with_poses, 12.5), base: (model_with_poses, 7.0)},
     )
-    assert seen == [30]  # 300 came from ``built``
-    assert [r["build_s"] for r in res["sizes"]][0] == 12.5
+    assert seen == [30]  # 300 and the base config came from ``built``
+    assert [r["target"] for r in res["sizes"]] == [None, 300, 30]
+    assert [r["build_s"] for r in res["sizes"]][:2] == [7.0, 12.5]
     assert res["sizes"][0]["pose8_M_max"] == res["sizes"][1]["pose8_M_max"]  # the same model
 
 
@@ -203,11 +204,13 @@ def test_efficiency_study_times_and_scores_each_neighbourhood(model_with_poses):
         assert np.isfinite(r["M_avg_median"]) and np.isfinite(r["M_max_p95"])
     assert res["n_queries"] == 200 and res["batch"] == 256
     assert [r["batch"] for r in res["rows"]] == [256, 256]
-    # a small memory budget halves the batch (same answers)
+    # a small memory budget halves the batch until the largest L fits, and every L is timed
+    # at that one batch (L = 2 alone would fit 256), so that the rows' times compare
     small = experiments.efficiency_study(
-        model_with_poses, d[:50], ls=(5,), batch=256, repeats=1, max_bytes=100 * 5 * 5 * 32 * 18 * 4
-    )
-    assert small["rows"][0]["batch"] == 64
+        model_with_poses, d[:50], ls=(2, 5), batch=256, repeats=1,
+        max_bytes=100 * 5 * 5 * 32 * 18 * 4,
+    )  # fmt: skip
+    assert [r["batch"] for r in small["rows"]] == [64, 64] and small["batch"] == 64
 
 
 def test_efficiency_study_compiles_only_the_executable_it_times(model_with_poses, monkeypatch):
