@@ -316,11 +316,16 @@ class Reference:
         ridx = self._knn(self.tree_r, cand, n_m)  # (L, M)
         probs = [p for j in range(n_l) for p in self._problems(cand[j], ridx[j], cfg)]
         f0 = np.array([self._value(h, pr, pr["w0"], cfg) for pr in probs])
+        order = np.arange(len(probs))  # candidate ranks, for the near-tie rule
         if 0 < cfg.clusters < len(probs):
-            probs = [probs[i] for i in np.argsort(f0, kind="stable")[: cfg.clusters]]
+            order = np.argsort(f0, kind="stable")[: cfg.clusters]
+            probs = [probs[i] for i in order]
         solve = self._solve_adam if cfg.solver == "adam" else self._solve_newton
         out = [solve(h, pr, cfg) for pr in probs]
-        j = int(np.argmin([f for _, f in out]))
+        f = np.array([v for _, v in out])
+        # ``FullConfig.tie_rtol``: the first in candidate order within the tie of the least
+        tied = f <= f.min() + cfg.tie_rtol * abs(f.min())
+        j = int(np.argmin(np.where(tied, order, len(order) + np.max(order))))
         return np.clip(out[j][0], self.lower, self.upper), float(out[j][1])
 
     def _problems(self, r_c: np.ndarray, idx: np.ndarray, cfg: FullConfig) -> list[dict]:

@@ -214,6 +214,12 @@ class FullConfig:
       screen, finalists: Newton solves every problem for ``screen`` steps, then only the
         ``finalists`` with the least objective on to ``iterations`` (``0`` finalists: every
         problem to the end). Measured against solving all: ``benchmarks/results``.
+      tie_rtol: the full objective's near-tie rule. Solved problems whose objective lies within
+        ``tie_rtol * F_min`` of the least ``F_min`` are equally good answers (the solver stops
+        within ``dec_tol`` of a minimum, and F is a float32 sum): the answer is the first of
+        them in candidate order (the candidate of the nearest human landmark first), not the
+        one whose F rounding made least, so a one-ulp change of the input cannot move the
+        answer between two near-equal minima. ``0``: the least F, as before. ``>= 0``.
     """
 
     objective: FullObjective = "weighted"
@@ -228,6 +234,7 @@ class FullConfig:
     step_tol: float = 1e-5
     screen: int = 8
     finalists: int = 2
+    tie_rtol: float = 1e-3
 
     def __post_init__(self) -> None:
         if self.objective not in ("weighted", "min"):
@@ -242,7 +249,7 @@ class FullConfig:
             raise ConfigError(f"full clusters={self.clusters} must be >= 0 (0: all L)")
         if self.screen < 0 or self.finalists < 0:
             raise ConfigError(f"full screen={self.screen}, finalists={self.finalists} must be >= 0")
-        for name in ("proximal", "ridge", "dec_tol", "step_tol"):
+        for name in ("proximal", "ridge", "dec_tol", "step_tol", "tie_rtol"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(f"full {name}={getattr(self, name)} must be >= 0")
 

@@ -131,13 +131,14 @@ def solve(pr: sn.Problem, w0: jax.Array, cfg: FullConfig) -> tuple[jax.Array, ja
 
 
 def _solve_newton_screened(
-    prs: sn.Problem, w0: jax.Array, cfg: FullConfig
+    prs: sn.Problem, w0: jax.Array, order: jax.Array, cfg: FullConfig
 ) -> tuple[jax.Array, jax.Array]:
     """Every problem of one query by Newton for ``cfg.screen`` steps, then only the
     ``cfg.finalists`` with the least objective on to ``cfg.iterations``: ``(r (n,), F)`` of the
     best. A problem far behind after the screen does not catch up (measured against solving
     every problem to the end: ``benchmarks/results/full_objective.json``), and a vmapped loop
     runs as long as its slowest problem, so the long tail is paid for two problems, not ``L``.
+    ``order (P,)``: the problems' candidate ranks, for the near-tie rule (``pick``).
     """
     solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol)
     axes = (_AXES, 0)
@@ -148,9 +149,28 @@ def _solve_newton_screened(
         _, keep = jax.lax.top_k(-states.d.f, cfg.finalists)
         prs = _batched(prs, lambda a: a[keep])
         states = jax.tree.map(lambda a: a[keep], states)
+        order = order[keep]
     states = jax.vmap(lambda pr, s: solver.run(pr, s, cfg.iterations), in_axes=axes)(prs, states)
-    j = jnp.argmin(states.d.f)
+    j = pick(states.d.f, order, cfg.tie_rtol)
     return states.d.r[j], states.d.f[j]
+
+
+def pick(f: jax.Array, order: jax.Array, tie_rtol: float) -> jax.Array:
+    """The answer among solved problems under the near-tie rule (``FullConfig.tie_rtol``).
+
+    Args:
+      f: ``(P,)`` their converged objective values.
+      order: ``(P,)`` int their candidates' ranks (0: the nearest human landmark's).
+      tie_rtol: relative width of the tie (static).
+
+    Returns:
+      The index into ``f`` of the first problem in candidate order whose value is within
+      ``tie_rtol * min(f)`` of ``min(f)`` (``argmin(f)`` for ``tie_rtol = 0``, up to exact
+      ties).
+    """
+    f_min = jnp.min(f)
+    tied = f <= f_min + jnp.asarray(tie_rtol, f.dtype) * jnp.abs(f_min)
+    return jnp.argmin(jnp.where(tied, order, jnp.iinfo(order.dtype).max))
 
 
 _AXES = sn.Problem(0, 0, 0, 0, None, None, 0, None, None)  # type: ignore[arg-type]
@@ -204,13 +224,14 @@ def project_full_one(
         j = jnp.argmin(f0)  # the first minimum, as top_k(-f0, 1) picks it
         r, f = solve(_batched(prs, lambda a: a[j]), w0[j], cfg)
         return jnp.clip(r, p.lower, p.upper), f, f0[j]
+    order = jnp.arange(n_p)  # candidate ranks of the problems (``pick``)
     if 0 < cfg.clusters < n_p:  # optimise only the problems that start best
-        _, keep = jax.lax.top_k(-f0, cfg.clusters)
-        prs = _batched(prs, lambda a: a[keep])
-        w0, f0 = w0[keep], f0[keep]
+        _, order = jax.lax.top_k(-f0, cfg.clusters)
+        prs = _batched(prs, lambda a: a[order])
+        w0, f0 = w0[order], f0[order]
     if cfg.solver == "newton" and 0 < cfg.finalists:
-        r1, f1 = _solve_newton_screened(prs, w0, cfg)
+        r1, f1 = _solve_newton_screened(prs, w0, order, cfg)
         return jnp.clip(r1, p.lower, p.upper), f1, jnp.min(f0)
     r, f = jax.vmap(solve, in_axes=(_AXES, 0, None))(prs, w0, cfg)
-    j = jnp.argmin(f)
+    j = pick(f, order, cfg.tie_rtol)
     return jnp.clip(r[j], p.lower, p.upper), f[j], f0[j]

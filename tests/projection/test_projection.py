@@ -624,3 +624,21 @@ def test_core_keeps_full_precision_in_a_plain_jit(chain_model, objective):
         pairs = zip(h, np.asarray(r), strict=True)
         verdicts = [ref.judge(x, q, 5, 5, np.radians(0.01)) for x, q in pairs]
         assert "differs" not in verdicts, verdicts
+
+
+def test_full_near_tie_rule_picks_the_first_candidate_among_ties():
+    """``full.pick``: among problems whose objective is within ``tie_rtol`` of the least, the
+    first in candidate order; beyond the band, the least; ``tie_rtol = 0``: the least."""
+    import jax.numpy as jnp
+
+    from jaxproj.projection.full import pick
+
+    f = jnp.asarray([1.0, 1.0005, 0.9996, 2.0], jnp.float32)
+    order = jnp.asarray([3, 1, 2, 0], jnp.int32)
+    assert int(pick(f, order, 1e-3)) == 1  # 1.0005 <= 0.9996 (1 + 1e-3), candidate rank 1
+    assert int(pick(f, order, 0.0)) == 2  # the least
+    assert int(pick(f, order, 1e-4)) == 2  # 1.0 and 1.0005 are outside a 1e-4 band
+    far = jnp.asarray([1.0, 1.0011], jnp.float32)
+    assert int(pick(far, jnp.asarray([1, 0], jnp.int32), 1e-3)) == 0
+    with pytest.raises(ConfigError, match="tie_rtol"):
+        FullConfig(tie_rtol=-1e-3)
