@@ -78,7 +78,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj._internal.jit import jit
+from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError
 from jaxproj.io.motion_files import EXPORT_MARGIN
 from jaxproj.robots import NAO_H25, Robot, clip_coupled
@@ -291,6 +291,7 @@ def _forward(
     return jnp.concatenate([q0[None], rest], axis=0)
 
 
+@full_precision
 def feasible_motion(
     y: jax.Array,
     dt: jax.Array,
