@@ -7,6 +7,8 @@ depend on that frame (it is expressed in a body frame built from the skeleton it
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -187,3 +189,66 @@ def _descriptor(
 
 
 _descriptor_jit = jit(_descriptor, static_argnames=("index", "mirror"))
+
+
+NECK_TILT_REFERENCE = math.radians(-27.1)
+"""rad: the median forward tilt ``atan2(n_x, n_z)`` of the neck bone (ShoulderCenter -> Head, body
+frame) over the 22,365 valid frames of the bundled MSR Action3D recordings: the capture set-up
+the default projector's landmarks come from. ``level_neck`` brings each recording's own neutral
+tilt here (the NAO's IK reads this tilt as HeadPitch 0, ``ik.HEAD_PITCH_NEUTRAL``)."""
+
+
+def neck_tilt(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+    """``(...,)`` forward tilt ``atan2(n_x, n_z)`` (rad) of the neck bone of ``(..., 3 * n_bones)``
+    descriptors (``bones`` must hold ``"neck"``)."""
+    i = 3 * resolve_bones(bones).index("neck")
+    return jnp.arctan2(d[..., i], d[..., i + 2])
+
+
+def recording_neck_tilt(
+    d: ArrayLike, valid: ArrayLike, bones: str | tuple[str, ...] = "upper"
+) -> jax.Array:
+    """The neutral neck tilt of one recording: the median ``neck_tilt`` of its valid frames.
+
+    Traceable (a sort, no host sync). Args: ``d`` ``(T, 3 * n_bones)`` descriptors, ``valid``
+    ``(T,)`` bool. Returns ``()`` float32 rad; ``NECK_TILT_REFERENCE`` if no frame is valid.
+    """
+    valid = jnp.asarray(valid, bool)
+    tilt = jnp.where(valid, neck_tilt(jnp.asarray(d, jnp.float32), bones), jnp.inf)
+    ordered = jnp.sort(tilt)
+    k = jnp.sum(valid.astype(jnp.int32))
+    mid = 0.5 * (ordered[jnp.maximum(k - 1, 0) // 2] + ordered[k // 2])
+    return jnp.where(k > 0, mid, NECK_TILT_REFERENCE).astype(jnp.float32)
+
+
+def level_neck(
+    d: ArrayLike,
+    neutral: ArrayLike,
+    bones: str | tuple[str, ...] = "upper",
+    reference: float = NECK_TILT_REFERENCE,
+) -> jax.Array:
+    """Descriptors whose neck bone is turned about the body's left axis by ``reference -
+    neutral``: a recording whose neutral tilt is ``neutral`` then has it at ``reference``.
+
+    Why: the Kinect's Head joint sits at a tilt that depends on the capture set-up (the camera's
+    height and pitch: MSR Action3D's median is -27.1 deg, UTKinect's +14 deg), not only on the
+    person. Levelling each recording to the reference makes the neck read as it would in the
+    set-up the landmarks came from; the rotation keeps the bone's length and its sideways part.
+    Other bones are unchanged; without a neck bone in ``bones`` ``d`` is returned as is.
+
+    Args:
+      d: ``(..., 3 * n_bones)`` descriptors.
+      neutral: the recording's neutral tilt, rad (scalar or broadcastable to ``d``'s batch).
+      bones: the descriptor's bones.
+      reference: the tilt the neutral is moved to, rad.
+    """
+    names = resolve_bones(bones)
+    d = jnp.asarray(d, jnp.float32)
+    if "neck" not in names:
+        return d
+    i = 3 * names.index("neck")
+    delta = jnp.asarray(reference, jnp.float32) - jnp.asarray(neutral, jnp.float32)
+    c, s = jnp.cos(delta), jnp.sin(delta)
+    x, z = d[..., i], d[..., i + 2]
+    d = d.at[..., i].set(c * x + s * z)
+    return d.at[..., i + 2].set(c * z - s * x)

@@ -4,6 +4,8 @@ Stages, each a small pure (traceable) function written for ONE motion (``(T, 20,
 positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
 
     frame_descriptors   (T, 20, 3) positions -> (T, m) descriptors, (T,) valid
+    level               the neck's neutral tilt moved to the reference (``skeleton.level_neck``;
+                        ``retarget``: each recording's own median tilt, see ``level``)
     map_frames          (T, m) -> (T, n) driven angles: analytic IK or a projector
     fill_invalid        invalid frames hold the last valid frame, leading ones back-fill
     smooth              the zero-lag offline smoother (``offline.rts_motion``: invalid frames'
@@ -58,7 +60,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import descriptor
+from jaxproj.human.skeleton import (
+    NECK_TILT_REFERENCE,
+    descriptor,
+    level_neck,
+    recording_neck_tilt,
+    resolve_bones,
+)
 from jaxproj.motion.smoothing import smooth_any
 from jaxproj.motion.smoothing import step as smoothing_step
 from jaxproj.projection.api import project_batch
@@ -96,6 +104,39 @@ def frame_descriptors(
     if valid is not None:
         ok = ok & valid
     return d, ok
+
+
+NeckLevel = Literal["recording", "given", "off"]
+"""How ``level`` finds a motion's neutral neck tilt (see there)."""
+
+
+def level(
+    d: jax.Array,
+    ok: jax.Array,
+    neck: NeckLevel,
+    neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
+    *,
+    bones: str | tuple[str, ...],
+) -> jax.Array:
+    """One motion's descriptors with the neck levelled (``skeleton.level_neck``): its neutral
+    tilt moved to ``skeleton.NECK_TILT_REFERENCE``, before the IK or the projection reads it
+    (both then see the same levelled descriptor, so they stay consistent, and the IK stays a
+    pure function of one descriptor).
+
+    Args:
+      d: ``(T, m)`` descriptors; ok: ``(T,)`` bool, their validity.
+      neck: ``"recording"``: the neutral is the median neck tilt of the valid frames
+        (``skeleton.recording_neck_tilt``); ``"given"``: ``neck_neutral`` (rad); ``"off"``:
+        ``d`` unchanged (the fixed reference, as before levelling existed).
+      bones: the descriptor's bones (no neck bone: ``d`` unchanged).
+    """
+    if neck == "off" or "neck" not in resolve_bones(bones):
+        return d
+    if neck == "recording":
+        neck_neutral = recording_neck_tilt(d, ok, bones)
+    elif neck != "given":
+        raise ConfigError(f"neck must be 'recording', 'given' or 'off', got {neck!r}")
+    return level_neck(d, neck_neutral, bones)
 
 
 def map_frames(
@@ -214,6 +255,8 @@ def motion(
     mirror: bool,
     smoother: str | None,
     robot: Robot = NAO_H25,
+    neck: NeckLevel = "off",
+    neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """The whole pipeline for one padded motion (``retarget``'s compiled call).
 
@@ -228,6 +271,8 @@ def motion(
       smoother: the smoother's ``kind`` (``"offline"`` or ``"paper"``; with the clip), or
         ``None``: neither.
       robot: the robot (its IK, limits, posture and joints).
+      neck, neck_neutral: the neck's neutral tilt (``level``): ``"recording"``, the median of
+        the motion's valid frames; ``"given"``, ``neck_neutral`` (rad); ``"off"``, none.
 
     Returns:
       ``((T, n_joints) angles, (T,) valid, (T,) confidence)``: ``robot.joint_names`` order,
@@ -235,6 +280,7 @@ def motion(
       ``projection.confidence`` of each frame (0 where invalid, 1 for the IK).
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
+    d = level(d, ok, neck, neck_neutral, bones=bones)
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,

@@ -33,12 +33,21 @@ the result is clipped to the joint limits (a smoother can overshoot them). With 
 motion last goes through ``jaxproj.motion.feasible``: joint limits, speed limits and an
 acceleration bound.
 
+The head: the neck bone's forward tilt that means "head level" depends on the capture set-up
+(the Kinect's Head joint sits differently under another camera height and pitch), so by default
+each recording is levelled first: its own median neck tilt over its valid frames is taken as
+its neutral and moved to the reference the IK reads as HeadPitch 0 (``neck_neutral=``;
+``pipeline.level``), for the IK and the projection alike. The output then stays inside the
+NAO's head anti-collision envelope (``Robot.coupled_limits``), as every path through the
+pipeline's clip does.
+
 Time: ``times`` (seconds per frame, e.g. ``Recording.times``) drive the smoother's gains and the
 feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apart.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -46,7 +55,7 @@ import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError, NoValidFrameError
-from jaxproj.human.skeleton import MIN_BONE_LENGTH
+from jaxproj.human.skeleton import MIN_BONE_LENGTH, NECK_TILT_REFERENCE
 from jaxproj.io.readers import MAX_DURATION_S, MIN_STEP_S
 from jaxproj.motion import pipeline
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
@@ -121,7 +130,17 @@ def _bucket(t: int) -> int:
 
 _motion_jit = jit(
     pipeline.motion,
-    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smoother", "robot"),
+    static_argnames=(
+        "method",
+        "n_l",
+        "n_m",
+        "full",
+        "bones",
+        "mirror",
+        "smoother",
+        "robot",
+        "neck",
+    ),
 )
 
 
@@ -140,6 +159,7 @@ def retarget(
     times: np.ndarray | None = None,
     feasible: FeasibleConfig | None = None,
     robot: Robot | str | None = None,
+    neck_neutral: float | Literal["recording"] | None = "recording",
 ) -> RetargetResult:
     """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
     then, with ``feasible``, ``feasible.make_feasible``).
@@ -160,6 +180,11 @@ def retarget(
       feasible: make the output robot-feasible (``jaxproj.motion.feasible``), or ``None`` (default).
       robot: the robot (a ``Robot`` or a registered name) of the IK method; ``None``: the
         model's robot (``Model.robot``), else the default robot (the NAO H25).
+      neck_neutral: the recording's neutral neck tilt (the tilt that becomes head pitch 0):
+        ``"recording"`` (default), the median neck tilt ``atan2(n_x, n_z)`` of its own valid
+        frames; a number, that tilt in rad (e.g. measured on a calibration pose of the same
+        set-up); ``None``, no levelling (``skeleton.NECK_TILT_REFERENCE``, MSR Action3D's
+        median, for every recording). See ``pipeline.level`` and ``skeleton.level_neck``.
 
     Returns:
       ``RetargetResult`` with ``(T, n_joints)`` angles, ``(T,)`` validity, ``(T,)`` times and
@@ -217,6 +242,19 @@ def retarget(
                 f"{MAX_DURATION_S:g} s (got steps from {np.diff(stamps).min():g} s, span "
                 f"{stamps[-1] - stamps[0]:g} s)"
             )
+    if isinstance(neck_neutral, str):
+        if neck_neutral != "recording":
+            raise ConfigError(f"neck_neutral must be 'recording', a number (rad) or None, "
+                              f"got {neck_neutral!r}")  # fmt: skip
+        neck, neutral = "recording", NECK_TILT_REFERENCE
+    elif neck_neutral is None:
+        neck, neutral = "off", NECK_TILT_REFERENCE
+    else:
+        neutral = float(neck_neutral)
+        if not math.isfinite(neutral) or abs(neutral) > math.pi:
+            raise ConfigError(f"neck_neutral must be a finite angle in [-pi, pi] rad, "
+                              f"got {neck_neutral!r}")  # fmt: skip
+        neck = "given"
     finite = np.isfinite(positions).all(axis=(1, 2))
     if not (ok_in & finite).any():  # nothing to map: refuse before tracing
         raise NoValidFrameError("positions", no_valid_frame_problem(ok_in, finite), t)
@@ -239,6 +277,8 @@ def retarget(
         mirror=mirror,
         smoother=None if smoothing is None else kind,
         robot=spec,
+        neck=neck,
+        neck_neutral=np.float32(neutral),
     )
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check

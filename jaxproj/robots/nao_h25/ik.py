@@ -65,7 +65,7 @@ from jax.typing import ArrayLike
 from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import UPPER_BODY, resolve_bones
+from jaxproj.human.skeleton import NECK_TILT_REFERENCE, UPPER_BODY, resolve_bones
 from jaxproj.robots.base import Chain
 from jaxproj.robots.base import chain_columns as base_chain_columns
 from jaxproj.robots.base import driven_to_full as _driven_to_full
@@ -74,9 +74,11 @@ from jaxproj.robots.nao_h25 import robot
 ELBOW_OFFSET_ANGLE = math.atan2(robot.ELBOW_OFFSET_Y, robot.UPPER_ARM_LENGTH)
 """rad (8.13 deg): angle between the ElbowYaw axis and the shoulder->elbow segment."""
 
-HEAD_PITCH_NEUTRAL = math.radians(-27.1)
-"""rad: median forward tilt ``atan2(n_x, n_z)`` of the neck bone over the 22,365 valid frames of
-the bundled MSR Action3D recordings (5th..95th percentile -51..-3.5 deg)."""
+HEAD_PITCH_NEUTRAL = NECK_TILT_REFERENCE
+"""rad (-27.1 deg): the neck tilt read as HeadPitch 0: ``skeleton.NECK_TILT_REFERENCE``, the
+median forward tilt ``atan2(n_x, n_z)`` of the neck bone over the 22,365 valid frames of the
+bundled MSR Action3D recordings (5th..95th percentile -51..-3.5 deg). ``retarget`` first levels
+each recording's neck so that its own median tilt sits here (``skeleton.level_neck``)."""
 
 ELBOW_YAW_NEUTRAL = 0.0
 """rad: ElbowYaw taken when the elbow is straight (where yaw does not move the forearm)."""
