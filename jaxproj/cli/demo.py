@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
 
     import_mjx()  # before jaxproj.eval imports it: without Warp's notice
     from jaxproj.paper.demo import run_demo
-    from jaxproj.viz import report
+    from jaxproj.paper.demo_report import stdout_summary
 
     out_dir = Path(args.out)
     if not out_dir.parent.is_dir():
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         )
     devices = options.devices(args.devices)
     out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices)
-    print(report.summary_table(out["summary"]))
+    print(stdout_summary(out))
     t = out["timings"]
     print(f"report: {out_dir / 'report.md'} ({t['total_s']:.0f} s)")
     return 0

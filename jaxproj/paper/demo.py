@@ -1,15 +1,22 @@
 """The main job, end to end on the bundled data: ``jaxproj demo``.
 
-1. build the per-chain (default) and the whole-body projector from subjects 1,3,5,7,9 (1,644
-   landmarks per arm chain / for the whole body);
-2. evaluate every method on subjects 2,4,6,8,10 with and without smoothing, and both models
-   side by side on them and on the UTKinect-Action3D upper-body segments (cross-dataset);
+The protocol is the results page's (``docs/results.md``, "Accuracy on held-out people"): the
+default model (``BuildConfig()``, per chain) and the whole-body one built from MSR Action3D
+subjects 1,3,5,7,9 (every action, valid frames); scored on the arm actions of the held-out
+subjects 2,4,6,8,10 (a01-a12, a17-a19: 8,355 valid frames) and on the UTKinect-Action3D
+upper-body segments (1,345 frames), L = M = 10, degrees against the analytic IK.
+
+1. build the per-chain (default) and the whole-body projector;
+2. evaluate every method on the held-out arm actions with and without smoothing, and both
+   models side by side on them and on UTKinect (cross-dataset);
 3. roll out held-out arm motions in MuJoCo (MJX on accelerators, CPU MuJoCo on a CPU-only
-   machine: ``rollout.simulate``'s default backend): the robot-feasible relaxed projection (what
-   ``jaxproj retarget`` writes for a robot, ``jaxproj.motion.feasible``) beside the raw relaxed
-   projection and the IK;
-4. the paper's experiments: eight basic poses and motions, landmark-set sizes, L = M sweep;
-5. write ``report.json``, ``report.md`` and the PNG plots to ``--out``.
+   machine: ``rollout.simulate``'s default backend): what ``jaxproj retarget`` writes for a
+   robot with ``--method relaxed`` and with ``--method ik`` (smoothed, then
+   ``jaxproj.motion.feasible``), beside the raw per-frame IK and the smoothed relaxed projection;
+4. the paper's experiments: eight basic poses and motions, landmark-set sizes (1644, 961, 86
+   per arm, and the default model), L = M sweep;
+5. write ``report.json``, ``report.md`` (``jaxproj.paper.demo_report``) and the PNG plots to
+   ``--out``.
 """
 
 from __future__ import annotations
@@ -25,21 +32,29 @@ import numpy as np
 from jaxproj.eval import evaluate
 from jaxproj.io import datasets
 from jaxproj.motion import feasible
+from jaxproj.motion.offline import OFFLINE_SMOOTHING
+from jaxproj.motion.smoothing import frame_gains
+from jaxproj.paper import demo_report
 from jaxproj.projection import api as engine
+from jaxproj.robots import Robot
 from jaxproj.robots.nao_h25 import robot
 from jaxproj.robots.nao_h25.ik import driven_to_full
-from jaxproj.viz import report, report_text
+from jaxproj.viz import report
 
 TRAIN_SUBJECTS = datasets.TRAIN_SUBJECTS
 TEST_SUBJECTS = datasets.TEST_SUBJECTS
+TEST_ACTIONS = datasets.ARM_ACTIONS
+"""The held-out MSR actions scored: the arm actions, as on the results page."""
 
 QUICK_TRAIN_STRIDE = 8
 """``run_demo(quick=True)``: every 8th training frame feeds the builds."""
-QUICK_TEST_STRIDE = 32
-"""``run_demo(quick=True)``: every 32nd held-out MSR recording (and every 2nd UTKinect one) is
-evaluated (a smoke run: the tests run it, within CI's 15-minute budget)."""
+QUICK_TEST_STRIDE = 24
+"""``run_demo(quick=True)``: every 24th held-out MSR arm recording (and every 2nd UTKinect one)
+is evaluated (a smoke run: the tests run it, within CI's 15-minute budget)."""
 QUICK_LANDMARKS = 200
 """``run_demo(quick=True)``: landmarks per arm chain and for the whole body."""
+SIZES = (1644, 961, 86)
+"""The landmark-size study's targets per arm (the paper's), besides the default model."""
 
 
 def _log(msg: str) -> None:
@@ -51,20 +66,51 @@ def _train_descriptors(model_cfg: engine.BuildConfig) -> np.ndarray:
     return datasets.valid_descriptors(seqs, bones=model_cfg.bones, mirror=model_cfg.mirror)
 
 
-def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs, devices=None) -> dict:
+def _smoothed_ik(data: evaluate.EvalData, spec: Robot) -> np.ndarray:
+    """The per-frame IK of every held-out motion through the smoother ``evaluate`` gives the
+    methods (the default offline one; MSR has no times: 15 fps): ``(S, T_max, n)``."""
+    lengths = np.diff(data.offsets)
+    gains = frame_gains(OFFLINE_SMOOTHING, None, lengths)
+    _, smoothed, _ = evaluate._per_motion(
+        data, data.truth[data.valid], gains, robot=spec, smoother="offline"
+    )
+    return smoothed
+
+
+ROLLOUT_TRAJECTORIES: dict[str, str] = {
+    "ik": "the per-frame IK, raw",
+    "ik_feasible": "the IK smoothed and made robot-feasible: what `jaxproj retarget --method ik` "
+    "writes",
+    "relaxed": "the relaxed projection, smoothed",
+    "relaxed_feasible": "the relaxed projection smoothed and made robot-feasible: what "
+    "`jaxproj retarget --method relaxed --model P.npz` writes",
+}
+"""The rollout's trajectories, in the report's words."""
+
+
+def _rollout_section(
+    data: evaluate.EvalData, ev: dict, n_motions: int, spec: Robot, devices=None
+) -> dict:
     from jaxproj.eval import rollout
 
     t0 = time.perf_counter()
     lengths = np.diff(data.offsets)
     arm = np.flatnonzero(np.isin(data.actions, datasets.ARM_ACTIONS))
-    picks = arm[np.linspace(0, len(arm) - 1, n_motions).round().astype(int)]
+    picks = np.unique(arm[np.linspace(0, len(arm) - 1, n_motions).round().astype(int)])
     t_max = int(lengths[picks].max())
     out: dict = {
         "motions": [data.names[i] for i in picks],
         "frame_dt": 1.0 / 15.0,
         "backend": rollout.resolve_backend("auto", devices),
+        "trajectories": dict(ROLLOUT_TRAJECTORIES),
     }
-    traj = {"ik": ev["_truth"], "relaxed": ev["_predictions"]["relaxed"]}
+    ik_smoothed = _smoothed_ik(data, spec)
+    ik_smoothed = np.concatenate([ik_smoothed[s, :n] for s, n in enumerate(lengths)])
+    traj = {
+        "ik": ev["_truth"],
+        "ik_smoothed": ik_smoothed,
+        "relaxed": ev["_predictions"]["relaxed"],
+    }
     batches = {}
     for name, per_frame in traj.items():
         b = np.tile(robot.STANDING_POSTURE, (len(picks), t_max, 1)).astype(np.float32)
@@ -74,10 +120,21 @@ def _rollout_section(data: evaluate.EvalData, ev: dict, n_motions: int, seqs, de
             b[row, e - a :] = b[row, e - a - 1]
         batches[name] = b
     times = np.tile(np.arange(t_max) * out["frame_dt"], (len(picks), 1))
+    smoothed_ik = batches.pop("ik_smoothed")
+    batches["ik_feasible"] = feasible.make_feasible(smoothed_ik, times, lengths[picks])
     batches["relaxed_feasible"] = feasible.make_feasible(batches["relaxed"], times, lengths[picks])
-    for name, b in batches.items():
+    for name in ROLLOUT_TRAJECTORIES:
+        b = batches[name]
         res = rollout.simulate(b, lengths[picks], devices=devices)
         out[name] = rollout.summarize(res, lengths[picks], b)
+        # the targets' own distance from the per-frame IK (what the person did), deg
+        err = [np.degrees(np.abs(b[r, : lengths[s]][:, robot.DRIVEN_INDEX]
+                                 - ev["_truth"][data.offsets[s] : data.offsets[s + 1]]))
+               for r, s in enumerate(picks)]  # fmt: skip
+        valid = np.concatenate([data.valid[data.offsets[s] : data.offsets[s + 1]] for s in picks])
+        m_avg = np.concatenate(err).mean(axis=1)[valid]
+        out[name]["targets_vs_ik_M_avg"] = evaluate.describe(m_avg)
+    out["frames"] = int(lengths[picks].sum())
     out["wall_s"] = time.perf_counter() - t0  # the whole section, as the demo's timings say
     return out
 
@@ -91,21 +148,23 @@ def run_demo(
 ) -> dict:
     """Run the whole demo and write the report; returns the report dict.
 
-    ``quick`` (the tests' setting, a smoke run of every stage in a few minutes on 2 cores)
-    builds from every ``QUICK_TRAIN_STRIDE``-th training frame with ``QUICK_LANDMARKS``
-    landmarks per arm chain (and for the whole body) instead of the paper's 1644, evaluates
-    every ``QUICK_TEST_STRIDE``-th held-out MSR recording and every 2nd UTKinect one, and runs a
-    two-point landmark-size study (``QUICK_LANDMARKS``, 86), fewer rollouts and sweep points,
-    and leaves the full objective out of the whole-body / UTKinect comparison;
-    its numbers are not the report's (``report.json`` says ``quick``). ``progress`` shows
-    progress bars on a terminal (stage lines always go to
-    stderr). ``devices`` (several JAX devices, or ``None`` for the default one) shard the
-    held-out evaluation's projections and the rollout (then MJX; ``engine.resolve_devices``).
+    The full run builds the default model (``BuildConfig()``) and scores it by the results
+    page's protocol (module docstring). ``quick`` (the tests' setting, a smoke run of every
+    stage in a few minutes on 2 cores) builds from every ``QUICK_TRAIN_STRIDE``-th training
+    frame with ``QUICK_LANDMARKS`` landmarks per arm chain (and for the whole body) instead of
+    the default model, evaluates every ``QUICK_TEST_STRIDE``-th held-out MSR arm recording and
+    every 2nd UTKinect one, and runs a two-point landmark-size study (``QUICK_LANDMARKS``, 86),
+    fewer rollouts and sweep points, and leaves the full objective out of the whole-body /
+    UTKinect comparison; its numbers are not the report's (``report.json`` and the report's
+    first line say ``quick``). ``progress`` shows progress bars on a terminal (stage lines
+    always go to stderr). ``devices`` (several JAX devices, or ``None`` for the default one)
+    shard the held-out evaluation's projections and the rollout (then MJX;
+    ``engine.resolve_devices``).
     """
     t_start = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
-    cfg = engine.BuildConfig(landmarks=QUICK_LANDMARKS if quick else 1644)  # per chain
+    cfg = engine.BuildConfig(landmarks=QUICK_LANDMARKS) if quick else engine.BuildConfig()
     train = _train_descriptors(cfg)[:: QUICK_TRAIN_STRIDE if quick else 1]
     models = {}
     for name, c in (("per_chain", cfg), ("whole_body", replace(cfg, chains="whole"))):
@@ -121,7 +180,8 @@ def run_demo(
     engine.save(models["whole_body"], out_dir / "projector_whole_body.npz")
 
     t0 = time.perf_counter()
-    test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS)[:: QUICK_TEST_STRIDE if quick else 1]
+    test_seqs = datasets.msr_action3d(subjects=TEST_SUBJECTS, actions=TEST_ACTIONS)
+    test_seqs = test_seqs[:: QUICK_TEST_STRIDE if quick else 1]
     data = evaluate.prepare(test_seqs)
     ev = evaluate.evaluate(model, data, evaluate.METHODS, progress=progress, devices=devices)
     splits = {
@@ -152,7 +212,7 @@ def run_demo(
         f"frames in {timings['evaluate_s']:.1f} s"
     )
 
-    rollout_out = _rollout_section(data, ev, 8 if quick else 32, test_seqs, devices)
+    rollout_out = _rollout_section(data, ev, 8 if quick else 32, model.robot, devices)
     timings["rollout_s"] = rollout_out["wall_s"]
     _log(
         f"[3/5] {rollout_out['backend']} rollout of {len(rollout_out['motions'])} motions "
@@ -164,14 +224,14 @@ def run_demo(
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(0)
     poses = experiments.run_pose_experiments(model, key=key)
-    held_out = data.descriptors[
-        data.valid & np.isin(np.repeat(data.actions, np.diff(data.offsets)), datasets.ARM_ACTIONS)
-    ]
+    held_out = data.descriptors[data.valid]  # the frames evaluate scored: the same numbers
     sizes = experiments.landmark_size_study(
         train,
-        sizes=(QUICK_LANDMARKS, 86) if quick else (1644, 961, 86),
+        # quick: the model of step 1 is the QUICK_LANDMARKS row; full: the default model's row
+        sizes=(QUICK_LANDMARKS, 86) if quick else (None, *SIZES),
         key=key,
         eval_descriptors=held_out,
+        config=engine.BuildConfig(),
         built={cfg: (model, timings["build_per_chain_s"])},  # the per-chain model of step 1
     )
     eff = experiments.efficiency_study(
@@ -184,6 +244,7 @@ def run_demo(
     result = {
         **{k: v for k, v in ev.items()},
         "comparison": comparison,
+        "comparison_frames": {k: int(d.valid.sum()) for k, d in splits.items()},
         "rollout": rollout_out,
         "experiments": {"basic_poses": poses, "landmark_size": sizes, "efficiency": eff},
         "build": {
@@ -191,31 +252,35 @@ def run_demo(
             "bandwidth": dict(zip(model.landmarks, model.bandwidth, strict=True)),
             "train_frames": len(train),
             "config": vars(model.config).copy(),
+            "default_model": not quick,
         },
         "quick": quick,
         "train_subjects": list(TRAIN_SUBJECTS),
         "test_subjects": list(TEST_SUBJECTS),
+        "test_actions": list(TEST_ACTIONS),
     }
-    plots = _plots(out_dir, data, ev, test_seqs, sizes, eff)
+    plots = _plots(out_dir, data, ev, test_seqs, sizes, eff, result)
     result["plots"] = plots
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     result["timings"] = timings
     report.write_json(out_dir / "report.json", result)
-    report.write_text(out_dir / "report.md", _markdown(result))
+    report.write_text(out_dir / "report.md", demo_report.markdown(result))
     _log(f"[5/5] report written to {out_dir} ({timings['total_s']:.0f} s in all)")
     return result
 
 
-def _plots(out_dir: Path, data, ev, seqs, sizes: dict, eff: dict) -> list[str]:
+def _plots(out_dir: Path, data, ev, seqs, sizes: dict, eff: dict, result: dict) -> list[str]:
     names = []
     preds = ev["_predictions"]
     truth = ev["_truth"]
     valid = data.valid
+    split = demo_report.msr_split(result)
     report.plot_distributions(
         out_dir / "error_distributions.png",
         {m: p[valid] for m, p in preds.items()},
         truth[valid],
+        title=f"Error distributions, smoothed output: {split}",
     )
     names.append("error_distributions.png")
     by_name = {s.name: s for s in seqs}
@@ -235,7 +300,11 @@ def _plots(out_dir: Path, data, ev, seqs, sizes: dict, eff: dict) -> list[str]:
         names.append(fname)
     report.plot_per_joint(out_dir / "per_joint_error.png", ev["summary"])
     names.append("per_joint_error.png")
-    report.plot_landmark_size(out_dir / "landmark_size.png", sizes)
+    report.plot_landmark_size(
+        out_dir / "landmark_size.png",
+        sizes,
+        title=f"Landmark-set size (relaxed, unsmoothed): {split}",
+    )
     names.append("landmark_size.png")
     report.plot_efficiency(out_dir / "efficiency.png", eff)
     names.append("efficiency.png")
@@ -252,249 +321,3 @@ def _sample_motions(data) -> list[str]:
                 out.append(name)
                 break
     return out
-
-
-def _comparison_md(r: dict) -> list[str]:
-    """Whole-body vs per-chain, per objective and baseline, on both held-out splits."""
-    lines = [
-        "",
-        "## Whole-body vs per-chain projection (unsmoothed)",
-        "",
-        "The same five methods with the paper's whole-body projector (one set of landmarks over "
-        "all 15 descriptor numbers) and with the per-chain projector built here (head, left arm, "
-        f"right arm: {r['build']['landmarks']} landmarks, each chain searched and trained in its "
-        "own bones; baselines per chain too). "
-        "Held-out MSR Action3D subjects (all actions) and the UTKinect-Action3D upper-body "
-        "segments (other people, another room: cross-dataset). Landmarks from MSR subjects "
-        f"{r['train_subjects']}.",
-        "",
-        "| model | split | method | median M_avg | p95 M_max | p95 M_max w/o ElbowYaw "
-        "| hand cm median / p95 (L, R) |",
-        "|---|---|---|---:|---:|---:|---|",
-    ]
-    for model, splits in r["comparison"].items():
-        for split, methods in splits.items():
-            for name, s in methods.items():
-                hand = " , ".join(
-                    f"{s['task_space'][side]['hand_cm']['median']:.1f} / "
-                    f"{s['task_space'][side]['hand_cm']['p95']:.1f}"
-                    for side in ("left", "right")
-                )
-                lines.append(
-                    f"| {model} | {split} | {name} | {s['M_avg']['median']:.2f} | "
-                    f"{s['M_max']['p95']:.1f} | {s['M_max_no_elbow_yaw']['p95']:.1f} | {hand} |"
-                )
-    return lines
-
-
-def _where_md(r: dict) -> list[str]:
-    """The "Where the error is" section, from the smoothed per-method blocks."""
-    s = r["summary"]
-    return [
-        "",
-        "## Where the error is (smoothed)",
-        "",
-        "p95 of M_max with and without the two ElbowYaw joints (ill-conditioned in the IK truth "
-        "itself when the arm is nearly straight), and task-space errors of the projected pose "
-        "against the IK pose from forward kinematics of the MJCF: hand (the wrist point, where "
-        "the hand attaches) and elbow position (cm) and upper-arm (shoulder -> elbow) and "
-        "forearm (elbow -> wrist) direction (deg), median / p95 over the valid frames.",
-        "",
-        report.where_error_table(s),
-        "",
-        "Error per driven joint, p50 / p95 (deg):",
-        "",
-        report.per_joint_table(s),
-    ]
-
-
-def _rollout_md(ro: dict) -> list[str]:
-    lines = ["", "## MuJoCo rollout (torso fixed, position actuators, gravity on)", ""]
-    lines.append(
-        f"{len(ro['motions'])} held-out arm motions tracked in MuJoCo "
-        f"(backend `{ro['backend']}`, {ro['wall_s']:.1f} s): the IK trajectories, the relaxed "
-        "projections and the relaxed projections made robot-feasible (`relaxed_feasible`, what "
-        "`jaxproj retarget` writes for a robot). Tracking is against each trajectory's own "
-        "targets; the peak speed is the simulated robot's."
-    )
-    lines += [
-        "",
-        "| trajectory | tracking mean (deg) | tracking p95 | self-collision frames "
-        "(arm-torso / arm-head / arm-arm / any) | motions with contact | joint-limit frames "
-        "(achieved / target) | peak speed / NAO limit | motions over the speed limit |",
-        "|---|---:|---:|---|---:|---|---:|---:|",
-    ]
-    for name in ("ik", "relaxed", "relaxed_feasible"):
-        x = ro[name]
-        t, c = x["tracking_error_deg"], x["self_collision_frames"]
-        lim, sp = x["joint_limit_violations"], x["speed"]
-        lines.append(
-            f"| {name} | {t['mean']:.2f} | {t['p95']:.2f} | {c['arm_torso']} / {c['arm_head']} "
-            f"/ {c['arm_arm']} / {c['any']} | {c['motions']} | {lim['achieved_frames']} / "
-            f"{lim['target_frames']} | {sp['max_ratio']:.2f} ({sp['worst_joint']}) | "
-            f"{sp['motions_over_limit']} |"
-        )
-    return lines
-
-
-def _feasibility_md(r: dict) -> list[str]:
-    """Before / after the feasibility filter, from the smoothed evaluation."""
-    fz = {m: r["feasibility"][m] for m in ("ik", "relaxed", "full") if m in r["feasibility"]}
-    cfg = next(iter(fz.values()))["config"]
-    lines = [
-        "",
-        "## Robot-feasible output (held-out MSR subjects, smoothed, 15 fps)",
-        "",
-        f"`jaxproj.motion.feasible` (on by default in `jaxproj retarget`): joint limits, "
-        f"{100 * cfg['speed_fraction']:.0f} % of the NAO's no-load speeds and "
-        f"{cfg['accel']:.0f} rad/s^2, zero-phase. Speed figures against the full no-load limits; "
-        "errors against the IK of each frame; the last columns compare the filtered motion with "
-        "the unfiltered one.",
-        "",
-        "| trajectory | motions over speed limit (before -> after) | frames over | max step "
-        "(deg) | max accel (rad/s^2) | median M_avg (deg) | p95 M_max w/o ElbowYaw | hand p95 "
-        "cm (L, R) | change vs unfiltered: joint deg p95 / hand cm p95 |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for name, b in fz.items():
-        bef, aft, err = b["before"], b["after"], b["after_errors"]
-        unf = r["summary"].get(name)
-        m_avg = f"{err['M_avg']['median']:.2f}"
-        no_ey = f"{err['M_max_no_elbow_yaw']['p95']:.1f}"
-
-        def hand_p95(block: dict) -> str:
-            return ", ".join(
-                f"{block['task_space'][side]['hand_cm']['p95']:.1f}" for side in ("left", "right")
-            )
-
-        hand = hand_p95(err)
-        if unf is not None:
-            m_avg = f"{unf['M_avg']['median']:.2f} -> {m_avg}"
-            no_ey = f"{unf['M_max_no_elbow_yaw']['p95']:.1f} -> {no_ey}"
-            hand = f"{hand_p95(unf)} -> {hand}"
-        vs = b["vs_unfiltered"]
-        lines.append(
-            f"| {name} | {bef['motions_over_speed_limit']} -> {aft['motions_over_speed_limit']} of "
-            f"{bef['motions']} | {bef['speed_violation_frames']} -> {aft['speed_violation_frames']}"
-            f" | {bef['max_step_deg']:.0f} -> {aft['max_step_deg']:.0f} | {bef['max_accel']:.0f} "
-            f"-> {aft['max_accel']:.0f} | {m_avg} | {no_ey} | {hand} | "
-            f"{vs['joint_deg']['p95']:.1f} / {vs['hand_cm']['p95']:.1f} |"
-        )
-    return lines
-
-
-def _experiments_md(ex: dict) -> list[str]:
-    bp = ex["basic_poses"]
-    lines = ["", "## Paper experiments", "", "### Eight basic poses and rest -> pose motions", ""]
-    lines.append(
-        f"Skeletons synthesised from the median bone lengths; motions of "
-        f"{bp['frames_per_motion']} frames at {bp['fps']:.0f} fps with Kinect-like noise "
-        f"({1000 * bp['noise_std_m']:.1f} mm per coordinate, measured). Degrees."
-    )
-    lines += [
-        "",
-        "| pose | relaxed pose M_max / M_avg | full pose M_max / M_avg | relaxed motion max "
-        "M_max / mean M_avg | full motion max M_max / mean M_avg | nearest landmark (deg) |",
-        "|---|---|---|---|---|---:|",
-    ]
-    for pose in bp["poses"]:
-        ps, ms = bp["poses"][pose], bp["motions"][pose]
-        cells = [f"{ps[o]['M_max']:.1f} / {ps[o]['M_avg']:.1f}" for o in ("relaxed", "full")]
-        cells += [
-            f"{ms[o]['M_max_max']:.1f} / {ms[o]['M_avg_mean']:.1f}" for o in ("relaxed", "full")
-        ]
-        cov = bp["coverage_deg"][pose]["pose"]
-        lines.append(f"| {pose} | " + " | ".join(cells) + f" | {cov:.1f} |")
-    lines += report_text.pose_notes(bp) + ["", "### Landmark-set size (relaxed)", ""]
-    lines += [
-        "| target | landmarks reached (per chain) | bandwidth | held-out median M_avg "
-        "| held-out p95 M_max "
-        "| POSE_8 motion max M_max | POSE_8 motion mean M_avg |",
-        "|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for row in ex["landmark_size"]["sizes"]:
-        lines.append(
-            f"| {row['target']} | {row['landmarks']} "
-            f"({' / '.join(str(v) for v in row['landmarks_per_chain'].values())}) | "
-            f"{' / '.join(f'{h:.4f}' for h in row['bandwidth'])} | "
-            f"{row['M_avg_median']:.2f} | {row['M_max_p95']:.1f} "
-            f"| {row['pose8_M_max']:.1f} | {row['pose8_M_avg_mean']:.2f} |"
-        )
-    eff = ex["efficiency"]
-    lines += ["", f"### Efficiency vs L = M ({eff['objective']}, {eff['device']})", ""]
-    lines += ["| L = M | batch | us / projection | median M_avg | p95 M_max |"]
-    lines += ["|---:|---:|---:|---:|---:|"]
-    for row in eff["rows"]:
-        lines.append(
-            f"| {row['L']} | {row['batch']} | {row['us_per_projection']:.1f} | "
-            f"{row['M_avg_median']:.2f} | {row['M_max_p95']:.1f} |"
-        )
-    return lines
-
-
-def _markdown(r: dict) -> str:
-    s = r["summary"]
-    lines = [
-        "# jaxproj demo report",
-        "",
-        *(
-            [
-                f"**Quick run** (`--quick`, a smoke test): every {QUICK_TRAIN_STRIDE}th training "
-                f"frame, every {QUICK_TEST_STRIDE}th held-out MSR recording, every 2nd UTKinect "
-                f"one, {QUICK_LANDMARKS} landmarks per arm chain; not the report's numbers.",
-                "",
-            ]
-            if r.get("quick")
-            else []
-        ),
-        f"Landmarks per chain: {r['build']['landmarks']} (mean shift, bandwidths "
-        f"{r['build']['bandwidth']}) from {r['build']['train_frames']} valid frames of "
-        f"subjects {r['train_subjects']}; "
-        f"evaluated on {r['valid_frames']} valid frames ({r['sequences']} sequences) of subjects "
-        f"{r['test_subjects']}. L = {r['L']}, M = {r['M']}. Errors in degrees over the driven "
-        f"joints {', '.join(r['driven_joints'])}, against the analytic IK. Devices: "
-        f"{', '.join(r['devices'])}.",
-        "",
-        "## Accuracy of the default output: smoothed "
-        f"({report_text.smoother_label(r['smoothing'])})",
-        "",
-        "Each method's per-frame answers, invalid frames filled, smoothed and clipped to the "
-        "joint limits, against the IK of every valid frame (the feasibility filter's effect "
-        "is its own section below).",
-        "",
-        report.summary_table(s),
-        "",
-        "## Accuracy of the projection itself (unsmoothed)",
-        "",
-        report.summary_table(r["unsmoothed"]),
-        "",
-        "## Smoothness and lag against the IK",
-        "",
-        "Mean squared joint jerk ((rad/s^3)^2) and lag (frames of best cross-correlation with "
-        "the IK's motion; positive: late), before and after the smoother.",
-        "",
-        "| method | jerk raw | jerk smoothed | lag raw | lag smoothed |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    nan = float("nan")
-    for m, v in r["smoothness"].items():
-        lines.append(
-            f"| {m} | {v['jerk_raw']:.3g} | {v.get('jerk_smoothed', nan):.3g} | "
-            f"{v.get('lag_frames_raw', nan):+.2f} | {v.get('lag_frames_smoothed', nan):+.2f} |"
-        )
-    lines += report_text.confidence_md(r.get("confidence") or {})
-    lines += _comparison_md(r)
-    lines += _where_md(r)
-    lines += ["", "## Per action (relaxed, smoothed): median M_avg / p95 M_max", ""]
-    lines += ["| action | M_avg median | M_max p95 |", "|---|---:|---:|"]
-    for a, v in r["per_action"].items():
-        x = v["relaxed"]
-        lines.append(f"| {a} | {x['M_avg']['median']:.2f} | {x['M_max']['p95']:.1f} |")
-    lines += _feasibility_md(r)
-    lines += _rollout_md(r["rollout"]) + _experiments_md(r["experiments"])
-    lines += ["", "## Plots", ""]
-    lines += [f"![{p}]({p})" for p in r["plots"]]
-    lines += ["", "Timings (this run, this machine; seconds):", "", "| stage | s |", "|---|---:|"]
-    lines += [f"| {k.removesuffix('_s')} | {v:.1f} |" for k, v in r["timings"].items()]
-    lines += [""]
-    return "\n".join(lines)

@@ -1,11 +1,26 @@
 """The main job end to end (quick mode): the report's files, layout and headline ordering."""
 
 import json
+import re
 
 import pytest
 
-from jaxproj.paper import demo
+from jaxproj.io import datasets
+from jaxproj.paper import demo, demo_report
 from jaxproj.paper.demo import run_demo
+
+
+def _tables_without_caption(md: str) -> list[str]:
+    """The header rows of the report's tables whose nearest line of text above does not say
+    the table's split, frames and metric."""
+    lines = md.splitlines()
+    bad = []
+    for i, line in enumerate(lines):
+        if line.startswith("|") and (i == 0 or not lines[i - 1].startswith("|")):
+            above = next((x for x in reversed(lines[:i]) if x.strip()), "")
+            if not re.search(r"\*Split:\* .+\*Frames:\* .+\*Metric:\* .+", above):
+                bad.append(line)
+    return bad
 
 
 @pytest.mark.slow
@@ -45,6 +60,29 @@ def test_demo_quick_writes_the_report(tmp_path):
     assert "## Whole-body vs per-chain" in md
     assert r["timings"]["total_s"] > 0
     assert r["quick"] is True and "**Quick run**" in md
+    # the results page's protocol: held-out arm actions; every table says what it measured
+    assert set(r["test_actions"]) == set(datasets.ARM_ACTIONS)
+    assert all(a.split()[0] in {f"a{x:02d}" for x in datasets.ARM_ACTIONS} for a in r["per_action"])
+    assert "## Headline: accuracy on held-out people" in md
+    assert _tables_without_caption(md) == []
+    assert " nan" not in md and "+nan" not in md
+    # one model, one set of frames, one number: the headline, the landmark-size row of the
+    # same model and the efficiency study's L = M = 10 row
+    relaxed = r["unsmoothed"]["relaxed"]["M_avg"]["median"]
+    (same,) = [row for row in sizes if row["target"] == demo.QUICK_LANDMARKS]
+    (l10,) = [row for row in r["experiments"]["efficiency"]["rows"] if row["L"] == 10]
+    assert same["M_avg_median"] == relaxed == l10["M_avg_median"]
+    assert same["eval_frames"] == r["valid_frames"]
+    # which method and why, with this run's numbers; the IK through the same filter beside it
+    assert "## Which method, and why" in md and "**Recommended: " in md
+    ro = r["rollout"]
+    assert set(ro["trajectories"]) == {"ik", "ik_feasible", "relaxed", "relaxed_feasible"}
+    assert f"{ro['ik_feasible']['tracking_error_deg']['mean']:.2f} deg mean" in md
+    assert f"{ro['relaxed_feasible']['tracking_error_deg']['mean']:.2f} deg mean" in md
+    # stdout's summary says what its table is
+    out = demo_report.stdout_summary(r)
+    assert out.startswith("Headline (the results page's protocol) QUICK RUN")
+    assert f"{r['valid_frames']:,} valid frames" in out and "| split | frames | method |" in out
     # the default output is the zero-lag offline smoother's, labelled; confidence by decile
     assert r["smoothing"]["kind"] == "offline" and "zero-lag offline RTS smoother" in md
     assert abs(r["smoothness"]["relaxed"]["lag_frames_smoothed"]) < 0.5
