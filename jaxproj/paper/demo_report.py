@@ -105,7 +105,8 @@ def _headline_md(r: dict) -> list[str]:
         'people", per-chain table): unsmoothed, L = M = 10, every method on the same landmarks. '
         "Where this report differs from that table: its `full` row is `FullConfig()` (the "
         "converged Gauss-Newton solver) where the page's table used 30 Adam steps (`ADAM_30`), "
-        "and it does not run the page's `full (min, with candidate)` row"
+        "and it does not run the page's `full (min, with candidate)` row nor the whole-body "
+        "table's full rows (the converged solver is the evaluation's slowest method)"
         + ("; and this is a quick run on a small model (first line)." if r.get("quick") else "."),
         "",
         caption(
@@ -303,7 +304,8 @@ def _comparison_md(r: dict) -> list[str]:
         "The same methods with the paper's whole-body projector (one set of landmarks over "
         "all 15 descriptor numbers) and with the per-chain projector of the headline (head, "
         "left arm, right arm, each chain searched and trained in its own bones; baselines per "
-        "chain too)."
+        "chain too). The whole-body rows leave the full objective out: its converged solver is "
+        "the evaluation's slowest method; the results page has its whole-body rows."
         + (" Quick run: no full objective outside the first block." if r.get("quick") else ""),
         "",
         caption(
