@@ -22,9 +22,25 @@ from jaxproj.robots.nao_h25 import robot
 LO, HI = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
 
+
+def _clip(q: np.ndarray) -> np.ndarray:
+    """``(..., 10)`` driven angles clipped as the pipeline documents it, in NumPy: to the joint
+    limits, then HeadPitch into the head envelope at HeadYaw (``robot.HEAD_ENVELOPE_*``)."""
+    q = np.clip(np.asarray(q, np.float64), robot.LOWER[robot.DRIVEN_INDEX],
+                robot.UPPER[robot.DRIVEN_INDEX])  # fmt: skip
+    env = (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)
+    bounds = [np.interp(q[..., 0], robot.HEAD_ENVELOPE_YAW, b) for b in env]
+    q[..., 1] = np.clip(q[..., 1], *bounds)
+    return q
+
+
 SMOOTH_TOL_RAD = 1e-5
 """float32 smoother against the float64 NumPy loop: a few ulp per step, accumulated over ~50
 frames of angles up to ~2 rad (measured ~1e-6)."""
+
+ENVELOPE_TOL_RAD = 8 * 2.0**-24
+"""The head envelope's float32 interpolation (``jnp.interp``) against NumPy's float64: a few
+roundings of angles below 2.1 rad."""
 
 BATCH_TOL_RAD = 2e-5
 """The same relaxed projection in differently shaped batches (one frame, the padded motion, the
@@ -106,12 +122,12 @@ def test_finish_is_fill_smooth_clip(standing, gains):
     filled, out = np.asarray(filled), np.asarray(out)
     want_filled = _fill_loop(q[:t], valid[:t])
     np.testing.assert_array_equal(filled[:t], want_filled.astype(np.float32))
-    if g is None:
-        np.testing.assert_array_equal(out, filled)
+    if g is None:  # no smoother; the clip still runs (the head envelope)
+        np.testing.assert_allclose(out, _clip(filled), rtol=0, atol=ENVELOPE_TOL_RAD)
         return
     per_frame = np.broadcast_to(np.asarray(g, np.float64), (t + pad, 3))
     want = _smooth_loop(want_filled, per_frame[:t])
-    np.testing.assert_allclose(out[:t], np.clip(want, LO, HI), rtol=0, atol=SMOOTH_TOL_RAD)
+    np.testing.assert_allclose(out[:t], _clip(want), rtol=0, atol=SMOOTH_TOL_RAD)
     assert (out >= LO).all() and (out <= HI).all()
 
 
@@ -141,10 +157,13 @@ def test_finish_vmapped_equals_a_loop_and_eager():
     np.testing.assert_allclose(got[0], np.asarray(eager), rtol=0, atol=1e-6)
 
 
-def test_clip_to_limits_is_numpy_clip():
+def test_clip_to_limits_is_numpy_clip_then_the_head_envelope():
     x = np.random.default_rng(5).uniform(-4, 4, (9, 10)).astype(np.float32)
-    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x)), np.clip(x, LO, HI))
-    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x[0])), np.clip(x[0], LO, HI))
+    got = np.asarray(pipeline.clip_to_limits(x))
+    np.testing.assert_allclose(got, _clip(x), rtol=0, atol=ENVELOPE_TOL_RAD)
+    assert (got[:, 1] != np.clip(x, LO, HI)[:, 1]).any()  # the envelope did clip some frames
+    np.testing.assert_array_equal(got[:, 2:], np.clip(x, LO, HI)[:, 2:])  # the rest: np.clip
+    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x[0])), got[0])
 
 
 # ------------------------------------------------------------------ the callers agree
@@ -177,7 +196,8 @@ def test_streaming_frame_by_frame_equals_retarget_of_the_motion(model, sequences
     for frame in pos:
         a, state = streaming.update(model, state, frame)
         got.append(np.asarray(a))
-    whole = retarget(pos, model=model, method="relaxed", smoothing=PAPER_SMOOTHING)
+    whole = retarget(pos, model=model, method="relaxed", smoothing=PAPER_SMOOTHING,
+                     neck_neutral=None)  # streaming reads the fixed neutral  # fmt: skip
     want = whole.angles[:, robot.DRIVEN_INDEX]
     np.testing.assert_allclose(np.stack(got), want, rtol=0, atol=BATCH_TOL_RAD)
 
@@ -192,7 +212,8 @@ def test_streaming_holds_where_retarget_fills(model, sequences):
         a, state = streaming.update(model, state, frame)
         first.append(np.asarray(a))
     np.testing.assert_array_equal(np.stack(first[:3]), np.tile(STANDING, (3, 1)))
-    whole = retarget(pos, model=model, smoothing=PAPER_SMOOTHING).angles[:, robot.DRIVEN_INDEX]
+    whole = retarget(pos, model=model, smoothing=PAPER_SMOOTHING, neck_neutral=None)
+    whole = whole.angles[:, robot.DRIVEN_INDEX]
     np.testing.assert_array_equal(whole[:3], np.tile(whole[3], (3, 1)))  # back-filled
     np.testing.assert_allclose(first[3], whole[3], rtol=0, atol=BATCH_TOL_RAD)
 
@@ -207,11 +228,17 @@ def test_evaluate_scores_retargets_motion(model, sequences, smoothing):
     truth = out["_truth"]
     for s, seq in enumerate(sequences):
         a, b = data.offsets[s], data.offsets[s + 1]
-        r = retarget(seq.positions, seq.valid, model=model, smoothing=smoothing)
+        # evaluate scores the fixed neutral (no per-recording levelling)
+        r = retarget(seq.positions, seq.valid, model=model, smoothing=smoothing,
+                     neck_neutral=None)  # fmt: skip
         np.testing.assert_array_equal(r.valid, data.valid[a:b])
         got = r.angles[:, robot.DRIVEN_INDEX]
-        np.testing.assert_allclose(scored[a:b], got, rtol=0, atol=BATCH_TOL_RAD)
-        ik = retarget(seq.positions, seq.valid, smoothing=None).angles[:, robot.DRIVEN_INDEX]
+        # without a smoother evaluate scores the per-frame answers (filled), retarget clips
+        # them to the head envelope (every output's last stage)
+        want = scored[a:b] if smoothing is not None else _clip(scored[a:b])
+        np.testing.assert_allclose(want, got, rtol=0, atol=BATCH_TOL_RAD)
+        ik = retarget(seq.positions, seq.valid, smoothing=None, neck_neutral=None)
+        ik = ik.angles[:, robot.DRIVEN_INDEX]
         np.testing.assert_allclose(truth[a:b], ik, rtol=0, atol=1e-6)
 
 

@@ -6,7 +6,7 @@ import pytest
 from fuzzing import no_tracing
 
 from jaxproj.errors import ConfigError, InputError, NoValidFrameError
-from jaxproj.human.skeleton import descriptor
+from jaxproj.human.skeleton import NECK_TILT_REFERENCE, descriptor
 from jaxproj.io import datasets
 from jaxproj.motion import smoothing
 from jaxproj.motion.retarget import retarget
@@ -35,9 +35,16 @@ def motion():
 
 
 def _stagewise(model, positions, valid, smooth):
-    """The pipeline stage by stage: eager descriptor, engine.project, fill, smooth, clip."""
+    """The pipeline stage by stage: eager descriptor, the neck levelled to the recording's
+    median tilt (NumPy), engine.project, fill, smooth, clip (limits, then the head envelope)."""
     d, ok = descriptor(positions)
     ok = np.asarray(ok) & valid
+    d = np.array(d, np.float64)
+    tilt = np.arctan2(d[:, 0], d[:, 2])
+    delta = NECK_TILT_REFERENCE - np.median(tilt[ok])
+    x, z = d[:, 0].copy(), d[:, 2].copy()
+    d[:, 0], d[:, 2] = np.cos(delta) * x + np.sin(delta) * z, np.cos(delta) * z - np.sin(delta) * x
+    d = d.astype(np.float32)
     if model is None:
         q = np.asarray(ik.solve_driven(d))
     else:
@@ -47,7 +54,9 @@ def _stagewise(model, positions, valid, smooth):
     q = q[idx[np.maximum(src, 0)]]  # hold the last valid frame, back-fill leading ones
     if smooth:
         q = np.asarray(smoothing.smooth(q))
-        q = np.clip(q, robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX])
+    q = np.clip(q, robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX])
+    env = (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)
+    q[:, 1] = np.clip(q[:, 1], *(np.interp(q[:, 0], robot.HEAD_ENVELOPE_YAW, b) for b in env))
     return np.asarray(ik.driven_to_full(q)), ok
 
 
@@ -129,7 +138,8 @@ def test_bad_arguments_are_config_errors(model, motion):
 
 def test_confidence_and_the_default_offline_smoother(model, motion):
     positions, valid = motion
-    res = retarget(positions, valid, model=model)  # defaults: offline smoother
+    # defaults: offline smoother (the neck not levelled here, to project the same descriptors)
+    res = retarget(positions, valid, model=model, neck_neutral=None)
     _, v = engine.project(model, np.asarray(descriptor(positions)[0])[res.valid], "relaxed")
     np.testing.assert_allclose(res.confidence[res.valid], np.exp(-v / 0.174), rtol=1e-5)
     assert (res.confidence[~res.valid] == 0).all() and (~res.valid).any()
@@ -147,6 +157,8 @@ def test_confidence_and_the_default_offline_smoother(model, motion):
     q, _ = engine.project(model, np.asarray(d), "relaxed")
     q = np.asarray(smoothing.smooth(q, smoothing.OFFLINE_SMOOTHING, valid=ok))
     q = np.clip(q, robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX])
+    env = (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)
+    q[:, 1] = np.clip(q[:, 1], *(np.interp(q[:, 0], robot.HEAD_ENVELOPE_YAW, b) for b in env))
     first, last = np.flatnonzero(ok)[[0, -1]]
     inner = slice(first, last + 1)
     np.testing.assert_allclose(res.angles[inner][:, robot.DRIVEN_INDEX], q[inner], atol=1e-4)
