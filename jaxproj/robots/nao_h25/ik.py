@@ -22,7 +22,14 @@ What it drives (``robot.DRIVEN_JOINTS``), from the descriptor bones of ``skeleto
   (ShoulderCenter -> Head) is observed. ``HeadPitch`` is its forward tilt
   ``atan2(n_x, n_z) - HEAD_PITCH_NEUTRAL`` (positive = looking down, as on the NAO), where the
   neutral offset is the median neck tilt of the bundled MSR Action3D recordings (the Kinect head
-  joint sits behind the hip->shoulder axis of an upright person). Head *yaw* is not observable;
+  joint sits behind the hip->shoulder axis of an upright person). That tilt depends on the
+  capture set-up (UTKinect's median is 41 deg further forward), so ``retarget`` levels each
+  recording before the IK (and the projection) read it: by default the recording's own median
+  neck tilt over its valid frames is turned to ``HEAD_PITCH_NEUTRAL``
+  (``skeleton.level_neck``, ``pipeline.level``); ``retarget(neck_neutral=rad)`` gives the
+  neutral tilt instead, ``neck_neutral=None`` turns the levelling off. This IK itself stays a
+  pure function of one descriptor. HeadPitch is then clipped to NAOqi's head anti-collision
+  envelope at the HeadYaw (``robot.HEAD_ENVELOPE``). Head *yaw* is not observable;
   ``HeadYaw`` follows the sideways lean of the neck ``atan2(n_y, n_z)`` (leaning left turns the
   head left) — a documented proxy, not a measurement of head rotation.
 
