@@ -28,7 +28,6 @@ from typing import Any, TypeVar, cast
 
 import jax
 
-
 PRECISION = "highest"
 """The engine's matmul precision (``jax.default_matmul_precision``): full float32."""
 
