@@ -59,6 +59,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxproj._internal.jit import full_precision
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import (
     NECK_TILT_REFERENCE,
@@ -240,6 +241,7 @@ def finish(
     return filled, q
 
 
+@full_precision
 def motion(
     p: AnyProjector | None,
     positions: jax.Array,
@@ -288,6 +290,7 @@ def motion(
     return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)
 
 
+@full_precision
 def frame(
     p: AnyProjector,
     level: jax.Array,

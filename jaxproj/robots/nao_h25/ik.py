@@ -70,7 +70,7 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from jaxproj._internal.buckets import call_bucketed
-from jaxproj._internal.jit import jit
+from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import NECK_TILT_REFERENCE, UPPER_BODY, resolve_bones
 from jaxproj.robots.base import Chain
@@ -213,6 +213,7 @@ def _arm(u: jax.Array, f: jax.Array, side: str) -> tuple[jax.Array, ...]:
     return pitch, roll, yaw, elbow_roll
 
 
+@full_precision
 def driven_angles(d: jax.Array, bone_index: tuple[int, ...]) -> jax.Array:
     """The traceable core of ``solve_driven`` (call it inside a jitted function).
 
