@@ -563,7 +563,8 @@ def markdown(r: dict) -> str:
         "",
         "## Set-up",
         "",
-        f"Model: {_model_words(r)}. Held out: {msr_split(r)}; {_utk_split(r)}. L = {r['L']}, "
+        f"Model: {_model_words(r)}. Scored on the {msr_split(r)}; cross-dataset, the "
+        f"{_utk_split(r)}. L = {r['L']}, "
         f"M = {r['M']}. Devices: {', '.join(r['devices'])}.",
     ]
     lines += _summary_md(r)

@@ -100,8 +100,12 @@ def _far_note(far: list[float]) -> str:
 
 
 def _cell(value: float | None, fmt: str) -> str:
-    """A table cell: ``value`` formatted, or ``n/a`` where there is none."""
-    return "n/a" if value is None or value != value else format(value, fmt)
+    """A table cell: ``value`` formatted (no ``-0.00``: a value that prints as zero is zero),
+    or ``n/a`` where there is none."""
+    if value is None or value != value:
+        return "n/a"
+    text = format(value, fmt)
+    return format(0.0, fmt) if float(text) == 0.0 else text
 
 
 def smoothness_md(smoothness: dict) -> list[str]:

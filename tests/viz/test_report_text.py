@@ -61,6 +61,8 @@ def test_smoothness_rows_say_n_a_not_nan():
         }
     )  # fmt: skip
     assert rows[0] == "| relaxed | 5.8e+06 | 2.1e+06 | -0.03 | +0.00 |"
+    tiny = report_text.smoothness_md({"full": {"jerk_raw": 1.0, "lag_frames_raw": -0.001}})
+    assert tiny == ["| full | 1 | n/a | +0.00 | n/a |"]  # not -0.00
     assert rows[1].startswith("| ik (the reference") and rows[1].endswith(
         "| 7.7e+06 | n/a | n/a | n/a |"
     )
