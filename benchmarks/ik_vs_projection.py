@@ -21,18 +21,11 @@ import jax
 import numpy as np
 
 import jaxproj
+from benchmarks.experiments.selection_ab import held_out_queries
+from benchmarks.heldout import default_model
 from jaxproj.eval import metrics
-from jaxproj.io import datasets
-from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import ik
 from jaxproj.timing import time_calls
-
-
-def held_out(n: int) -> np.ndarray:
-    """``(n, 15)`` float32 held-out MSR descriptors, shuffled (seed 0), tiled to ``n``."""
-    test = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS))
-    test = test[np.random.default_rng(0).permutation(len(test))].astype(np.float32)
-    return np.tile(test, (n // len(test) + 1, 1))[:n]
 
 
 def main() -> None:
@@ -41,12 +34,8 @@ def main() -> None:
     ap.add_argument("--poses", type=int, default=16384)
     ap.add_argument("--json")
     args = ap.parse_args()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        train = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TRAIN_SUBJECTS))
-        model = jaxproj.build(train, jaxproj.BuildConfig())
-    d = held_out(args.poses)
+    model = default_model(args.model)
+    d = held_out_queries(args.poses)
 
     def run_ik() -> np.ndarray:
         return np.asarray(ik.solve_driven(d))

@@ -53,3 +53,16 @@ def small_projector():
     human = uniq[idx].astype(np.float32)
     robot_poses = np.asarray(ik.solve_driven(human), np.float32)
     return engine.build_from_landmarks(human, robot_poses, kernels)
+
+
+def clip_driven_np(q: np.ndarray) -> np.ndarray:
+    """``(..., 10)`` NAO driven angles clipped as the pipeline documents it, in NumPy: to the
+    joint limits, then HeadPitch into the head envelope at HeadYaw (``robot.HEAD_ENVELOPE_*``)."""
+    from jaxproj.robots.nao_h25 import robot
+
+    q = np.clip(np.asarray(q, np.float64), robot.LOWER[robot.DRIVEN_INDEX],
+                robot.UPPER[robot.DRIVEN_INDEX])  # fmt: skip
+    env = (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)
+    bounds = [np.interp(q[..., 0], robot.HEAD_ENVELOPE_YAW, b) for b in env]
+    q[..., 1] = np.clip(q[..., 1], *bounds)
+    return q

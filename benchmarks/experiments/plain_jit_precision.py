@@ -24,7 +24,7 @@ import numpy as np
 
 import jaxproj
 from benchmarks.experiments.selection_ab import held_out_queries
-from jaxproj.io import datasets
+from benchmarks.heldout import default_model
 from jaxproj.projection import api as engine
 from jaxproj.testing import StackedReference
 
@@ -35,11 +35,7 @@ def main() -> None:
     ap.add_argument("--queries", type=int, default=1000)
     ap.add_argument("--json")
     args = ap.parse_args()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3, 5, 7, 9]))
-        model = jaxproj.build(train, jaxproj.BuildConfig())
+    model = default_model(args.model)
     sp = model.projector
     q = held_out_queries(args.queries)
     device = jax.devices()[0].device_kind

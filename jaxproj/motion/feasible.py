@@ -65,6 +65,9 @@ change of speed an average of its accelerations, so the limits hold at any timin
 The filter works on the full configuration (``robot.joint_names``); joints that do not move
 are left exactly as they are. ``feasibility_report`` measures a motion against the limits
 (before and after, in ``jaxproj.eval.evaluate``, the demo and ``jaxproj retarget``).
+
+Size: over 500 lines: one filter (its config, the forward pass, the zero-phase pass, the coupled
+ranges, the host wrapper and its report), whose parts share the time grid and the limits.
 """
 
 from __future__ import annotations

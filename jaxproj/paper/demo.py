@@ -36,6 +36,7 @@ from jaxproj.motion import feasible
 from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.smoothing import frame_gains
 from jaxproj.paper import demo_report
+from jaxproj.paper.demo_report import QUICK_LANDMARKS, QUICK_TEST_STRIDE, QUICK_TRAIN_STRIDE
 from jaxproj.projection import api as engine
 from jaxproj.robots import Robot
 from jaxproj.robots.nao_h25 import robot
@@ -47,13 +48,6 @@ TEST_SUBJECTS = datasets.TEST_SUBJECTS
 TEST_ACTIONS = datasets.ARM_ACTIONS
 """The held-out MSR actions scored: the arm actions, as on the results page."""
 
-QUICK_TRAIN_STRIDE = 8
-"""``run_demo(quick=True)``: every 8th training frame feeds the builds."""
-QUICK_TEST_STRIDE = 24
-"""``run_demo(quick=True)``: every 24th held-out MSR arm recording (and every 2nd UTKinect one)
-is evaluated (a smoke run: the tests run it, within CI's 15-minute budget)."""
-QUICK_LANDMARKS = 200
-"""``run_demo(quick=True)``: landmarks per arm chain and for the whole body."""
 SIZES = (1644, 961, 86)
 """The landmark-size study's targets per arm (the paper's), besides the default model."""
 

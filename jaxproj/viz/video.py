@@ -178,10 +178,15 @@ def _gif_bytes(
     h = np.ones(len(stack), np.int64) if holds is None else np.asarray(holds, np.int64)
     if len(h) != len(stack):
         raise ConfigError(f"{len(stack)} frames for {len(h)} holds")
+    delays = list(gif_delays_ms(h, fps))
+    # Pillow merges consecutive identical frames (summing their delays) and then fails on a list
+    # of delays when one frame is left (Pillow 13: "list / int"): merge them here first
+    keep = [0] + [i for i in range(1, len(stack)) if not np.array_equal(stack[i], stack[i - 1])]
+    merged = [sum(delays[a:b]) for a, b in zip(keep, [*keep[1:], len(stack)], strict=True)]
+    duration: int | list[int] = merged[0] if len(keep) == 1 else merged
     return iio.imwrite(
-        "<bytes>", stack, extension=".gif", plugin="pillow", duration=gif_delays_ms(h, fps),
-        loop=0,
-    )  # fmt: skip
+        "<bytes>", stack[keep], extension=".gif", plugin="pillow", duration=duration, loop=0
+    )
 
 
 def save_video(

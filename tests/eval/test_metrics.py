@@ -13,7 +13,7 @@ import pytest
 
 from jaxproj.errors import ConfigError
 from jaxproj.eval import evaluate, metrics
-from jaxproj.paper.demo import _where_md
+from jaxproj.paper.demo_report import _where_md
 from jaxproj.robots.nao_h25 import ik, robot
 from jaxproj.viz import report
 
@@ -247,8 +247,10 @@ def test_report_tables_and_plot(tmp_path):
     assert len(pj) == 2 + len(robot.DRIVEN_JOINTS)
     x = s["relaxed"]["per_joint"]["RElbowRoll"]
     assert pj[-1] == f"| RElbowRoll | {x['p50']:.1f} / {x['p95']:.1f} |"
-    md = "\n".join(_where_md({"summary": s}))
+    split = {"test_subjects": [2, 4], "test_actions": [1, 2, 3, 9], "sequences": 7}
+    md = "\n".join(_where_md({"summary": s, "valid_frames": 1234, **split}))
     assert "## Where the error is" in md and table in md and report.per_joint_table(s) in md
+    assert "subjects 2,4, arm actions a01-a03, a09 (7 recordings, 1,234 valid frames)" in md
     report.plot_per_joint(tmp_path / "per_joint_error.png", s)
     raw = (tmp_path / "per_joint_error.png").read_bytes()
     assert raw[:8] == b"\x89PNG\r\n\x1a\n" and len(raw) > 10_000

@@ -7,7 +7,7 @@ import pytest
 from jaxproj.cli import build_parser, main, projector
 from jaxproj.cli.retarget import EXPECTED_LOW_SHARE, confidence_lines
 from jaxproj.eval import evaluate
-from jaxproj.human.skeleton import descriptor
+from jaxproj.human.skeleton import descriptor, level_neck, recording_neck_tilt
 from jaxproj.io import datasets
 from jaxproj.io.readers import MSR_TO_SDK
 from jaxproj.projection import api as engine
@@ -65,7 +65,8 @@ def test_retarget_msr_text_with_lost_frames(tmp_path, capsys):
     assert np.isfinite(angles).all()
     assert (angles >= robot.LOWER).all() and (angles <= robot.UPPER).all()
     # valid frames are the IK of the frame; invalid ones hold the last valid (or first valid)
-    d, _ = descriptor(seq.positions)
+    d, _ = descriptor(seq.positions)  # as retarget reads it: the neck levelled per recording
+    d = level_neck(d, recording_neck_tilt(d, seq.valid))
     want = np.asarray(ik.solve(d))
     np.testing.assert_allclose(angles[valid], want[valid], atol=1e-5)
     idx = np.flatnonzero(valid)

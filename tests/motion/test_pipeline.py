@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import small_projector
+from helpers import clip_driven_np, small_projector
 
 from jaxproj.eval import evaluate
 from jaxproj.human.skeleton import descriptor
@@ -21,17 +21,6 @@ from jaxproj.robots.nao_h25 import robot
 
 LO, HI = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
-
-
-def _clip(q: np.ndarray) -> np.ndarray:
-    """``(..., 10)`` driven angles clipped as the pipeline documents it, in NumPy: to the joint
-    limits, then HeadPitch into the head envelope at HeadYaw (``robot.HEAD_ENVELOPE_*``)."""
-    q = np.clip(np.asarray(q, np.float64), robot.LOWER[robot.DRIVEN_INDEX],
-                robot.UPPER[robot.DRIVEN_INDEX])  # fmt: skip
-    env = (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)
-    bounds = [np.interp(q[..., 0], robot.HEAD_ENVELOPE_YAW, b) for b in env]
-    q[..., 1] = np.clip(q[..., 1], *bounds)
-    return q
 
 
 SMOOTH_TOL_RAD = 1e-5
@@ -104,7 +93,7 @@ def test_fill_invalid_is_the_documented_rule(pattern):
 
 @pytest.mark.parametrize("standing", ["first", "last"])
 @pytest.mark.parametrize("gains", ["paper", "timed", None])
-def test_finish_is_fill_smooth_clip(standing, gains):
+def test_finish_is_fill_smoothclip_driven_np(standing, gains):
     rng = np.random.default_rng(2)
     t, pad = 50, 14
     q = _random_motion(rng, t + pad)
@@ -123,11 +112,11 @@ def test_finish_is_fill_smooth_clip(standing, gains):
     want_filled = _fill_loop(q[:t], valid[:t])
     np.testing.assert_array_equal(filled[:t], want_filled.astype(np.float32))
     if g is None:  # no smoother; the clip still runs (the head envelope)
-        np.testing.assert_allclose(out, _clip(filled), rtol=0, atol=ENVELOPE_TOL_RAD)
+        np.testing.assert_allclose(out, clip_driven_np(filled), rtol=0, atol=ENVELOPE_TOL_RAD)
         return
     per_frame = np.broadcast_to(np.asarray(g, np.float64), (t + pad, 3))
     want = _smooth_loop(want_filled, per_frame[:t])
-    np.testing.assert_allclose(out[:t], _clip(want), rtol=0, atol=SMOOTH_TOL_RAD)
+    np.testing.assert_allclose(out[:t], clip_driven_np(want), rtol=0, atol=SMOOTH_TOL_RAD)
     assert (out >= LO).all() and (out <= HI).all()
 
 
@@ -160,7 +149,7 @@ def test_finish_vmapped_equals_a_loop_and_eager():
 def test_clip_to_limits_is_numpy_clip_then_the_head_envelope():
     x = np.random.default_rng(5).uniform(-4, 4, (9, 10)).astype(np.float32)
     got = np.asarray(pipeline.clip_to_limits(x))
-    np.testing.assert_allclose(got, _clip(x), rtol=0, atol=ENVELOPE_TOL_RAD)
+    np.testing.assert_allclose(got, clip_driven_np(x), rtol=0, atol=ENVELOPE_TOL_RAD)
     assert (got[:, 1] != np.clip(x, LO, HI)[:, 1]).any()  # the envelope did clip some frames
     np.testing.assert_array_equal(got[:, 2:], np.clip(x, LO, HI)[:, 2:])  # the rest: np.clip
     np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x[0])), got[0])
@@ -235,7 +224,7 @@ def test_evaluate_scores_retargets_motion(model, sequences, smoothing):
         got = r.angles[:, robot.DRIVEN_INDEX]
         # without a smoother evaluate scores the per-frame answers (filled), retarget clips
         # them to the head envelope (every output's last stage)
-        want = scored[a:b] if smoothing is not None else _clip(scored[a:b])
+        want = scored[a:b] if smoothing is not None else clip_driven_np(scored[a:b])
         np.testing.assert_allclose(want, got, rtol=0, atol=BATCH_TOL_RAD)
         ik = retarget(seq.positions, seq.valid, smoothing=None, neck_neutral=None)
         ik = ik.angles[:, robot.DRIVEN_INDEX]

@@ -7,7 +7,7 @@ and both kernel banks (``engine.build_from_landmarks``); recordings are subject 
 import jax
 import numpy as np
 import pytest
-from helpers import small_projector
+from helpers import clip_driven_np, small_projector
 
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import descriptor
@@ -18,17 +18,6 @@ from jaxproj.projection import api as engine
 from jaxproj.robots.nao_h25 import robot
 
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
-
-
-def _clip(q: np.ndarray) -> np.ndarray:
-    """``(..., 10)`` driven angles clipped as the pipeline documents it, in NumPy: to the joint
-    limits, then HeadPitch into the head envelope at HeadYaw (``robot.HEAD_ENVELOPE_*``)."""
-    q = np.clip(np.asarray(q, np.float64), robot.LOWER[robot.DRIVEN_INDEX],
-                robot.UPPER[robot.DRIVEN_INDEX])  # fmt: skip
-    env = (robot.HEAD_ENVELOPE_PITCH_MIN, robot.HEAD_ENVELOPE_PITCH_MAX)
-    bounds = [np.interp(q[..., 0], robot.HEAD_ENVELOPE_YAW, b) for b in env]
-    q[..., 1] = np.clip(q[..., 1], *bounds)
-    return q
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +64,7 @@ def test_streaming_equals_the_whole_recording_pipeline(projector, recordings):
         r, _ = engine.project(projector, np.asarray(d), "relaxed", batch_size=64)
         s = np.asarray(smooth(r))
         np.testing.assert_allclose(level, s, rtol=0, atol=2e-5)
-        np.testing.assert_allclose(angles, _clip(s), rtol=0, atol=2e-5)
+        np.testing.assert_allclose(angles, clip_driven_np(s), rtol=0, atol=2e-5)
 
         # the same pipeline with the shapes streaming sees (descriptors one frame at a time,
         # projections in batches of 1): only the smoother's scan vs its single step remain,
@@ -86,7 +75,7 @@ def test_streaming_equals_the_whole_recording_pipeline(projector, recordings):
         # the first frame starts the smoother at the projection itself, exactly (the output:
         # its clip to the limits and the head envelope)
         np.testing.assert_array_equal(level[0], r1[0])
-        np.testing.assert_allclose(angles[0], _clip(r1[0]), rtol=0, atol=8 * 2.0**-24)
+        np.testing.assert_allclose(angles[0], clip_driven_np(r1[0]), rtol=0, atol=8 * 2.0**-24)
         np.testing.assert_array_equal(states[0].trend, np.zeros(10, np.float32))
         # the smoother is on: the output is not the raw projection
         assert np.abs(angles - r1).max() > 1e-2
@@ -188,7 +177,7 @@ def test_a_model_streams_like_its_projector(projector, recordings):
     r, _ = engine.project(projector, np.asarray(d)[None], "relaxed", batch_size=1)
     # eager descriptor vs the one fused into the jitted step: a few ulp, up to ~8e-6 rad after
     # the kernels (see the first test)
-    np.testing.assert_allclose(np.asarray(a), _clip(r[0]), rtol=0, atol=2e-5)
+    np.testing.assert_allclose(np.asarray(a), clip_driven_np(r[0]), rtol=0, atol=2e-5)
     assert np.abs(np.asarray(a) - want[0]).max() > 1e-2  # not the direct imitation
 
 

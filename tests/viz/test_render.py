@@ -431,3 +431,17 @@ def test_cli_render_errors(tmp_path, capsys, monkeypatch, args, problem):
     assert code == 2 and stdout == ""
     assert err.startswith("jaxproj: error: ") and err.count("\n") == 1 and problem in err
     assert sorted(os.listdir(tmp_path)) == ["wave.npz"]
+
+
+def test_gif_of_identical_frames_is_one_frame_held(tmp_path):
+    """A still motion: Pillow would merge the identical frames itself and then fail on the list
+    of delays (Pillow 13); they are merged first, their delays summed (10 fps: 4 ticks, 400 ms)."""
+    still = np.full((3, 16, 16, 3), 40, np.uint8)
+    out = save_video(still, tmp_path / "still.gif", 10.0, holds=[1, 2, 1])
+    frames = iio.imread(out, index=None)
+    assert frames.shape[0] == 1
+    assert iio.immeta(out, index=0)["duration"] == 400
+    moving = still.copy()
+    moving[1] += 1  # distinct frames stay apart
+    out = save_video(moving, tmp_path / "moving.gif", 10.0, holds=[1, 2, 1])
+    assert iio.imread(out, index=None).shape[0] == 3
