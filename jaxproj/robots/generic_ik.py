@@ -1,0 +1,442 @@
+"""One generic IK: human bone directions -> a robot's joint angles, over the robot's own MJCF.
+
+Correspondence is data (``Correspondence``): each row (``BonePair``) says which canonical human
+bone (``jaxproj.human.skeleton.BONE_NAMES``) the direction between two points of the robot's
+MJCF (sites or bodies) follows, with a weight; the directions are compared in the frame of one
+robot body (``Correspondence.base``, e.g. the torso), which plays the human body frame's part
+(x forward, y left, z up). Each ``Chain`` of the robot is solved on its own, in chain order,
+from the rows of its bones: chains after it see its answer (a leg chain solved after the waist
+sees the waist's angles), chains before it do not see it.
+
+The problem of one chain with joints ``x`` (box ``[lo, hi]``, the robot's limits)::
+
+    minimise   sum_k w_k |dir_k(x) - t_k|^2  +  lam * |x - x_0|^2  +  collision(x)
+    dir_k(x)   unit vector from the row's first point to its second, base frame (TreeFK)
+    t_k        the human bone's unit direction (descriptor columns, normalised)
+    x_0        the robot's standing posture (the pull toward it, ``IKConfig.neutral``, decides
+               the joints the skeleton cannot see: a straight arm's twist)
+    collision  sum over capsule pairs of  w_c * max(0, margin - gap)^2  (``IKConfig.collision``;
+               off unless the robot gives ``Correspondence.capsules`` and pairs)
+
+solved by box-constrained Levenberg-Marquardt: Gauss-Newton steps on the free joints (a joint at
+a bound whose gradient points outward is held: the active set), the damping adapted by the
+gain of each step (accept a step only if it lowers the objective), a fixed number of iterations
+(``IKConfig.iterations``) from ``IKConfig.starts`` deterministic starting points (the standing
+posture and quasi-random points of the box drawn once from ``IKConfig.seed``); the start with
+the least final objective wins (the first on exact ties). Bones whose input is zero-length or
+non-finite get weight 0 (the pull holds their joints at standing): never NaN.
+
+Stationarity, stated: a solution is *stationary* when its projected gradient ``|x - clip(x -
+g)|_inf`` is below ``IKConfig.gtol`` (``g`` the objective's gradient); ``solve_info`` returns it
+per pose, with the objective.
+
+Traceable and jit-compatible (``jax.vmap`` over poses inside); float32; matrix products at full
+float32 precision; deterministic (fixed iterations, fixed starts, no data-dependent host sync).
+
+Shapes: descriptors ``(..., 3 * n_bones)`` (``skeleton.descriptor`` layout of ``bones``);
+answers ``(..., n_driven)`` in ``Robot.driven_joints`` order.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxproj._internal.jit import full_precision
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
+from jaxproj.robots.base import Chain, Robot
+from jaxproj.robots.kinematics import Point, TreeFK
+
+_HIGHEST = jax.lax.Precision.HIGHEST
+
+
+@dataclass(frozen=True)
+class BonePair:
+    """One correspondence row: the robot direction ``start -> end`` follows human ``bone``.
+
+    Attributes:
+      bone: a canonical bone name (``skeleton.BONE_NAMES``), e.g. ``"upper_arm_left"``.
+      start, end: MJCF site (or body) names; the direction between them, in the base body's
+        frame, is compared with the bone's.
+      weight: the row's weight (> 0).
+    """
+
+    bone: str
+    start: str
+    end: str
+    weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.bone not in BONE_NAMES:
+            raise ConfigError(f"unknown bone {self.bone!r}; use one of {BONE_NAMES}")
+        if not (math.isfinite(self.weight) and self.weight > 0):
+            raise ConfigError(f"bone pair {self.bone!r}: weight must be > 0, got {self.weight}")
+        if self.start == self.end:
+            raise ConfigError(f"bone pair {self.bone!r}: start and end are the same point")
+
+
+def capsule_points(model: mujoco.MjModel, geom: str) -> tuple[Point, Point, float]:
+    """The segment ends (``(body, offset)`` points) and radius of a capsule or sphere geom of
+    ``model`` (a sphere's ends coincide); ConfigError for another type or an unknown name."""
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    if gid < 0:
+        raise ConfigError(f"the MJCF has no geom named {geom!r}")
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[gid]))
+    kind = model.geom_type[gid]
+    pos = np.array(model.geom_pos[gid], np.float64)
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        half = np.zeros(3)
+    elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, np.array(model.geom_quat[gid], np.float64))
+        half = rot.reshape(3, 3)[:, 2] * float(model.geom_size[gid][1])
+    else:
+        raise ConfigError(f"geom {geom!r}: only capsules and spheres are collision capsules")
+    a, b = pos - half, pos + half
+    start: Point = (str(body), (float(a[0]), float(a[1]), float(a[2])))
+    end: Point = (str(body), (float(b[0]), float(b[1]), float(b[2])))
+    return start, end, float(model.geom_size[gid][0])
+
+
+@dataclass(frozen=True)
+class Correspondence:
+    """A robot's correspondence with the human skeleton, as data.
+
+    Attributes:
+      base: the MJCF body whose frame the directions are compared in (the human body frame's
+        counterpart: x forward, y left, z up).
+      pairs: the rows (``BonePair``).
+      collision_pairs: pairs of the MJCF's capsule / sphere geoms (names) that must stay apart
+        by ``IKConfig.margin`` (the collision term).
+      source: where the table's choices come from (a sentence).
+    """
+
+    base: str
+    pairs: tuple[BonePair, ...]
+    collision_pairs: tuple[tuple[str, str], ...] = ()
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.pairs:
+            raise ConfigError("a correspondence needs at least one bone pair")
+        for pair in self.collision_pairs:
+            if len(pair) != 2 or pair[0] == pair[1]:
+                raise ConfigError(f"collision pair {pair!r}: two different geoms")
+
+    def rows(self, bones: Sequence[str]) -> tuple[BonePair, ...]:
+        """The rows whose bone is one of ``bones``."""
+        return tuple(p for p in self.pairs if p.bone in bones)
+
+
+@dataclass(frozen=True)
+class IKConfig:
+    """Settings of ``GenericIK`` (see the module doc).
+
+    Attributes:
+      iterations: LM iterations per start.
+      starts: starting points per chain (the standing posture first, then quasi-random ones).
+      neutral: ``lam``, the pull toward the standing posture (per joint, rad^-2 units of the
+        direction residual).
+      collision: ``w_c``, the collision term's weight (0: off).
+      margin: the gap (m) below which two capsules of a collision pair are penalised.
+      damping: the initial LM damping (relative to the Gauss-Newton matrix's diagonal).
+      gtol: the stationarity test's bound on the projected gradient.
+      seed: the seed of the quasi-random starts (explicit; same seed, same answers).
+    """
+
+    iterations: int = 24
+    starts: int = 4
+    neutral: float = 1e-6
+    collision: float = 0.0
+    margin: float = 0.01
+    damping: float = 1e-3
+    gtol: float = 1e-5
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.iterations < 1 or self.starts < 1:
+            raise ConfigError("IKConfig: iterations and starts must be >= 1")
+        for name in ("neutral", "collision", "margin", "damping", "gtol"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"IKConfig.{name} must be finite and >= 0, got {v}")
+
+
+class IKInfo(NamedTuple):
+    """Per-pose diagnostics of ``GenericIK.solve_info``: ``(..., n_chains)`` each."""
+
+    objective: jax.Array
+    stationary: jax.Array
+
+
+@dataclass(frozen=True, eq=False)
+class _ChainProblem:
+    chain: Chain
+    joints: np.ndarray  # (n,) positions in robot.joint_names
+    driven: np.ndarray  # (n,) positions in robot.driven_joints
+    lo: np.ndarray
+    hi: np.ndarray
+    rows: tuple[BonePair, ...]
+    fk: TreeFK  # the chain's points
+    row_points: np.ndarray  # (n_rows, 2) indices into the FK's points
+    weights: np.ndarray  # (n_rows,)
+    capsule_points: np.ndarray  # (n_caps, 2) indices into the FK's points
+    radii: np.ndarray  # (n_caps,)
+    collide: np.ndarray  # (n_pairs, 2) indices into the chain's capsules
+    starts: np.ndarray  # (S, n) starting points
+
+
+@dataclass(frozen=True, eq=False)
+class GenericIK:
+    """The generic IK of a robot (see the module doc); build it with ``GenericIK.build``."""
+
+    robot: Robot
+    correspondence: Correspondence
+    config: IKConfig
+    problems: tuple[_ChainProblem, ...] = field(repr=False)
+
+    @classmethod
+    def build(
+        cls,
+        robot: Robot,
+        correspondence: Correspondence,
+        config: IKConfig | None = None,
+        chains: Sequence[Chain] | None = None,
+        model: mujoco.MjModel | None = None,
+    ) -> GenericIK:
+        """The IK of ``chains`` (default ``robot.chains``) of ``robot`` from its MJCF.
+
+        Args:
+          robot: the robot (its joints, limits, standing posture, MJCF).
+          correspondence: the table.
+          config: solver settings (``IKConfig()``).
+          chains: the chains to solve, in order (each needs at least one row).
+          model: a compiled ``mujoco.MjModel`` (default ``robot.load_model("fixed")``).
+
+        Raises:
+          ConfigError: a chain without rows, or a name the MJCF lacks.
+        """
+        config = IKConfig() if config is None else config
+        chains = tuple(robot.chains if chains is None else chains)
+        if model is None:
+            model = robot.load_model("fixed")
+        rng = np.random.default_rng(config.seed)
+        problems = []
+        for chain in chains:
+            names: list[Point] = []
+
+            def point(name: Point, names: list[Point] = names) -> int:
+                if name not in names:
+                    names.append(name)
+                return names.index(name)
+
+            rows = correspondence.rows(chain.bones)
+            if not rows:
+                raise ConfigError(f"chain {chain.name!r}: no correspondence row for {chain.bones}")
+            joints = np.array([robot.index(j) for j in chain.joints], np.int32)
+            driven = np.array(robot.chain_joints(chain), np.int32)
+            lo, hi = robot.lower[joints], robot.upper[joints]
+            # capsules this chain can move, and the pairs among the correspondence's
+            pairs = [
+                pr
+                for pr in correspondence.collision_pairs
+                if any(set(chain.joints) & _moved_by(model, g) for g in pr)
+            ]
+            used = sorted({n for p in pairs for n in p})
+            caps = {n: capsule_points(model, n) for n in used}
+            cap_idx = {n: i for i, n in enumerate(used)}
+            starts = [np.clip(robot.standing[joints], lo, hi)]
+            for _ in range(config.starts - 1):
+                starts.append(
+                    lo + rng.uniform(0.1, 0.9, len(joints)).astype(np.float32) * (hi - lo)
+                )
+            row_points = np.array([[point(r.start), point(r.end)] for r in rows], np.int32)
+            capsule_points = np.array(
+                [[point(caps[n][0]), point(caps[n][1])] for n in used], np.int32
+            ).reshape(len(used), 2)
+            problems.append(
+                _ChainProblem(
+                    chain=chain,
+                    joints=joints,
+                    driven=driven,
+                    lo=lo,
+                    hi=hi,
+                    rows=rows,
+                    fk=TreeFK.from_model(model, robot.joint_names, names, correspondence.base),
+                    row_points=row_points,
+                    weights=np.array([r.weight for r in rows], np.float32),
+                    capsule_points=capsule_points,
+                    radii=np.array([caps[n][2] for n in used], np.float32),
+                    collide=np.array(
+                        [[cap_idx[a], cap_idx[b]] for a, b in pairs], np.int32
+                    ).reshape(len(pairs), 2),
+                    starts=np.stack(starts).astype(np.float32),
+                )
+            )
+        return cls(robot, correspondence, config, tuple(problems))
+
+    # --- solving -----------------------------------------------------------------------------
+
+    def _targets(
+        self, d: jax.Array, bones: tuple[str, ...], prob: _ChainProblem
+    ) -> tuple[jax.Array, jax.Array]:
+        """``(..., n_rows, 3)`` unit human directions and ``(..., n_rows)`` weights (0: no
+        usable input)."""
+        vec = d.reshape(*d.shape[:-1], d.shape[-1] // 3, 3)
+        t = jnp.stack([vec[..., bones.index(r.bone), :] for r in prob.rows], axis=-2)
+        n = jnp.sqrt(jnp.sum(t * t, axis=-1))
+        ok = jnp.isfinite(n) & (n > 1e-6)
+        t = jnp.where(ok[..., None], t / jnp.where(ok, n, 1.0)[..., None], 0.0)
+        return t, jnp.where(ok, jnp.asarray(prob.weights), 0.0)
+
+    def _residual(
+        self, x: jax.Array, q_full: jax.Array, t: jax.Array, w: jax.Array, prob: _ChainProblem
+    ) -> jax.Array:
+        """The chain's residual vector at chain angles ``x`` (one pose)."""
+        q = q_full.at[prob.joints].set(x)
+        p = prob.fk.points(q)
+        seg = p[prob.row_points[:, 1]] - p[prob.row_points[:, 0]]
+        u = seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
+        parts = [(jnp.sqrt(w)[:, None] * (u - t)).reshape(-1)]
+        x0 = jnp.asarray(prob.starts[0])
+        parts.append(np.float32(math.sqrt(self.config.neutral)) * (x - x0))
+        if self.config.collision > 0 and len(prob.collide):
+            a = p[prob.capsule_points[:, 0]]
+            b = p[prob.capsule_points[:, 1]]
+            i, j = prob.collide[:, 0], prob.collide[:, 1]
+            gap = _segment_distance(a[i], b[i], a[j], b[j]) - prob.radii[i] - prob.radii[j]
+            pen = jnp.maximum(np.float32(self.config.margin) - gap, 0.0)
+            parts.append(np.float32(math.sqrt(self.config.collision)) * pen)
+        return jnp.concatenate(parts)
+
+    def _solve_chain(
+        self, q_full: jax.Array, t: jax.Array, w: jax.Array, prob: _ChainProblem
+    ) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """One pose, one chain: ``(x, objective, stationary)``."""
+        lo, hi = jnp.asarray(prob.lo), jnp.asarray(prob.hi)
+        cfg = self.config
+
+        def res(x: jax.Array) -> jax.Array:
+            return self._residual(x, q_full, t, w, prob)
+
+        def cost(r: jax.Array) -> jax.Array:
+            return jnp.sum(r * r)
+
+        def step(_: int, state: tuple[jax.Array, jax.Array, jax.Array]) -> tuple:
+            x, f, mu = state
+            r = res(x)
+            jac = jax.jacfwd(res)(x)
+            g = jnp.matmul(jac.T, r, precision=_HIGHEST)
+            a = jnp.matmul(jac.T, jac, precision=_HIGHEST)
+            held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
+            free = ~held
+            mask = free[:, None] & free[None, :]
+            diag = jnp.diagonal(a)
+            a_free = jnp.where(mask, a, 0.0) + jnp.diag(jnp.where(free, mu * (diag + 1e-6), 1.0))
+            delta = jnp.linalg.solve(a_free, -jnp.where(free, g, 0.0))
+            x_new = jnp.clip(x + delta, lo, hi)
+            f_new = cost(res(x_new))
+            better = f_new < f
+            return (
+                jnp.where(better, x_new, x),
+                jnp.where(better, f_new, f),
+                jnp.where(better, mu * 0.3, mu * 4.0),
+            )
+
+        def run(x0: jax.Array) -> tuple[jax.Array, jax.Array]:
+            f0 = cost(res(x0))
+            x, f, _ = jax.lax.fori_loop(0, cfg.iterations, step, (x0, f0, jnp.float32(cfg.damping)))
+            return x, f
+
+        xs, fs = jax.vmap(run)(jnp.asarray(prob.starts))
+        k = jnp.argmin(fs)
+        x, f = xs[k], fs[k]
+        r = res(x)
+        g = 2.0 * jnp.matmul(jax.jacfwd(res)(x).T, r, precision=_HIGHEST)
+        pg = jnp.max(jnp.abs(x - jnp.clip(x - g, lo, hi)))
+        return x, f, pg < cfg.gtol
+
+    @full_precision
+    def solve_info(
+        self, d: jax.typing.ArrayLike, bones: str | tuple[str, ...] = "upper"
+    ) -> tuple[jax.Array, IKInfo]:
+        """``(..., 3 * n_bones)`` descriptors -> ``((..., n_driven) angles, IKInfo)``.
+
+        Joints of no solved chain stay at the standing posture. Traceable.
+        """
+        names = resolve_bones(bones)
+        need = [r.bone for p in self.problems for r in p.rows if r.bone not in names]
+        if need:
+            raise ConfigError(f"the IK needs the bones {sorted(set(need))}; absent from {bones!r}")
+        d = jnp.asarray(d, jnp.float32)
+        batch = d.shape[:-1]
+        flat = d.reshape(-1, d.shape[-1])
+
+        def one(row: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+            q = jnp.asarray(self.robot.standing)
+            objective, stationary = [], []
+            for prob in self.problems:
+                t, w = self._targets(row, names, prob)
+                x, f, ok = self._solve_chain(q, t, w, prob)
+                q = q.at[prob.joints].set(x)
+                objective.append(f)
+                stationary.append(ok)
+            return q[self.robot.driven_index], jnp.stack(objective), jnp.stack(stationary)
+
+        q, f, ok = jax.vmap(one)(flat)
+        q = jnp.where(jnp.isfinite(q), q, jnp.asarray(self.robot.standing_driven))
+        n = len(self.problems)
+        return q.reshape(*batch, -1), IKInfo(f.reshape(*batch, n), ok.reshape(*batch, n))
+
+    def solve(self, d: jax.typing.ArrayLike, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+        """``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` float32 angles, rad, within
+        limits, finite (``solve_info`` without the diagnostics). Traceable."""
+        return self.solve_info(d, bones)[0]
+
+
+def _moved_by(model: mujoco.MjModel, geom: str) -> set[str]:
+    """Names of the joints that move geom ``geom`` (its body's and its ancestors')."""
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    if gid < 0:
+        raise ConfigError(f"the MJCF has no geom named {geom!r}")
+    names: set[str] = set()
+    bid = int(model.geom_bodyid[gid])
+    while bid > 0:
+        for j in range(model.body_jntadr[bid], model.body_jntadr[bid] + model.body_jntnum[bid]):
+            names.add(str(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)))
+        bid = int(model.body_parentid[bid])
+    return names
+
+
+def _segment_distance(p1: jax.Array, q1: jax.Array, p2: jax.Array, q2: jax.Array) -> jax.Array:
+    """Distance between segments ``p1q1`` and ``p2q2`` (``(..., 3)`` each; a point when its ends
+    coincide): the clamped closest points (Ericson, *Real-Time Collision Detection*, 5.1.9)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = jnp.sum(d1 * d1, -1)
+    e = jnp.sum(d2 * d2, -1)
+    f = jnp.sum(d2 * r, -1)
+    c = jnp.sum(d1 * r, -1)
+    b = jnp.sum(d1 * d2, -1)
+    eps = 1e-12
+    denom = a * e - b * b
+    s = jnp.where(
+        denom > eps, jnp.clip((b * f - c * e) / jnp.where(denom > eps, denom, 1.0), 0, 1), 0.0
+    )
+    s = jnp.where(a > eps, s, 0.0)
+    t = jnp.where(e > eps, (b * s + f) / jnp.where(e > eps, e, 1.0), 0.0)
+    # t outside [0, 1]: clamp it and recompute s
+    t_c = jnp.clip(t, 0.0, 1.0)
+    s = jnp.where(
+        (t != t_c) & (a > eps), jnp.clip((b * t_c - c) / jnp.where(a > eps, a, 1.0), 0.0, 1.0), s
+    )
+    t = t_c
+    diff = (p1 + d1 * s[..., None]) - (p2 + d2 * t[..., None])
+    return jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
