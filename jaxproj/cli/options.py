@@ -111,10 +111,15 @@ def add_bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> Non
 
 
 def add_data_options(
-    parser: argparse.ArgumentParser, role: str, msr_subjects: str, strict_extra: str
+    parser: argparse.ArgumentParser,
+    role: str,
+    msr_subjects: str,
+    strict_extra: str,
+    utkinect_subjects: str = "",
 ) -> None:
     """``--data``, ``--subjects``, ``--strict`` and ``--bvh-map`` of ``build`` / ``evaluate``:
-    ``role`` names the subjects ("training"), ``msr_subjects`` the bundled protocol's split."""
+    ``role`` names the subjects ("training"), ``msr_subjects`` the bundled protocol's split,
+    ``utkinect_subjects`` (if any) which people of 'utkinect' are the default."""
     parser.add_argument(
         "--data",
         default="bundled",
@@ -127,8 +132,8 @@ def add_data_options(
         type=parse_ints,
         default=None,
         help=f"{role} subjects, comma-separated (None: {msr_subjects} of the bundled MSR data; "
-        "every recording of 'utkinect' or a folder; a folder's left-out files are noted on "
-        "stderr)",
+        f"every recording of 'utkinect'{utkinect_subjects} or a folder; a folder's left-out "
+        "files are noted on stderr)",
     )
     parser.add_argument(
         "--strict",

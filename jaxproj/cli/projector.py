@@ -10,6 +10,7 @@ from typing import Any
 
 from jaxproj._internal.progress import bar
 from jaxproj.cli import options
+from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
 from jaxproj.projection.api import HEAD_BANDWIDTH
 
 BUILD_STAGES = ("descriptors", "landmarks and kernels", "save")
@@ -24,6 +25,16 @@ def add_parsers(sub: Any) -> None:
 def _add_build(sub: Any) -> None:
     pb = options.add_parser(sub, "build", "build a projector (landmarks + ELM kernels)")
     options.add_data_options(pb, "training", "1,3,5,7,9", " and use the others")
+    pb.add_argument(
+        "--utkinect-people",
+        type=_parse_people,
+        default=None,
+        help="with --data bundled/msr: the bundled UTKinect-Action3D people (of "
+        f"{','.join(map(str, UTK_SUBJECTS))}) whose whole recordings join the MSR training "
+        "subjects; 'none': MSR alone (None: "
+        f"{','.join(map(str, UTK_TRAIN_SUBJECTS))}, the default model's training set, "
+        "without --subjects; none with --subjects; evaluate scores UTKinect on the others)",
+    )
     pb.add_argument(
         "--chains",
         default="upper",
@@ -61,7 +72,11 @@ def _add_evaluate(sub: Any) -> None:
     pe = options.add_parser(sub, "evaluate", "batch evaluation against the IK, with baselines")
     pe.add_argument("--model", required=True, help="projector file from `jaxproj build`")
     options.add_data_options(
-        pe, "evaluated", "2,4,6,8,10", " and in the JSON's data_files, and evaluate the others"
+        pe,
+        "evaluated",
+        "2,4,6,8,10",
+        " and in the JSON's data_files, and evaluate the others",
+        " (of the people the model did not train on)",
     )
     pe.add_argument(
         "--objective",
@@ -80,11 +95,40 @@ def _add_evaluate(sub: Any) -> None:
     pe.set_defaults(func=evaluate)
 
 
+def _parse_people(text: str) -> tuple[int, ...]:
+    """``--utkinect-people``: comma-separated people, or ``none`` / empty for none."""
+    if text.strip().lower() in ("", "none"):
+        return ()
+    return tuple(options.parse_ints(text))
+
+
+def training_people(
+    data: str, subjects: list[int] | None, people: tuple[int, ...] | None
+) -> tuple[int, ...]:
+    """The UTKinect-Action3D people ``build`` adds to ``--data``: with the bundled MSR data
+    (``bundled`` / ``msr``) ``--utkinect-people``, or when it is not given the default
+    training set's (``UTK_TRAIN_SUBJECTS``) unless ``--subjects`` picks the MSR people (then
+    none); with other data none (a ``--utkinect-people`` naming some is refused)."""
+    from jaxproj.errors import ConfigError
+
+    if data in ("bundled", "msr"):
+        if people is None:
+            return UTK_TRAIN_SUBJECTS if subjects is None else ()
+        return people
+    if people:
+        raise ConfigError(
+            f"--utkinect-people adds bundled UTKinect-Action3D people to --data bundled / msr "
+            f"only, not to --data {data}: leave it out"
+        )
+    return ()
+
+
 def build(args: argparse.Namespace) -> int:
     from jaxproj.io import datasets
     from jaxproj.projection import api as engine
 
     out = options.output_path(args.out, "--out", (".npz",))
+    people = training_people(args.data, args.subjects, args.utkinect_people)
     cfg = engine.BuildConfig(
         chains=args.chains,
         landmarks=options.one_or_tuple(args.landmarks),
@@ -95,9 +139,12 @@ def build(args: argparse.Namespace) -> int:
         input_scale=args.input_scale,
         seed=args.seed,
         mirror=args.mirror,
+        utkinect_people=people,
     )
     t0 = time.perf_counter()
     seqs, contents = options.load_data(args.data, args.subjects, "train", args.strict, args.bvh_map)
+    if people:  # the default training set: datasets.training_sequences
+        seqs = seqs + datasets.utkinect_action3d(subjects=people, segments=False)
     stages = bar(BUILD_STAGES, "build")
     next(stages)  # descriptors
     d = datasets.valid_descriptors(seqs, bones=cfg.bones, mirror=cfg.mirror)
@@ -121,9 +168,10 @@ def build(args: argparse.Namespace) -> int:
             f"hidden={lay.hidden[c]})"
         )
     per_chain = ", ".join(parts)
+    utk = f" (with UTKinect people {','.join(map(str, people))})" if people else ""
     print(
         f"built {cfg.chains} chains: {per_chain} from {model.n_train} valid frames "
-        f"(of {n_frames}), seed={cfg.seed} in {dt:.1f} s -> {out}"
+        f"(of {n_frames}){utk}, seed={cfg.seed} in {dt:.1f} s -> {out}"
         + options.unreadable_note(contents)
     )
     return 0
@@ -144,7 +192,8 @@ def evaluate(args: argparse.Namespace) -> int:
     objectives = ["relaxed", "full"] if args.objective == "all" else [args.objective]
     methods = objectives + ["nearest_landmark", "knn_average", "global_elm"]
     t0 = time.perf_counter()
-    seqs, contents = options.load_data(args.data, args.subjects, "test", args.strict, args.bvh_map)
+    subjects = _utkinect_subjects(args.data, args.subjects, model.config.utkinect_people)
+    seqs, contents = options.load_data(args.data, subjects, "test", args.strict, args.bvh_map)
     data = evaluate.prepare(
         seqs, bones=model.config.bones, mirror=model.config.mirror, robot=model.robot
     )
@@ -160,6 +209,7 @@ def evaluate(args: argparse.Namespace) -> int:
     )
     out["wall_s"]["total"] = time.perf_counter() - t0
     out["subjects"] = sorted({int(s.subject) for s in seqs})
+    out["model_utkinect_people"] = list(model.config.utkinect_people)
     out["data"] = args.data
     out["model"] = str(args.model)
     if contents is not None:
@@ -171,3 +221,32 @@ def evaluate(args: argparse.Namespace) -> int:
         + options.unreadable_note(contents)
     )
     return 0
+
+
+def _utkinect_subjects(
+    data: str, subjects: list[int] | None, trained: tuple[int, ...]
+) -> list[int] | None:
+    """``evaluate --data utkinect``'s people: by default those the model did not train on
+    (``BuildConfig.utkinect_people``); given ones it trained on are scored with a warning."""
+    import sys
+
+    from jaxproj.errors import ConfigError
+
+    if data != "utkinect" or not trained:
+        return subjects
+    if subjects is None:
+        rest = [s for s in UTK_SUBJECTS if s not in trained]
+        if not rest:
+            raise ConfigError(
+                "the model trained on every bundled UTKinect-Action3D person: none is left to "
+                "evaluate on (give --subjects to score trained people anyway)"
+            )
+        return rest
+    seen = sorted(set(subjects) & set(trained))
+    if seen:
+        print(
+            f"jaxproj: warning: the model trained on UTKinect-Action3D people {seen}: their "
+            "scores are not held-out accuracy",
+            file=sys.stderr,
+        )
+    return subjects

@@ -123,6 +123,17 @@ TRAIN_SUBJECTS: tuple[int, ...] = (1, 3, 5, 7, 9)
 TEST_SUBJECTS: tuple[int, ...] = (2, 4, 6, 8, 10)
 """... and every accuracy figure is measured on these, which the landmarks never saw."""
 
+UTK_SUBJECTS: tuple[int, ...] = (3, 4, 6, 7, 9)
+"""The UTKinect-Action3D people of the bundled subset (two recordings each)."""
+UTK_TRAIN_SUBJECTS: tuple[int, ...] = (3, 4, 6)
+"""The UTKinect-Action3D people whose whole recordings the default model trains on beside MSR
+Action3D's ``TRAIN_SUBJECTS`` (``BuildConfig.utkinect_people``; ``datasets.training_sequences``).
+Chosen by measurement: a model holding some frames of UTKinect's capture set-up errs less on the
+UTKinect people it never saw and on the held-out MSR people (``docs/results.md``) ..."""
+UTK_TEST_SUBJECTS: tuple[int, ...] = (7, 9)
+"""... and the UTKinect-Action3D people the default model is scored on, which it never saw
+(``datasets.utkinect_held_out``)."""
+
 
 # --- loading --------------------------------------------------------------------------------------
 

@@ -5,6 +5,9 @@
   archive paths and the action / subject constants; the archive layouts are documented there.
 - Folders of recordings (``jaxproj.io.folders``): ``load_folder``, ``FolderContents``.
 - ``load_sequences``: either of them by one name (``--data``).
+- ``training_sequences``: the default model's training recordings (MSR Action3D subjects
+  1,3,5,7,9 and the UTKinect-Action3D people 3, 4, 6); ``utkinect_held_out``: the UTKinect
+  segments of the people a model did not train on (7, 9 for the default model).
 - ``MotionSequence`` and ``sequence_times`` (``jaxproj.io.sequences``).
 - ``valid_descriptors`` (``jaxproj.human.descriptors``): training descriptors of sequences.
 - Bundling the raw text files (``jaxproj.io.bundling``): ``bundle_msr_action3d``,
@@ -18,6 +21,7 @@ import os
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
+from jaxproj.errors import ConfigError
 from jaxproj.human.descriptors import valid_descriptors
 from jaxproj.io.bundled import (
     ACTION_NAMES,
@@ -33,6 +37,9 @@ from jaxproj.io.bundled import (
     UTK_FORMAT_VERSION,
     UTK_FPS,
     UTK_N_SUBJECTS,
+    UTK_SUBJECTS,
+    UTK_TEST_SUBJECTS,
+    UTK_TRAIN_SUBJECTS,
     UTK_UPPER_BODY_ACTIONS,
     dataset_summary,
     load_msr_archive,
@@ -58,6 +65,9 @@ __all__ = [
     "UTK_FORMAT_VERSION",
     "UTK_FPS",
     "UTK_N_SUBJECTS",
+    "UTK_SUBJECTS",
+    "UTK_TEST_SUBJECTS",
+    "UTK_TRAIN_SUBJECTS",
     "UTK_UPPER_BODY_ACTIONS",
     "FolderContents",
     "MotionSequence",
@@ -71,7 +81,9 @@ __all__ = [
     "main",
     "msr_action3d",
     "sequence_times",
+    "training_sequences",
     "utkinect_action3d",
+    "utkinect_held_out",
     "valid_descriptors",
 ]
 
@@ -110,6 +122,62 @@ def load_sequences(
     if str(data) == "utkinect":
         return utkinect_action3d(subjects=wanted)
     return load_folder(data, subjects, progress=progress, strict=strict, bvh_map=bvh_map).sequences
+
+
+def training_sequences(
+    utkinect_people: Iterable[int] = UTK_TRAIN_SUBJECTS,
+    subjects: Iterable[int] = TRAIN_SUBJECTS,
+) -> list[MotionSequence]:
+    """The default model's training recordings: every recording of the MSR Action3D
+    ``subjects`` (default ``TRAIN_SUBJECTS``, 1,3,5,7,9) and the whole recordings
+    (``utkinect_action3d(segments=False)``) of the bundled UTKinect-Action3D people
+    ``utkinect_people`` (default ``UTK_TRAIN_SUBJECTS``, 3, 4, 6: 6 recordings; ``()``: MSR
+    Action3D alone, the default training data before 0.3).
+
+    ``jaxproj build`` trains on these (``BuildConfig.utkinect_people`` names the UTKinect
+    people); score such a model on UTKinect only with ``utkinect_held_out(utkinect_people)``.
+
+    Raises:
+      ConfigError: a subject number out of range, or a UTKinect person not bundled (only 3, 4,
+        6, 7, 9 are).
+    """
+    people = tuple(utkinect_people)
+    bad = sorted(set(people) - set(UTK_SUBJECTS))
+    if bad:
+        raise ConfigError(
+            f"utkinect_people: {bad} not in the bundled UTKinect-Action3D subset {UTK_SUBJECTS}"
+        )
+    seqs = msr_action3d(subjects=subjects)
+    if people:
+        seqs = seqs + utkinect_action3d(subjects=people, segments=False)
+    return seqs
+
+
+def utkinect_held_out(
+    utkinect_people: Iterable[int] = UTK_TRAIN_SUBJECTS,
+    actions: Iterable[int] | None = UTK_UPPER_BODY_ACTIONS,
+) -> list[MotionSequence]:
+    """The UTKinect-Action3D action segments (default: the upper-body ones,
+    ``UTK_UPPER_BODY_ACTIONS``) of the bundled people NOT in ``utkinect_people``: the people a
+    model trained on ``training_sequences(utkinect_people)`` never saw (default: 7 and 9,
+    ``UTK_TEST_SUBJECTS``; ``()``: all five). Pass a model's ``config.utkinect_people``.
+
+    Raises:
+      ConfigError: every bundled person is in ``utkinect_people`` (none is left to score), or
+        one is not bundled.
+    """
+    trained = set(utkinect_people)
+    bad = sorted(trained - set(UTK_SUBJECTS))
+    if bad:
+        raise ConfigError(
+            f"utkinect_people: {bad} not in the bundled UTKinect-Action3D subset {UTK_SUBJECTS}"
+        )
+    rest = [s for s in UTK_SUBJECTS if s not in trained]
+    if not rest:
+        raise ConfigError(
+            "the model trained on every bundled UTKinect-Action3D person: none is left to score"
+        )
+    return utkinect_action3d(subjects=rest, actions=actions)
 
 
 if __name__ == "__main__":

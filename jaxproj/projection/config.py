@@ -15,6 +15,7 @@ from typing import Any, Literal
 
 from jaxproj import robots
 from jaxproj.errors import ConfigError
+from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
 from jaxproj.robots import Robot
 
 HEAD_BANDWIDTH = 0.01125
@@ -64,7 +65,8 @@ class ChainConfig:
 
 @dataclass(frozen=True)
 class BuildConfig:
-    """How a model is built: which chains, and per chain its landmarks and kernels.
+    """How a model is built: which chains, per chain its landmarks and kernels, and which
+    bundled UTKinect-Action3D people its training data holds.
 
     Validated when constructed (``ConfigError`` with what to change). Every per-chain setting
     is one value for all chains or a tuple with one value per chain (in
@@ -93,6 +95,16 @@ class BuildConfig:
         ``fold_in(PRNGKey(seed), c)``).
       robot: the name of a registered robot (``jaxproj.robots.names()``) whose chains, limits
         and IK the model is built for.
+      utkinect_people: the training data's people from the bundled UTKinect-Action3D subset
+        (of 3, 4, 6, 7, 9), whose whole recordings join MSR Action3D's training subjects
+        1,3,5,7,9 in the default training set (``datasets.training_sequences``: what ``jaxproj
+        build`` trains on from the bundled data). Default ``(3, 4, 6)``
+        (``datasets.UTK_TRAIN_SUBJECTS``), chosen by measurement (``docs/results.md``, "Which
+        people the default model trains on"); ``()``: MSR Action3D alone. ``build`` trains on
+        the descriptors it is given and records this field as it is, in the model file too:
+        give it what they hold (``jaxproj build`` records ``()`` for data other than the
+        bundled training set). Score a model on UTKinect only with
+        ``datasets.utkinect_held_out(model.config.utkinect_people)``.
     """
 
     landmarks: int | PerChain | None = None
@@ -106,11 +118,23 @@ class BuildConfig:
     input_scale: float | PerChain | None = None
     seed: int = 0
     robot: str = robots.DEFAULT
+    utkinect_people: tuple[int, ...] = UTK_TRAIN_SUBJECTS
 
     def __post_init__(self) -> None:
         for name in ("landmarks", "bandwidth", "k", "hidden", "lam", "input_scale"):
             if isinstance(getattr(self, name), list):  # from JSON
                 object.__setattr__(self, name, tuple(getattr(self, name)))
+        people = self.utkinect_people
+        if (
+            not isinstance(people, (tuple, list))
+            or any(isinstance(x, bool) or x not in UTK_SUBJECTS for x in people)
+            or len(set(people)) != len(people)
+        ):
+            raise ConfigError(
+                f"utkinect_people={people!r} must be distinct people of the bundled "
+                f"UTKinect-Action3D subset {UTK_SUBJECTS} (a tuple; () for none)"
+            )
+        object.__setattr__(self, "utkinect_people", tuple(int(x) for x in people))
         if not isinstance(self.robot, str) or self.robot not in robots.names():
             raise ConfigError(
                 f"robot={self.robot!r} is not a registered robot; use one of {robots.names()} "
@@ -235,6 +259,7 @@ class FullConfig:
     screen: int = 8
     finalists: int = 2
     tie_rtol: float = 1e-3
+    gap_tol: float = 0.0
 
     def __post_init__(self) -> None:
         if self.objective not in ("weighted", "min"):
@@ -249,7 +274,7 @@ class FullConfig:
             raise ConfigError(f"full clusters={self.clusters} must be >= 0 (0: all L)")
         if self.screen < 0 or self.finalists < 0:
             raise ConfigError(f"full screen={self.screen}, finalists={self.finalists} must be >= 0")
-        for name in ("proximal", "ridge", "dec_tol", "step_tol", "tie_rtol"):
+        for name in ("proximal", "ridge", "dec_tol", "step_tol", "tie_rtol", "gap_tol"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(f"full {name}={getattr(self, name)} must be >= 0")
 

@@ -1,7 +1,8 @@
 """The model file: ``save`` / ``load`` a ``Model`` through one ``.npz``, and every check on read.
 
 A file holds every chain's arrays unpadded (``chain<c>.human``, ``chain<c>.forward.out``, ...),
-the ``BuildConfig`` (with the robot's name: a file without one is the NAO's), the chain
+the ``BuildConfig`` (with the robot's name: a file without one is the NAO's; with the
+UTKinect-Action3D people it trained on: a file without them trained on none), the chain
 layout, the robot's driven joints and IK constants and a format version in a JSON ``meta``
 entry. ``load`` refuses (``InputError`` naming the file) anything that is not such a file of
 this jaxproj's format version and chain layout, before an array reaches JAX.
@@ -124,7 +125,9 @@ def load(path: str | Path) -> Model:
         raise InputError(path, f"not a readable model file ({_one_line(e)})") from None
     meta = _read_meta(path, data)
     try:
-        config = BuildConfig(**meta["config"])
+        # a file written before BuildConfig.utkinect_people existed trained on MSR Action3D
+        # (or the user's data) alone: it must not read as trained on the default UTKinect people
+        config = BuildConfig(**{"utkinect_people": (), **meta["config"]})
     except (KeyError, TypeError, ValueError, ConfigError) as e:
         raise InputError(path, f"invalid model configuration ({_one_line(e)})") from None
     spec = config.robot_spec

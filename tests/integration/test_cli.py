@@ -414,3 +414,25 @@ def test_data_sources_join_with_plus(tmp_path):
     assert {s.subject for s in some} == {3} and len(some) > len(utk) // 5
     with pytest.raises(ConfigError, match="empty source"):
         options.load_data("bundled+", None, "train")
+
+
+def test_build_trains_on_the_default_training_set_and_evaluate_scores_the_others(capsys):
+    """``build`` adds the default UTKinect people to the bundled MSR data unless --subjects or
+    --utkinect-people picks otherwise; ``evaluate --data utkinect`` scores the others."""
+    from jaxproj.errors import ConfigError
+
+    people = projector.training_people
+    assert people("bundled", None, None) == datasets.UTK_TRAIN_SUBJECTS == (3, 4, 6)
+    assert people("msr", [1, 3], None) == ()  # --subjects picks the training people
+    assert people("bundled", None, ()) == () and people("bundled", [1], (7,)) == (7,)
+    assert people("utkinect", None, None) == ()
+    with pytest.raises(ConfigError, match="--data bundled / msr only"):
+        people("utkinect", None, (3,))
+    assert projector._parse_people("none") == () and projector._parse_people("3,4") == (3, 4)
+    chosen = projector._utkinect_subjects
+    assert chosen("utkinect", None, (3, 4, 6)) == [7, 9]
+    assert chosen("utkinect", None, ()) is None and chosen("bundled", None, (3, 4, 6)) is None
+    assert chosen("utkinect", [3, 7], (3, 4, 6)) == [3, 7]
+    assert "trained on UTKinect-Action3D people [3]" in capsys.readouterr().err
+    with pytest.raises(ConfigError, match="none is left"):
+        chosen("utkinect", None, datasets.UTK_SUBJECTS)

@@ -642,3 +642,25 @@ def test_full_near_tie_rule_picks_the_first_candidate_among_ties():
     assert int(pick(far, jnp.asarray([1, 0], jnp.int32), 1e-3)) == 0
     with pytest.raises(ConfigError, match="tie_rtol"):
         FullConfig(tie_rtol=-1e-3)
+
+
+def test_training_people_are_validated_and_recorded_in_the_model_file(model, tmp_path):
+    import json
+
+    assert engine.BuildConfig().utkinect_people == datasets.UTK_TRAIN_SUBJECTS == (3, 4, 6)
+    assert engine.BuildConfig(utkinect_people=[9, 7]).utkinect_people == (9, 7)  # from JSON
+    for bad in ((1,), (3, 3), 3, (True,)):
+        with pytest.raises(ConfigError, match="utkinect_people"):
+            engine.BuildConfig(utkinect_people=bad)
+    cfg = dataclasses.replace(model.config, utkinect_people=(7, 9))
+    path = tmp_path / "p.npz"
+    engine.save(dataclasses.replace(model, config=cfg), path)
+    assert engine.load(path).config.utkinect_people == (7, 9)
+    # a file written before the field existed trained on no UTKinect person
+    with np.load(path) as z:
+        data = {k: z[k] for k in z.files}
+    meta = json.loads(str(data["meta"]))
+    del meta["config"]["utkinect_people"]
+    data["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "old.npz", **data)
+    assert engine.load(tmp_path / "old.npz").config.utkinect_people == ()
