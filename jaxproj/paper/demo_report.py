@@ -62,10 +62,20 @@ def msr_split(r: dict) -> str:
 
 
 def _utk_split(r: dict) -> str:
+    """The UTKinect split in words: its people (none the model trained on) and frames."""
     n = r.get("comparison_frames", {}).get("utkinect")
-    return "UTKinect-Action3D upper-body segments (five other people, another room" + (
+    people = r.get("test_utkinect_people")
+    who = f"people {_subjects(people)}, whom the model never saw" if people else "five other people"
+    return f"UTKinect-Action3D upper-body segments ({who}, another room" + (
         f"; {n:,} valid frames)" if n is not None else ")"
     )
+
+
+def _training_words(r: dict) -> str:
+    """Where the training frames came from."""
+    msr = f"MSR subjects {_subjects(r['train_subjects'])}"
+    utk = r.get("train_utkinect_people")
+    return f"{msr} and UTKinect-Action3D people {_subjects(utk)}" if utk else msr
 
 
 def _model_words(r: dict) -> str:
@@ -75,7 +85,7 @@ def _model_words(r: dict) -> str:
     return (
         f"{which}, per chain: {counts} landmarks (head / left arm / right arm; mean-shift "
         f"bandwidths {report_text.bandwidths(b['bandwidth'])}) from {b['train_frames']:,} valid "
-        f"frames (every action) of MSR subjects {_subjects(r['train_subjects'])}"
+        f"frames (every action) of {_training_words(r)}"
     )
 
 

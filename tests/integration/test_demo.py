@@ -5,9 +5,11 @@ import re
 
 import pytest
 
+from jaxproj.errors import ConfigError
 from jaxproj.io import datasets
 from jaxproj.paper import demo, demo_report
 from jaxproj.paper.demo import run_demo
+from jaxproj.projection import api as engine
 
 
 def _tables_without_caption(md: str) -> list[str]:
@@ -21,6 +23,41 @@ def _tables_without_caption(md: str) -> list[str]:
             if not re.search(r"\*Split:\* .+\*Frames:\* .+\*Metric:\* .+", above):
                 bad.append(line)
     return bad
+
+
+def test_the_default_model_trains_on_utkinect_people_and_is_scored_on_the_others():
+    cfg = engine.BuildConfig()
+    assert cfg.utkinect_people == datasets.UTK_TRAIN_SUBJECTS == (3, 4, 6)
+    train = datasets.training_sequences(cfg.utkinect_people)
+    utk_train = {s.subject for s in train if s.name.startswith("s")}  # UTKinect: "s03_e01"
+    assert utk_train == {3, 4, 6} and sum(s.action == 0 for s in train) == 6  # whole recordings
+    assert {s.subject for s in train if s.name.startswith("a")} == set(datasets.TRAIN_SUBJECTS)
+    # the demo's UTKinect split: upper-body segments of the people the model never saw
+    split = demo.utkinect_split(cfg)
+    assert {s.subject for s in split} == set(datasets.UTK_TEST_SUBJECTS) == {7, 9}
+    assert {s.action for s in split} <= set(datasets.UTK_UPPER_BODY_ACTIONS)
+    msr_only = engine.BuildConfig(utkinect_people=())
+    assert {s.subject for s in demo.utkinect_split(msr_only)} == set(datasets.UTK_SUBJECTS)
+    assert len(demo.utkinect_split(cfg, quick=True)) == (len(split) + 1) // 2
+    with pytest.raises(ConfigError, match="none is left"):
+        datasets.utkinect_held_out(datasets.UTK_SUBJECTS)
+
+
+def test_the_report_names_the_training_and_test_people():
+    r = {
+        "train_subjects": [1, 3, 5, 7, 9],
+        "train_utkinect_people": [3, 4, 6],
+        "test_utkinect_people": [7, 9],
+        "comparison_frames": {"utkinect": 578},
+        "build": {"landmarks": {"head": 1, "left_arm": 2, "right_arm": 3},
+                  "bandwidth": {"head": 0.1, "left_arm": 0.2, "right_arm": 0.2},
+                  "train_frames": 16005, "default_model": True},
+    }  # fmt: skip
+    assert "people 7,9, whom the model never saw" in demo_report._utk_split(r)
+    assert "578 valid frames" in demo_report._utk_split(r)
+    assert "MSR subjects 1,3,5,7,9 and UTKinect-Action3D people 3,4,6" in (
+        demo_report._model_words(r)
+    )
 
 
 @pytest.mark.slow
@@ -58,6 +95,9 @@ def test_demo_quick_writes_the_report(tmp_path):
         b = comp["whole_body"][split]["relaxed"]["M_avg"]["median"]
         assert a < b
     assert "## Whole-body vs per-chain" in md
+    # the default training set; UTKinect scored only on people the model never saw
+    assert r["train_utkinect_people"] == list(datasets.UTK_TRAIN_SUBJECTS)
+    assert r["test_utkinect_people"] == list(datasets.UTK_TEST_SUBJECTS)
     assert r["timings"]["total_s"] > 0
     assert r["quick"] is True and "**Quick run**" in md
     # the results page's protocol: held-out arm actions; every table says what it measured
