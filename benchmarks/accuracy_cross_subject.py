@@ -1,13 +1,17 @@
 """Accuracy on people the landmarks never saw: whole-body vs per-chain, both objectives, the
 baselines, on held-out MSR Action3D subjects and on a second dataset (UTKinect-Action3D).
 
-Landmarks and kernels from MSR Action3D subjects 1,3,5,7,9 (all actions, valid frames). Splits:
+Landmarks and kernels from the default training set (``datasets.training_sequences``: MSR
+Action3D subjects 1,3,5,7,9, all actions, and the whole recordings of the UTKinect-Action3D people
+``--utkinect-people``, default 3, 4, 6; ``none``: MSR alone, the default model of 0.2.0; valid
+frames). Splits, people no model here trained on:
 
 * ``msr``: every valid frame of the arm-heavy actions (a01-a12, a17-a19) of subjects 2,4,6,8,10
   (the paper's cross-subject protocol; 8,355 frames);
 * ``utkinect``: every valid frame of the upper-body segments (throw, push, pull, waveHands,
-  clapHands) of the bundled UTKinect-Action3D recordings (five other people, another room and
-  capture program): cross-dataset.
+  clapHands) of the bundled UTKinect-Action3D people not in ``--utkinect-people`` (7 and 9 by
+  default, 578 frames; all five with ``none``: 1,345 frames; ``datasets.utkinect_held_out``),
+  another room and capture program.
 
 Unsmoothed, L = M = 10, degrees over ``robot.DRIVEN_JOINTS`` against the analytic IK. Each
 method's block is ``jaxproj.eval.metrics.summarize_errors``: the paper's M_max / M_avg,
@@ -18,7 +22,7 @@ The baselines
 model. Identity: each chain's landmarks projected through its own kernels.
 
     python -m benchmarks.accuracy_cross_subject [--chains upper,whole] [--datasets msr,utkinect]
-        [--landmarks 1644] [--seed 0] [--json OUT]
+        [--utkinect-people 3,4,6|none] [--landmarks 1644] [--seed 0] [--json OUT]
     python -m benchmarks.accuracy_cross_subject --quick    # smoke run (see --help)
 """
 
@@ -46,12 +50,12 @@ OBJECTIVES = {
 BASELINES = ("nearest_landmark", "knn_average", "global_elm")
 
 
-def split(name: str) -> np.ndarray:
+def split(name: str, utkinect_people: tuple[int, ...]) -> np.ndarray:
     """``(F, 15)`` valid descriptors of a held-out split (see the module doc)."""
     if name == "msr":
         seqs = datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS, actions=datasets.ARM_ACTIONS)
     elif name == "utkinect":
-        seqs = datasets.utkinect_action3d(actions=datasets.UTK_UPPER_BODY_ACTIONS)
+        seqs = datasets.utkinect_held_out(utkinect_people)
     else:
         raise SystemExit(f"unknown split {name!r}")
     return datasets.valid_descriptors(seqs)
@@ -74,8 +78,9 @@ def identity(model: engine.Model, objective: str, cfg: FullConfig | None) -> dic
 
 
 def run(args: argparse.Namespace) -> dict:
-    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=datasets.TRAIN_SUBJECTS))
-    tests = {name: split(name) for name in args.datasets}
+    people = args.utkinect_people
+    train = datasets.valid_descriptors(datasets.training_sequences(people))
+    tests = {name: split(name, people) for name in args.datasets}
     if args.quick:
         train = train[::4]
         tests = {k: v[::20] for k, v in tests.items()}
@@ -86,13 +91,14 @@ def run(args: argparse.Namespace) -> dict:
         objectives.pop("full_min_with_candidate")
     out: dict = {
         "train_frames": len(train),
+        "utkinect_people": list(people),
         "test_frames": {k: len(v) for k, v in tests.items()},
         "device": str(jax.devices()[0]),
         "quick": args.quick,
         "models": {},
     }
     for chains in args.chains:
-        cfg = engine.BuildConfig(chains=chains, seed=args.seed)
+        cfg = engine.BuildConfig(chains=chains, seed=args.seed, utkinect_people=people)
         if args.landmarks is not None:
             cfg = dataclasses.replace(cfg, landmarks=args.landmarks)
         t0 = time.perf_counter()
@@ -151,6 +157,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--chains", default="upper,whole", type=lambda s: s.split(","))
     ap.add_argument("--datasets", default="msr,utkinect", type=lambda s: s.split(","))
+    ap.add_argument(
+        "--utkinect-people",
+        default=datasets.UTK_TRAIN_SUBJECTS,
+        type=lambda s: () if s == "none" else tuple(int(x) for x in s.split(",")),
+        help="UTKinect people in training (default 3,4,6; none: MSR alone)",
+    )
     ap.add_argument("--landmarks", type=int, default=None, help="per arm (default: BuildConfig)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default=None)

@@ -2,15 +2,17 @@
 
 For each split (held-out MSR Action3D subjects 2,4,6,8,10, arm actions, 15 fps assumed; the
 UTKinect-Action3D upper-body segments, times from their frame numbers) the relaxed projection is
-smoothed (the default) and run through ``jaxproj.motion.feasible`` with its defaults; the IK
+smoothed (the default) and run through ``jaxproj.motion.feasible`` with its defaults (UTKinect:
+the people the model did not train on, ``heldout.splits``); the IK
 trajectory too. Printed and written as JSON: speed-limit violations, largest step and
 acceleration before -> after, errors against the IK before -> after, and the change
 against the unfiltered motion.
 
     python -m benchmarks.feasibility [--model P.npz] [--json OUT]
 
-Without ``--model`` the default per-chain projector is built from subjects 1,3,5,7,9 (~1 min on
-2 CPU cores).
+Without ``--model`` the default per-chain projector is built from the default training set
+(``heldout.default_model``: MSR subjects 1,3,5,7,9 and UTKinect people 3, 4, 6; ~2 min on 2 CPU
+cores).
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         "unfiltered: joint deg p95 / hand cm p95 |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for split, seqs in heldout.splits().items():
+    for split, seqs in heldout.splits(model.config.utkinect_people).items():
         data = ev.prepare(seqs)
         r = ev.evaluate(model, data, methods=["relaxed"])
         out["splits"][split] = {

@@ -132,7 +132,7 @@ def training_sequences(
     ``subjects`` (default ``TRAIN_SUBJECTS``, 1,3,5,7,9) and the whole recordings
     (``utkinect_action3d(segments=False)``) of the bundled UTKinect-Action3D people
     ``utkinect_people`` (default ``UTK_TRAIN_SUBJECTS``, 3, 4, 6: 6 recordings; ``()``: MSR
-    Action3D alone, the default training data before 0.3).
+    Action3D alone, the default training data of 0.2.0).
 
     ``jaxproj build`` trains on these (``BuildConfig.utkinect_people`` names the UTKinect
     people); score such a model on UTKinect only with ``utkinect_held_out(utkinect_people)``.
