@@ -104,23 +104,30 @@ def _parse_people(text: str) -> tuple[int, ...]:
 
 def training_people(
     data: str, subjects: list[int] | None, people: tuple[int, ...] | None
-) -> tuple[int, ...]:
-    """The UTKinect-Action3D people ``build`` adds to ``--data``: with the bundled MSR data
-    (``bundled`` / ``msr``) ``--utkinect-people``, or when it is not given the default
-    training set's (``UTK_TRAIN_SUBJECTS``) unless ``--subjects`` picks the MSR people (then
-    none); with other data none (a ``--utkinect-people`` naming some is refused)."""
+) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """``(added, recorded)``: the UTKinect-Action3D people ``build`` adds to ``--data`` (whole
+    recordings) and those its training data then holds (``BuildConfig.utkinect_people``).
+
+    With the bundled MSR data alone (``bundled`` / ``msr``): ``--utkinect-people``, or when it
+    is not given the default training set's (``UTK_TRAIN_SUBJECTS``) unless ``--subjects``
+    picks the MSR people (then none). Data that holds ``utkinect`` (alone or joined by ``+``)
+    adds none and holds its ``--subjects`` (default: all five). Other data: none. A
+    ``--utkinect-people`` naming some is refused but with the bundled MSR data alone.
+    """
     from jaxproj.errors import ConfigError
 
     if data in ("bundled", "msr"):
-        if people is None:
-            return UTK_TRAIN_SUBJECTS if subjects is None else ()
-        return people
+        added = (UTK_TRAIN_SUBJECTS if subjects is None else ()) if people is None else people
+        return added, added
     if people:
         raise ConfigError(
             f"--utkinect-people adds bundled UTKinect-Action3D people to --data bundled / msr "
             f"only, not to --data {data}: leave it out"
         )
-    return ()
+    if "utkinect" in data.split("+"):
+        held = set(UTK_SUBJECTS if subjects is None else subjects)
+        return (), tuple(s for s in UTK_SUBJECTS if s in held)
+    return (), ()
 
 
 def build(args: argparse.Namespace) -> int:
@@ -128,7 +135,7 @@ def build(args: argparse.Namespace) -> int:
     from jaxproj.projection import api as engine
 
     out = options.output_path(args.out, "--out", (".npz",))
-    people = training_people(args.data, args.subjects, args.utkinect_people)
+    people, recorded = training_people(args.data, args.subjects, args.utkinect_people)
     cfg = engine.BuildConfig(
         chains=args.chains,
         landmarks=options.one_or_tuple(args.landmarks),
@@ -139,7 +146,7 @@ def build(args: argparse.Namespace) -> int:
         input_scale=args.input_scale,
         seed=args.seed,
         mirror=args.mirror,
-        utkinect_people=people,
+        utkinect_people=recorded,
     )
     t0 = time.perf_counter()
     seqs, contents = options.load_data(args.data, args.subjects, "train", args.strict, args.bvh_map)
@@ -168,7 +175,7 @@ def build(args: argparse.Namespace) -> int:
             f"hidden={lay.hidden[c]})"
         )
     per_chain = ", ".join(parts)
-    utk = f" (with UTKinect people {','.join(map(str, people))})" if people else ""
+    utk = f" (with UTKinect people {','.join(map(str, recorded))})" if recorded else ""
     print(
         f"built {cfg.chains} chains: {per_chain} from {model.n_train} valid frames "
         f"(of {n_frames}){utk}, seed={cfg.seed} in {dt:.1f} s -> {out}"

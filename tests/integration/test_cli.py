@@ -421,11 +421,14 @@ def test_build_trains_on_the_default_training_set_and_evaluate_scores_the_others
     --utkinect-people picks otherwise; ``evaluate --data utkinect`` scores the others."""
     from jaxproj.errors import ConfigError
 
-    people = projector.training_people
-    assert people("bundled", None, None) == datasets.UTK_TRAIN_SUBJECTS == (3, 4, 6)
-    assert people("msr", [1, 3], None) == ()  # --subjects picks the training people
-    assert people("bundled", None, ()) == () and people("bundled", [1], (7,)) == (7,)
-    assert people("utkinect", None, None) == ()
+    people = projector.training_people  # (added, recorded in the model)
+    assert people("bundled", None, None) == (datasets.UTK_TRAIN_SUBJECTS,) * 2
+    assert datasets.UTK_TRAIN_SUBJECTS == (3, 4, 6)
+    assert people("msr", [1, 3], None) == ((), ())  # --subjects picks the training people
+    assert people("bundled", None, ()) == ((), ()) and people("bundled", [1], (7,)) == ((7,),) * 2
+    assert people("utkinect", None, None) == ((), datasets.UTK_SUBJECTS)  # all five, as data
+    assert people("bundled+utkinect", [9, 1, 3], None) == ((), (3, 9))
+    assert people("/some/folder", None, None) == ((), ())
     with pytest.raises(ConfigError, match="--data bundled / msr only"):
         people("utkinect", None, (3,))
     assert projector._parse_people("none") == () and projector._parse_people("3,4") == (3, 4)
