@@ -53,7 +53,7 @@ from jaxproj._internal.jit import full_precision
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
 from jaxproj.robots.base import Chain, Robot
-from jaxproj.robots.kinematics import Point, TreeFK
+from jaxproj.robots.kinematics import Point, TreeFK, _point
 
 _HIGHEST = jax.lax.Precision.HIGHEST
 
@@ -67,12 +67,23 @@ class BonePair:
       start, end: MJCF site (or body) names; the direction between them, in the base body's
         frame, is compared with the bone's.
       weight: the row's weight (> 0).
+      minus: a second bone, or ``None``: the human direction is then ``unit(b - m)`` of the two
+        bones' unit vectors (e.g. ``pelvis_left`` minus ``pelvis_right``: the hip line, from the
+        right hip to the left one, for two bones of equal length).
+      rest: the human direction (body frame) that corresponds to the robot's direction in its
+        standing posture, or ``None`` (they are the same). With it, every human direction is
+        turned by the rotation taking ``rest`` onto the robot's standing direction before the
+        comparison: a calibration of a constant offset between where a capture system puts a
+        joint and where the robot's points sit (e.g. the Kinect spine and foot points), measured
+        as a median over training people.
     """
 
     bone: str
-    start: str
-    end: str
+    start: Point
+    end: Point
     weight: float = 1.0
+    minus: str | None = None
+    rest: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.bone not in BONE_NAMES:
@@ -81,6 +92,17 @@ class BonePair:
             raise ConfigError(f"bone pair {self.bone!r}: weight must be > 0, got {self.weight}")
         if self.start == self.end:
             raise ConfigError(f"bone pair {self.bone!r}: start and end are the same point")
+        if self.minus is not None and (self.minus not in BONE_NAMES or self.minus == self.bone):
+            raise ConfigError(f"bone pair {self.bone!r}: minus must be another bone name")
+        if self.rest is not None:
+            r = np.asarray(self.rest, np.float64)
+            if r.shape != (3,) or not np.isfinite(r).all() or np.linalg.norm(r) < 1e-6:
+                raise ConfigError(f"bone pair {self.bone!r}: rest must be a non-zero 3-vector")
+
+    @property
+    def bones(self) -> tuple[str, ...]:
+        """The human bones the row reads."""
+        return (self.bone,) if self.minus is None else (self.bone, self.minus)
 
 
 def capsule_points(model: mujoco.MjModel, geom: str) -> tuple[Point, Point, float]:
@@ -133,7 +155,7 @@ class Correspondence:
 
     def rows(self, bones: Sequence[str]) -> tuple[BonePair, ...]:
         """The rows whose bone is one of ``bones``."""
-        return tuple(p for p in self.pairs if p.bone in bones)
+        return tuple(p for p in self.pairs if all(b in bones for b in p.bones))
 
 
 @dataclass(frozen=True)
@@ -188,6 +210,7 @@ class _ChainProblem:
     fk: TreeFK  # the chain's points
     row_points: np.ndarray  # (n_rows, 2) indices into the FK's points
     weights: np.ndarray  # (n_rows,)
+    rest_rotations: tuple[np.ndarray | None, ...]  # per row: (3, 3) human rest -> robot rest
     capsule_points: np.ndarray  # (n_caps, 2) indices into the FK's points
     radii: np.ndarray  # (n_caps,)
     collide: np.ndarray  # (n_pairs, 2) indices into the chain's capsules
@@ -238,9 +261,18 @@ class GenericIK:
                     names.append(name)
                 return names.index(name)
 
-            rows = correspondence.rows(chain.bones)
+            # the rows of the chain's bones that its joints move (a leg chain reads the waist's
+            # bones, whose directions the leg's joints do not change)
+            rows = tuple(
+                r
+                for r in correspondence.rows(chain.bones)
+                if set(chain.joints) & _row_moved_by(model, r)
+            )
             if not rows:
-                raise ConfigError(f"chain {chain.name!r}: no correspondence row for {chain.bones}")
+                raise ConfigError(
+                    f"chain {chain.name!r}: no correspondence row of {chain.bones} moves with its "
+                    f"joints {chain.joints}"
+                )
             joints = np.array([robot.index(j) for j in chain.joints], np.int32)
             driven = np.array(robot.chain_joints(chain), np.int32)
             lo, hi = robot.lower[joints], robot.upper[joints]
@@ -259,9 +291,17 @@ class GenericIK:
                     lo + rng.uniform(0.1, 0.9, len(joints)).astype(np.float32) * (hi - lo)
                 )
             row_points = np.array([[point(r.start), point(r.end)] for r in rows], np.int32)
-            capsule_points = np.array(
+            cap_points = np.array(
                 [[point(caps[n][0]), point(caps[n][1])] for n in used], np.int32
             ).reshape(len(used), 2)
+            fk = TreeFK.from_model(model, robot.joint_names, names, correspondence.base)
+            at_rest = np.asarray(fk.points(robot.standing), np.float64)
+            rest_rotations = tuple(
+                None
+                if r.rest is None
+                else _rotation_between(np.asarray(r.rest), at_rest[e] - at_rest[s])
+                for r, (s, e) in zip(rows, row_points, strict=True)
+            )
             problems.append(
                 _ChainProblem(
                     chain=chain,
@@ -270,10 +310,11 @@ class GenericIK:
                     lo=lo,
                     hi=hi,
                     rows=rows,
-                    fk=TreeFK.from_model(model, robot.joint_names, names, correspondence.base),
+                    fk=fk,
                     row_points=row_points,
                     weights=np.array([r.weight for r in rows], np.float32),
-                    capsule_points=capsule_points,
+                    rest_rotations=rest_rotations,
+                    capsule_points=cap_points,
                     radii=np.array([caps[n][2] for n in used], np.float32),
                     collide=np.array(
                         [[cap_idx[a], cap_idx[b]] for a, b in pairs], np.int32
@@ -291,31 +332,81 @@ class GenericIK:
         """``(..., n_rows, 3)`` unit human directions and ``(..., n_rows)`` weights (0: no
         usable input)."""
         vec = d.reshape(*d.shape[:-1], d.shape[-1] // 3, 3)
-        t = jnp.stack([vec[..., bones.index(r.bone), :] for r in prob.rows], axis=-2)
-        n = jnp.sqrt(jnp.sum(t * t, axis=-1))
-        ok = jnp.isfinite(n) & (n > 1e-6)
-        t = jnp.where(ok[..., None], t / jnp.where(ok, n, 1.0)[..., None], 0.0)
+
+        def unit(v: jax.Array) -> tuple[jax.Array, jax.Array]:
+            n = jnp.sqrt(jnp.sum(v * v, axis=-1))
+            ok = jnp.isfinite(n) & (n > 1e-6)
+            return jnp.where(ok[..., None], v / jnp.where(ok, n, 1.0)[..., None], 0.0), ok
+
+        ts, oks = [], []
+        for r, rot in zip(prob.rows, prob.rest_rotations, strict=True):
+            t, ok = unit(vec[..., bones.index(r.bone), :])
+            if r.minus is not None:
+                t_m, ok_m = unit(vec[..., bones.index(r.minus), :])
+                t, ok_d = unit(t - t_m)
+                ok = ok & ok_m & ok_d
+            if rot is not None:
+                c = rot.astype(np.float32)
+                t = t[..., 0:1] * c[:, 0] + t[..., 1:2] * c[:, 1] + t[..., 2:3] * c[:, 2]
+            ts.append(t)
+            oks.append(ok)
+        t, ok = jnp.stack(ts, axis=-2), jnp.stack(oks, axis=-1)
         return t, jnp.where(ok, jnp.asarray(prob.weights), 0.0)
 
     def _residual(
-        self, x: jax.Array, q_full: jax.Array, t: jax.Array, w: jax.Array, prob: _ChainProblem
-    ) -> jax.Array:
-        """The chain's residual vector at chain angles ``x`` (one pose)."""
+        self,
+        x: jax.Array,
+        q_full: jax.Array,
+        t: jax.Array,
+        w: jax.Array,
+        prob: _ChainProblem,
+        jacobian: bool = True,
+    ) -> tuple[jax.Array, jax.Array | None]:
+        """The chain's residual vector at chain angles ``x`` (one pose) and, with ``jacobian``,
+        its derivative ``(n_res, n)`` (analytic: ``TreeFK.jacobian``)."""
         q = q_full.at[prob.joints].set(x)
-        p = prob.fk.points(q)
-        seg = p[prob.row_points[:, 1]] - p[prob.row_points[:, 0]]
-        u = seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
-        parts = [(jnp.sqrt(w)[:, None] * (u - t)).reshape(-1)]
-        x0 = jnp.asarray(prob.starts[0])
-        parts.append(np.float32(math.sqrt(self.config.neutral)) * (x - x0))
+        n = len(prob.joints)
+        if jacobian:
+            p, dp = prob.fk.jacobian(q, tuple(int(j) for j in prob.joints))
+        else:
+            p, dp = prob.fk.points(q), None
+        sw = jnp.sqrt(w)
+        s_i, e_i = prob.row_points[:, 0], prob.row_points[:, 1]
+        seg = p[e_i] - p[s_i]
+        length = jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
+        u = seg / length
+        parts = [(sw[:, None] * (u - t)).reshape(-1)]
+        jacs = []
+        if dp is not None:
+            dseg = dp[e_i] - dp[s_i]  # (R, 3, n)
+            proj = jnp.eye(3, dtype=jnp.float32) - u[:, :, None] * u[:, None, :]
+            du = jnp.einsum("rij,rjk->rik", proj, dseg, precision=_HIGHEST) / length[:, :, None]
+            jacs.append((sw[:, None, None] * du).reshape(-1, n))
+        lam = np.float32(math.sqrt(self.config.neutral))
+        parts.append(lam * (x - jnp.asarray(prob.starts[0])))
+        jacs.append(lam * jnp.eye(n, dtype=jnp.float32))
         if self.config.collision > 0 and len(prob.collide):
-            a = p[prob.capsule_points[:, 0]]
-            b = p[prob.capsule_points[:, 1]]
             i, j = prob.collide[:, 0], prob.collide[:, 1]
-            gap = _segment_distance(a[i], b[i], a[j], b[j]) - prob.radii[i] - prob.radii[j]
+            ca, cb = prob.capsule_points[:, 0], prob.capsule_points[:, 1]
+            a1, b1, a2, b2 = p[ca[i]], p[cb[i]], p[ca[j]], p[cb[j]]
+            s1, s2 = _closest(a1, b1, a2, b2)
+            c1 = a1 + (b1 - a1) * s1[:, None]
+            c2 = a2 + (b2 - a2) * s2[:, None]
+            diff = c1 - c2
+            dist = jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
+            gap = dist - prob.radii[i] - prob.radii[j]
             pen = jnp.maximum(np.float32(self.config.margin) - gap, 0.0)
-            parts.append(np.float32(math.sqrt(self.config.collision)) * pen)
-        return jnp.concatenate(parts)
+            sc = np.float32(math.sqrt(self.config.collision))
+            parts.append(sc * pen)
+            if dp is not None:
+                # envelope theorem: the closest points' parameters held fixed
+                dc1 = dp[ca[i]] * (1 - s1)[:, None, None] + dp[cb[i]] * s1[:, None, None]
+                dc2 = dp[ca[j]] * (1 - s2)[:, None, None] + dp[cb[j]] * s2[:, None, None]
+                normal = diff / dist[:, None]
+                dgap = jnp.einsum("ci,cik->ck", normal, dc1 - dc2, precision=_HIGHEST)
+                jacs.append(-sc * jnp.where(pen > 0, 1.0, 0.0)[:, None] * dgap)
+        r = jnp.concatenate(parts)
+        return r, (jnp.concatenate(jacs, axis=0) if dp is not None else None)
 
     def _solve_chain(
         self, q_full: jax.Array, t: jax.Array, w: jax.Array, prob: _ChainProblem
@@ -324,16 +415,16 @@ class GenericIK:
         lo, hi = jnp.asarray(prob.lo), jnp.asarray(prob.hi)
         cfg = self.config
 
-        def res(x: jax.Array) -> jax.Array:
-            return self._residual(x, q_full, t, w, prob)
+        def res_jac(x: jax.Array) -> tuple[jax.Array, jax.Array]:
+            r, jac = self._residual(x, q_full, t, w, prob)
+            assert jac is not None
+            return r, jac
 
-        def cost(r: jax.Array) -> jax.Array:
-            return jnp.sum(r * r)
+        State = tuple[jax.Array, jax.Array, jax.Array, jax.Array, jax.Array]
 
-        def step(_: int, state: tuple[jax.Array, jax.Array, jax.Array]) -> tuple:
-            x, f, mu = state
-            r = res(x)
-            jac = jax.jacfwd(res)(x)
+        def step(_: int, state: State) -> State:
+            # one residual and Jacobian per iteration, at the trial point (kept if it is better)
+            x, r, jac, f, mu = state
             g = jnp.matmul(jac.T, r, precision=_HIGHEST)
             a = jnp.matmul(jac.T, jac, precision=_HIGHEST)
             held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
@@ -341,26 +432,28 @@ class GenericIK:
             mask = free[:, None] & free[None, :]
             diag = jnp.diagonal(a)
             a_free = jnp.where(mask, a, 0.0) + jnp.diag(jnp.where(free, mu * (diag + 1e-6), 1.0))
-            delta = jnp.linalg.solve(a_free, -jnp.where(free, g, 0.0))
+            delta = _spd_solve(a_free, -jnp.where(free, g, 0.0))
             x_new = jnp.clip(x + delta, lo, hi)
-            f_new = cost(res(x_new))
+            r_new, jac_new = res_jac(x_new)
+            f_new = jnp.sum(r_new * r_new)
             better = f_new < f
             return (
                 jnp.where(better, x_new, x),
+                jnp.where(better, r_new, r),
+                jnp.where(better, jac_new, jac),
                 jnp.where(better, f_new, f),
                 jnp.where(better, mu * 0.3, mu * 4.0),
             )
 
-        def run(x0: jax.Array) -> tuple[jax.Array, jax.Array]:
-            f0 = cost(res(x0))
-            x, f, _ = jax.lax.fori_loop(0, cfg.iterations, step, (x0, f0, jnp.float32(cfg.damping)))
-            return x, f
+        def run(x0: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+            r0, jac0 = res_jac(x0)
+            init = (x0, r0, jac0, jnp.sum(r0 * r0), jnp.float32(cfg.damping))
+            x, r, jac, f, _ = jax.lax.fori_loop(0, cfg.iterations, step, init)
+            return x, f, 2.0 * jnp.matmul(jac.T, r, precision=_HIGHEST)
 
-        xs, fs = jax.vmap(run)(jnp.asarray(prob.starts))
+        xs, fs, gs = jax.vmap(run)(jnp.asarray(prob.starts))
         k = jnp.argmin(fs)
-        x, f = xs[k], fs[k]
-        r = res(x)
-        g = 2.0 * jnp.matmul(jax.jacfwd(res)(x).T, r, precision=_HIGHEST)
+        x, f, g = xs[k], fs[k], gs[k]
         pg = jnp.max(jnp.abs(x - jnp.clip(x - g, lo, hi)))
         return x, f, pg < cfg.gtol
 
@@ -373,7 +466,7 @@ class GenericIK:
         Joints of no solved chain stay at the standing posture. Traceable.
         """
         names = resolve_bones(bones)
-        need = [r.bone for p in self.problems for r in p.rows if r.bone not in names]
+        need = [b for p in self.problems for r in p.rows for b in r.bones if b not in names]
         if need:
             raise ConfigError(f"the IK needs the bones {sorted(set(need))}; absent from {bones!r}")
         d = jnp.asarray(d, jnp.float32)
@@ -402,13 +495,47 @@ class GenericIK:
         return self.solve_info(d, bones)[0]
 
 
-def _moved_by(model: mujoco.MjModel, geom: str) -> set[str]:
-    """Names of the joints that move geom ``geom`` (its body's and its ancestors')."""
-    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
-    if gid < 0:
-        raise ConfigError(f"the MJCF has no geom named {geom!r}")
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The least rotation (3, 3) taking direction ``a`` onto direction ``b`` (Rodrigues)."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    v, c = np.cross(a, b), float(a @ b)
+    if c < -1 + 1e-9:  # opposite: a half turn about any axis normal to a
+        axis = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + k + k @ k / (1.0 + c)
+
+
+def _spd_solve(a: jax.Array, b: jax.Array) -> jax.Array:
+    """``a^-1 b`` for one small symmetric positive definite ``(n, n)`` matrix: an unrolled
+    Cholesky factorisation and two triangular solves (elementwise code: no LAPACK call per
+    pose, which costs more than the arithmetic at these sizes)."""
+    n = a.shape[-1]
+    low = [[jnp.zeros((), a.dtype)] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = a[i, j] - sum((low[i][k] * low[j][k] for k in range(j)), jnp.zeros((), a.dtype))
+            if i == j:
+                low[i][i] = jnp.sqrt(jnp.maximum(acc, 1e-30))
+            else:
+                low[i][j] = acc / low[j][j]
+    y: list[jax.Array] = []
+    for i in range(n):
+        y.append(
+            (b[i] - sum((low[i][k] * y[k] for k in range(i)), jnp.zeros((), a.dtype))) / low[i][i]
+        )
+    x: list[jax.Array] = [jnp.zeros((), a.dtype)] * n
+    for i in reversed(range(n)):
+        rest = sum((low[k][i] * x[k] for k in range(i + 1, n)), jnp.zeros((), a.dtype))
+        x[i] = (y[i] - rest) / low[i][i]
+    return jnp.stack(x)
+
+
+def _body_joints(model: mujoco.MjModel, bid: int) -> set[str]:
+    """Names of the joints that move body ``bid`` (its own and its ancestors')."""
     names: set[str] = set()
-    bid = int(model.geom_bodyid[gid])
     while bid > 0:
         for j in range(model.body_jntadr[bid], model.body_jntadr[bid] + model.body_jntnum[bid]):
             names.add(str(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)))
@@ -416,9 +543,27 @@ def _moved_by(model: mujoco.MjModel, geom: str) -> set[str]:
     return names
 
 
-def _segment_distance(p1: jax.Array, q1: jax.Array, p2: jax.Array, q2: jax.Array) -> jax.Array:
-    """Distance between segments ``p1q1`` and ``p2q2`` (``(..., 3)`` each; a point when its ends
-    coincide): the clamped closest points (Ericson, *Real-Time Collision Detection*, 5.1.9)."""
+def _moved_by(model: mujoco.MjModel, geom: str) -> set[str]:
+    """Names of the joints that move geom ``geom``."""
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    if gid < 0:
+        raise ConfigError(f"the MJCF has no geom named {geom!r}")
+    return _body_joints(model, int(model.geom_bodyid[gid]))
+
+
+def _row_moved_by(model: mujoco.MjModel, row: BonePair) -> set[str]:
+    """Names of the joints that move either end of ``row``."""
+    return _body_joints(model, _point(model, row.start)[0]) | _body_joints(
+        model, _point(model, row.end)[0]
+    )
+
+
+def _closest(
+    p1: jax.Array, q1: jax.Array, p2: jax.Array, q2: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Parameters ``(s, t)`` in [0, 1] of the closest points ``p1 + s (q1 - p1)`` and ``p2 + t
+    (q2 - p2)`` of two segments (``(..., 3)`` each; a point when its ends coincide): Ericson,
+    *Real-Time Collision Detection*, 5.1.9."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a = jnp.sum(d1 * d1, -1)
     e = jnp.sum(d2 * d2, -1)
@@ -437,6 +582,11 @@ def _segment_distance(p1: jax.Array, q1: jax.Array, p2: jax.Array, q2: jax.Array
     s = jnp.where(
         (t != t_c) & (a > eps), jnp.clip((b * t_c - c) / jnp.where(a > eps, a, 1.0), 0.0, 1.0), s
     )
-    t = t_c
-    diff = (p1 + d1 * s[..., None]) - (p2 + d2 * t[..., None])
-    return jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
+    return s, t_c
+
+
+def segment_distance(p1: jax.Array, q1: jax.Array, p2: jax.Array, q2: jax.Array) -> jax.Array:
+    """Distance between segments ``p1q1`` and ``p2q2`` (``(..., 3)`` each)."""
+    s, t = _closest(p1, q1, p2, q2)
+    diff = (p1 + (q1 - p1) * s[..., None]) - (p2 + (q2 - p2) * t[..., None])
+    return jnp.sqrt(jnp.sum(diff * diff, -1))

@@ -162,10 +162,11 @@ class TreeFK:
         """Number of points ``points`` returns."""
         return len(self.point_names)
 
-    def points(self, q: jax.typing.ArrayLike) -> jax.Array:
-        """``(..., n_joints)`` configurations -> ``(..., n_points, 3)`` float32 positions, m, in
-        the ``base`` body's frame. Traceable; matrix products at full float32 precision."""
-        q = jnp.asarray(q, jnp.float32)
+    def _forward(
+        self, q: jax.Array
+    ) -> tuple[list[jax.Array], list[jax.Array], dict[int, tuple[int, jax.Array, jax.Array]]]:
+        """World rotations and origins of ``bodies``, and per joint (``q`` index) its body slot,
+        world axis and world anchor."""
         if q.shape[-1] != len(self.joint_names):
             raise ConfigError(
                 f"configurations must be (..., {len(self.joint_names)}), got {q.shape}"
@@ -175,26 +176,82 @@ class TreeFK:
         zero = jnp.zeros((*batch, 3), jnp.float32)
         rots: list[jax.Array] = []
         poss: list[jax.Array] = []
-        for body in self.bodies:
+        axes: dict[int, tuple[int, jax.Array, jax.Array]] = {}
+        for slot, body in enumerate(self.bodies):
             r_p, p_p = (eye, zero) if body.parent < 0 else (rots[body.parent], poss[body.parent])
             pos = p_p + _apply(r_p, body.pos)
             rot = _matmul(r_p, jnp.asarray(body.rot, jnp.float32))
             for qi, axis, anchor, qpos0 in body.joints:
                 world_anchor = pos + _apply(rot, anchor)
+                axes[qi] = (slot, _apply(rot, axis / np.linalg.norm(axis)), world_anchor)
                 rot = _matmul(rot, _axis_rotation(axis, q[..., qi] - np.float32(qpos0)))
                 pos = world_anchor - _apply(rot, anchor)
             rots.append(rot)
             poss.append(pos)
-        pts = jnp.stack(
+        return rots, poss, axes
+
+    def _world_points(self, rots: list[jax.Array], poss: list[jax.Array]) -> jax.Array:
+        return jnp.stack(
             [
                 poss[b] + _apply(rots[b], off)
                 for b, off in zip(self.point_body, self.point_offset, strict=True)
             ],
             axis=-2,
         )
+
+    def points(self, q: jax.typing.ArrayLike) -> jax.Array:
+        """``(..., n_joints)`` configurations -> ``(..., n_points, 3)`` float32 positions, m, in
+        the ``base`` body's frame. Traceable; matrix products at full float32 precision."""
+        q = jnp.asarray(q, jnp.float32)
+        rots, poss, _ = self._forward(q)
+        pts = self._world_points(rots, poss)
         r_b, p_b = rots[self.base_body], poss[self.base_body]
         # world -> base frame: R_b^T (p - p_b)
         return jnp.einsum("...ji,...pj->...pi", r_b, pts - p_b[..., None, :], precision=_HIGHEST)
+
+    def jacobian(
+        self, q: jax.typing.ArrayLike, columns: Sequence[int]
+    ) -> tuple[jax.Array, jax.Array]:
+        """Points and their derivatives by the joints ``columns`` (positions in ``q``).
+
+        The geometric Jacobian: a hinge with world axis ``w`` through ``a`` moves a point ``p``
+        by ``w x (p - a)`` per radian; seen from the base body, by ``s (w x (p - a))`` turned
+        into the base frame, with ``s = [joint moves p] - [joint moves the base]``.
+
+        Returns:
+          ``((..., n_points, 3) points, (..., n_points, 3, len(columns)) derivatives)`` in the
+          base frame (a joint not on the way to any point, or not a hinge here: zeros).
+        """
+        q = jnp.asarray(q, jnp.float32)
+        rots, poss, axes = self._forward(q)
+        pts = self._world_points(rots, poss)
+        r_b, p_b = rots[self.base_body], poss[self.base_body]
+        rel = pts - p_b[..., None, :]
+        local = jnp.einsum("...ji,...pj->...pi", r_b, rel, precision=_HIGHEST)
+        cols = []
+        for qi in columns:
+            if qi not in axes:
+                cols.append(jnp.zeros_like(local))
+                continue
+            slot, w, a = axes[qi]
+            sign = self._moves(slot, self.point_body) - float(
+                self._moves(slot, (self.base_body,))[0]
+            )
+            v = jnp.cross(jnp.broadcast_to(w[..., None, :], pts.shape), pts - a[..., None, :])
+            v = v * sign[:, None]
+            cols.append(jnp.einsum("...ji,...pj->...pi", r_b, v, precision=_HIGHEST))
+        return local, jnp.stack(cols, axis=-1)
+
+    def _moves(self, slot: int, bodies: Sequence[int]) -> np.ndarray:
+        """``(len(bodies),)`` float32: 1 where body ``slot`` is ``b`` or one of its ancestors."""
+        out = np.zeros(len(bodies), np.float32)
+        for i, b in enumerate(bodies):
+            while b >= 0:
+                if b == slot:
+                    out[i] = 1.0
+                    break
+                b = self.bodies[b].parent
+        return out
 
 
 def _apply(rot: jax.Array, v: np.ndarray) -> jax.Array:

@@ -23,7 +23,8 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-from jaxproj.errors import ConfigError, InputError
+from jaxproj.errors import ConfigError
+from jaxproj.robots import mjcf as _mjcf
 from jaxproj.robots.base import RATED_FRACTION, CoupledLimit, mj_joint_ids
 from jaxproj.robots.base import joint_qpos_index as _qpos_index
 
@@ -209,7 +210,6 @@ FOOT_HEIGHT = 0.04519
 
 # --- MJCF model ---
 
-_MOUNTS = ("free", "fixed")
 _FREE_JOINT = "root"
 _TORSO_BODY = "torso"
 
@@ -243,28 +243,7 @@ def load_model(
         or naming a body the model does not have (or the torso).
       InputError: the MJCF is missing or MuJoCo cannot compile it.
     """
-    if mount not in _MOUNTS:
-        raise ConfigError(f"mount must be one of {_MOUNTS}, got {mount!r}")
-    without = tuple(without)
-    if without and mount != "fixed":
-        raise ConfigError(f"without= needs the fixed mount, got {mount!r}")
-    path = mjcf_path()
-    if not path.is_file():
-        raise InputError(path, "bundled MJCF model is missing")
-    try:
-        if mount == "free":
-            return mujoco.MjModel.from_xml_path(str(path))
-        spec = mujoco.MjSpec.from_file(str(path))
-        root = spec.joint(_FREE_JOINT)
-        if root is None:
-            raise InputError(path, f"no free joint named {_FREE_JOINT!r} to remove")
-        spec.delete(root)
-        _remove_subtrees(spec, without)
-        return spec.compile()
-    except ValueError as err:  # mujoco reports XML / compile errors as ValueError
-        if isinstance(err, (InputError, ConfigError)):
-            raise
-        raise InputError(path, f"MuJoCo cannot compile the model ({mount} mount): {err}") from err
+    return _mjcf.load(mjcf_path(), mount, without, free_joint=_FREE_JOINT, root_body=_TORSO_BODY)
 
 
 LEG_ROOTS: tuple[str, str] = ("LPelvis", "RPelvis")
@@ -272,34 +251,6 @@ LEG_ROOTS: tuple[str, str] = ("LPelvis", "RPelvis")
 
 UPPER_ROOTS: tuple[str, str, str] = ("Neck", "LShoulder", "RShoulder")
 """Bodies at the root of the head and the two arms (``without=UPPER_ROOTS``: the legs)."""
-
-
-def _remove_subtrees(spec: mujoco.MjSpec, roots: Sequence[str]) -> None:
-    """Delete the bodies ``roots`` with their subtrees and whatever refers to them, in place."""
-    bodies: set[str] = set()
-    joints: set[str] = set()
-    for name in roots:
-        body = spec.body(name)
-        if body is None or name == _TORSO_BODY:
-            raise ConfigError(f"without= names {name!r}, which is not a removable body of the "
-                              "model")  # fmt: skip
-        stack = [body]
-        while stack:
-            b = stack.pop()
-            bodies.add(b.name)
-            joints.update(j.name for j in b.joints)
-            stack.extend(b.bodies)
-    for act in list(spec.actuators):
-        if act.target in joints:
-            spec.delete(act)
-    for eq in list(spec.equalities):
-        if eq.name1 in joints or eq.name2 in joints or eq.name1 in bodies or eq.name2 in bodies:
-            spec.delete(eq)
-    for ex in list(spec.excludes):
-        if ex.bodyname1 in bodies or ex.bodyname2 in bodies:
-            spec.delete(ex)
-    for name in roots:
-        spec.delete(spec.body(name))
 
 
 def _joint_ids(model: mujoco.MjModel) -> np.ndarray:

@@ -1,0 +1,202 @@
+"""The Unitree G1 as a ``Robot``: its correspondence table and chains, solved by the generic IK.
+
+``jaxproj.robots.get("unitree_g1")`` is ``UNITREE_G1`` here. Adding a robot is an MJCF plus one
+module like this one: the ``Robot`` (joints, limits, speeds: ``robot.py``), a ``Correspondence``
+(which human bone each robot direction follows) and the chains (bones read, joints driven).
+
+The table (``CORRESPONDENCE``; directions compared in ``torso_link``'s frame, the counterpart of
+the human body frame, x forward, y left, z up):
+
+=================  ===========================================  ======  =========
+human bone         robot direction (MJCF sites / bodies)        weight  chain
+=================  ===========================================  ======  =========
+hip line (*)       right_hip_pitch_link -> left_hip_pitch_link   1       waist
+spine_lower (**)   pelvis -> torso_link (the waist pivot)        1       waist
+upper_arm_<side>   <side>_shoulder_site -> <side>_elbow_site     1       <side>_arm
+forearm_<side>     <side>_elbow_site -> <side>_wrist_site        1       <side>_arm
+thigh_<side>       <side>_hip_site -> <side>_knee_site           1       <side>_leg
+shin_<side>        <side>_knee_site -> <side>_ankle_site         1       <side>_leg
+foot_<side> (**)   <side>_ankle_site -> <side>_toe_site          0.5     <side>_leg
+=================  ===========================================  ======  =========
+
+(*) ``pelvis_left`` minus ``pelvis_right`` (``BonePair.minus``): the line from the right hip to
+the left one; it sets the waist's yaw and roll without the Kinect hip points' forward and
+upward offset from the hip centre (which the two bones share, and which would pitch the waist).
+(**) calibrated (``BonePair.rest``): ``SPINE_REST``, ``FOOT_REST``.
+
+Chains are solved in the order waist, arms, legs: the legs hang from the pelvis, which the waist
+turns against the torso, so the leg chains read the waist's bones too. The feet weigh half: the
+Kinect foot point is the noisiest joint of the skeleton. Not driven: the ankle rolls (no
+Kinect v1 bone fixes them) and the wrists (the Kinect hand point, a few cm from the wrist, is
+too noisy to set the wrist's pitch and yaw; not measured yet), held at zero.
+
+Self-collision (``COLLISION_PAIRS``): the IK keeps the hands, wrists and forearms 1 cm
+(``IK_CONFIG.margin``) away from the torso, head, pelvis, hips and thighs and from the other
+arm, and the two legs apart, with the capsules and spheres of ``unitree_g1.xml``.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import numpy as np
+from jax.typing import ArrayLike
+
+from jaxproj._internal.buckets import call_bucketed
+from jaxproj._internal.jit import jit
+from jaxproj.errors import ConfigError
+from jaxproj.robots.base import Chain, Mjcf, Robot
+from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
+from jaxproj.robots.unitree_g1 import robot
+
+_WAIST_BONES = ("pelvis_left", "pelvis_right", "spine_lower")
+
+
+def _side_pairs(s: str) -> tuple[BonePair, ...]:
+    return (
+        BonePair(f"upper_arm_{s}", f"{s}_shoulder_site", f"{s}_elbow_site"),
+        BonePair(f"forearm_{s}", f"{s}_elbow_site", f"{s}_wrist_site"),
+        BonePair(f"thigh_{s}", f"{s}_hip_site", f"{s}_knee_site"),
+        BonePair(f"shin_{s}", f"{s}_knee_site", f"{s}_ankle_site"),
+        BonePair(f"foot_{s}", f"{s}_ankle_site", f"{s}_toe_site", weight=0.5, rest=FOOT_REST[s]),
+    )
+
+
+SPINE_REST = (-0.468, 0.010, 0.884)
+"""The Kinect spine_lower (HipCenter -> Spine) direction that the G1's pelvis -> waist pivot
+direction takes in the standing posture: the normalised median over the 11,280 valid frames of
+the bundled MSR Action3D training subjects (1, 3, 5, 7, 9); the Kinect spine point sits 28 deg
+behind the hip -> shoulder axis."""
+
+FOOT_REST = {"left": (0.965, 0.020, 0.260), "right": (0.968, -0.029, 0.250)}
+"""The Kinect foot (ankle -> foot point) directions matched to the G1's ankle -> toe direction
+standing: the same medians (the Kinect foot point sits 15 deg above the ankle's horizontal)."""
+
+
+_ARM_GEOMS = ("forearm", "wrist", "hand")
+_BODY_GEOMS = ("torso_geom", "head_geom", "pelvis_geom", "left_hip_geom", "right_hip_geom",
+               "left_thigh_geom", "right_thigh_geom")  # fmt: skip
+
+COLLISION_PAIRS: tuple[tuple[str, str], ...] = (
+    *((f"{s}_{a}_geom", b) for s in ("left", "right") for a in _ARM_GEOMS for b in _BODY_GEOMS),
+    *((f"left_{a}_geom", f"right_{b}_geom") for a in _ARM_GEOMS for b in _ARM_GEOMS),
+    ("left_thigh_geom", "right_thigh_geom"),
+    ("left_shin_geom", "right_shin_geom"),
+    ("left_shin_lower_geom", "right_shin_lower_geom"),
+    ("left_thigh_geom", "right_shin_geom"),
+    ("right_thigh_geom", "left_shin_geom"),
+)
+"""Geom pairs the IK keeps apart (see the module doc)."""
+
+CORRESPONDENCE = Correspondence(
+    base="torso_link",
+    pairs=(
+        BonePair(
+            "pelvis_left", "right_hip_pitch_link", "left_hip_pitch_link", minus="pelvis_right"
+        ),
+        BonePair("spine_lower", "pelvis", "torso_link", rest=SPINE_REST),
+        *_side_pairs("left"),
+        *_side_pairs("right"),
+    ),
+    collision_pairs=COLLISION_PAIRS,
+    source="the project's choice (jaxproj.robots.unitree_g1.spec module doc)",
+)
+"""The G1's correspondence with the human skeleton (the table of the module doc)."""
+
+IK_CONFIG = IKConfig(iterations=24, starts=4, neutral=1e-4, collision=1e4, margin=0.01)
+"""The G1's generic IK settings: the pull toward the standing posture decides the shoulder yaw
+of a straight arm and the hip yaw of a straight leg; the collision term weighs a 1 cm
+penetration like a 0.1 rad direction error."""
+
+
+def _joints(*names: str) -> tuple[str, ...]:
+    return tuple(f"{n}_joint" for n in names)
+
+
+def _leg(s: str) -> Chain:
+    return Chain(
+        f"{s}_leg",
+        (f"thigh_{s}", f"shin_{s}", f"foot_{s}", *_WAIST_BONES),
+        _joints(*(f"{s}_{j}" for j in ("hip_pitch", "hip_roll", "hip_yaw", "knee", "ankle_pitch"))),
+    )
+
+
+def _arm(s: str) -> Chain:
+    return Chain(
+        f"{s}_arm",
+        (f"upper_arm_{s}", f"forearm_{s}"),
+        _joints(
+            *(f"{s}_{j}" for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow"))
+        ),
+    )
+
+
+CHAINS: tuple[Chain, ...] = (
+    Chain("waist", _WAIST_BONES, _joints("waist_yaw", "waist_roll", "waist_pitch")),
+    _arm("left"),
+    _arm("right"),
+    _leg("left"),
+    _leg("right"),
+)
+"""The chains, in the order the IK solves them."""
+
+
+@functools.cache
+def generic_ik(collision: bool = True) -> GenericIK:
+    """The G1's generic IK (built once: it reads the MJCF), with or without the collision term."""
+    cfg = IK_CONFIG if collision else IKConfig(**{**IK_CONFIG.__dict__, "collision": 0.0})
+    return GenericIK.build(UNITREE_G1, CORRESPONDENCE, cfg)
+
+
+def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "full") -> jax.Array:
+    """The generic IK inside a trace: ``(..., 3 * n_bones)`` -> ``(..., 21)`` angles, rad."""
+    return generic_ik().solve(d, bones)
+
+
+@functools.cache
+def _jitted(bones: str | tuple[str, ...]) -> jax.stages.Wrapped:
+    return jit(lambda d: generic_ik().solve(d, bones))
+
+
+def solve_driven(d: ArrayLike, bones: str | tuple[str, ...] = "full") -> jax.Array:
+    """The G1's IK: ``(..., 3 * n_bones)`` descriptors (``bones`` layout, which must hold every
+    bone of the chains) -> ``(..., 21)`` float32 driven angles, rad, within limits, finite.
+
+    Compiled once per shape; host arrays are padded to a bucket of rows (one compile each)."""
+    fn = _jitted(bones)
+    if isinstance(d, jax.Array):
+        return fn(d)
+    x = np.asarray(d, np.float32)
+    if x.ndim == 0:
+        raise ConfigError(f"descriptors must be (..., 3 * n_bones), got a scalar {x!r}")
+    return call_bucketed(fn, x, 1)
+
+
+MJCF = Mjcf(
+    path=robot.mjcf_path(),
+    load=robot.load_model,
+    free_joint=robot.FREE_JOINT,
+    arm_sites={
+        "left": ("left_shoulder_site", "left_elbow_site", "left_wrist_site"),
+        "right": ("right_shoulder_site", "right_elbow_site", "right_wrist_site"),
+    },
+    fk_without=robot.LEG_ROOTS,
+    hand_sites=("left_hand_site", "right_hand_site"),
+)
+
+UNITREE_G1 = Robot(
+    name="unitree_g1",
+    title=robot.NAME,
+    joint_names=robot.JOINT_NAMES,
+    lower=robot.LOWER,
+    upper=robot.UPPER,
+    standing=robot.STANDING_POSTURE,
+    driven_joints=robot.DRIVEN_JOINTS,
+    chains=CHAINS,
+    ik=solve_driven,
+    velocity_limits=robot.VELOCITY_LIMITS,
+    mjcf=MJCF,
+    traced_ik=traced_ik,
+)
+"""The Unitree G1 (29 joints, 21 driven: waist, legs to the ankle pitch, arms to the elbow)."""
