@@ -1,7 +1,9 @@
 """Robots as data: the ``Robot`` spec and the registry of robots.
 
 A robot is one module that builds a ``Robot`` (``jaxproj.robots.base``) and one ``register``
-line below. Everything above ``robots/`` takes a ``robot: Robot`` (default ``NAO_H25``).
+line below. Registered: ``nao_h25`` (the NAO H25 V5, the default; closed-form IK) and
+``unitree_g1`` (the Unitree G1, 29 DoF; the generic IK, ``jaxproj.robots.generic_ik``).
+Everything above ``robots/`` takes a ``robot: Robot`` (default ``NAO_H25``).
 
 ``register(robot)`` adds a robot under ``robot.name``; ``get(name)`` returns it; ``names()``
 lists them; ``DEFAULT`` is the name of the default robot (``"nao_h25"``).
@@ -12,9 +14,10 @@ from __future__ import annotations
 from jaxproj.errors import ConfigError
 from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_coupled
 from jaxproj.robots.nao_h25.spec import NAO_H25
+from jaxproj.robots.unitree_g1.spec import UNITREE_G1
 
-__all__ = ["DEFAULT", "NAO_H25", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot", "clip_coupled",
-           "get", "names", "register", "unregister"]  # fmt: skip
+__all__ = ["DEFAULT", "NAO_H25", "UNITREE_G1", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot",
+           "clip_coupled", "get", "names", "register", "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""
@@ -66,3 +69,4 @@ def names() -> tuple[str, ...]:
 
 
 register(NAO_H25)
+register(UNITREE_G1)

@@ -379,7 +379,7 @@ class GenericIK:
         jacs = []
         if dp is not None:
             dseg = dp[e_i] - dp[s_i]  # (R, 3, n)
-            proj = jnp.eye(3, dtype=jnp.float32) - u[:, :, None] * u[:, None, :]
+            proj = jnp.eye(3, dtype=jnp.float32)[None] - u[:, :, None] * u[:, None, :]
             du = jnp.einsum("rij,rjk->rik", proj, dseg, precision=_HIGHEST) / length[:, :, None]
             jacs.append((sw[:, None, None] * du).reshape(-1, n))
         lam = np.float32(math.sqrt(self.config.neutral))

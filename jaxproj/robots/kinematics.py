@@ -238,7 +238,7 @@ class TreeFK:
                 self._moves(slot, (self.base_body,))[0]
             )
             v = jnp.cross(jnp.broadcast_to(w[..., None, :], pts.shape), pts - a[..., None, :])
-            v = v * sign[:, None]
+            v = v * sign.reshape((1,) * (v.ndim - 2) + (-1, 1))
             cols.append(jnp.einsum("...ji,...pj->...pi", r_b, v, precision=_HIGHEST))
         return local, jnp.stack(cols, axis=-1)
 
@@ -272,7 +272,9 @@ def _axis_rotation(axis: np.ndarray, angle: jax.Array) -> jax.Array:
     kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]], np.float32)
     kk = (kx @ kx).astype(np.float32)
     s, c = jnp.sin(angle)[..., None, None], jnp.cos(angle)[..., None, None]
-    return jnp.eye(3, dtype=jnp.float32) + s * kx + (1.0 - c) * kk
+    shape = (*jnp.shape(angle), 3, 3)
+    eye, kx_b, kk_b = (jnp.broadcast_to(m, shape) for m in (np.eye(3, dtype=np.float32), kx, kk))
+    return eye + s * kx_b + (1.0 - c) * kk_b
 
 
 def points_named(fk: TreeFK, q: jax.typing.ArrayLike) -> Mapping[Point, jax.Array]:

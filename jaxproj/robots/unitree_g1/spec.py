@@ -32,7 +32,8 @@ too noisy to set the wrist's pitch and yaw; not measured yet), held at zero.
 
 Self-collision (``COLLISION_PAIRS``): the IK keeps the hands, wrists and forearms 1 cm
 (``IK_CONFIG.margin``) away from the torso, head, pelvis, hips and thighs and from the other
-arm, and the two legs apart, with the capsules and spheres of ``unitree_g1.xml``.
+arm, and the two legs (thighs, shins, the soles' capsules) apart, with the capsules and spheres
+of ``unitree_g1.xml``.
 """
 
 from __future__ import annotations
@@ -75,6 +76,7 @@ standing: the same medians (the Kinect foot point sits 15 deg above the ankle's 
 
 
 _ARM_GEOMS = ("forearm", "wrist", "hand")
+_SOLE = ("inner", "outer")
 _BODY_GEOMS = ("torso_geom", "head_geom", "pelvis_geom", "left_hip_geom", "right_hip_geom",
                "left_thigh_geom", "right_thigh_geom")  # fmt: skip
 
@@ -86,6 +88,10 @@ COLLISION_PAIRS: tuple[tuple[str, str], ...] = (
     ("left_shin_lower_geom", "right_shin_lower_geom"),
     ("left_thigh_geom", "right_shin_geom"),
     ("right_thigh_geom", "left_shin_geom"),
+    # the feet: their sole capsules stand in for the sole boxes (the term takes capsules)
+    *((f"left_foot_{a}_geom", f"right_foot_{b}_geom") for a in _SOLE for b in _SOLE),
+    *((f"left_foot_{a}_geom", "right_shin_lower_geom") for a in _SOLE),
+    *(("left_shin_lower_geom", f"right_foot_{a}_geom") for a in _SOLE),
 )
 """Geom pairs the IK keeps apart (see the module doc)."""
 

@@ -1,0 +1,196 @@
+"""The generic IK (jaxproj.robots.generic_ik) and its forward kinematics (robots.kinematics).
+
+Its correctness test: on held-out MSR frames it agrees with the NAO's closed form wherever the
+closed form solves the same problem (its rules for straight elbows and its joint-by-joint
+clamping excepted, counted). Compiles: the NAO arms once (module fixture, one shape), the G1's
+left arm twice (with and without the collision term).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import UPPER_BODY
+from jaxproj.io import datasets
+from jaxproj.robots import NAO_H25, UNITREE_G1
+from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
+from jaxproj.robots.kinematics import TreeFK
+from jaxproj.robots.unitree_g1 import spec as g1
+
+NAO_ARMS = Correspondence(
+    "torso",
+    (
+        BonePair("upper_arm_left", "l_shoulder", "l_elbow"),
+        BonePair("forearm_left", "l_elbow", "l_wrist"),
+        BonePair("upper_arm_right", "r_shoulder", "r_elbow"),
+        BonePair("forearm_right", "r_elbow", "r_wrist"),
+    ),
+)
+"""The NAO's arms as data: the shoulder -> elbow segment and the forearm, as the closed form."""
+
+N_FRAMES = 512
+
+
+def _mj_points(model: mujoco.MjModel, joints, q: np.ndarray, names, base: str) -> np.ndarray:
+    """Positions of sites / bodies ``names`` in ``base``'s frame by ``mujoco.mj_kinematics``."""
+    data = mujoco.MjData(model)
+    adr = [
+        model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in joints
+    ]
+    out = np.empty((len(q), len(names), 3))
+    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base)
+    for k, row in enumerate(q):
+        data.qpos[:] = model.qpos0
+        data.qpos[adr] = row
+        mujoco.mj_kinematics(model, data)
+        rot, org = data.xmat[b].reshape(3, 3), data.xpos[b]
+        for i, name in enumerate(names):
+            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+            x = data.site_xpos[sid] if sid >= 0 else data.xpos[
+                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)]  # fmt: skip
+            out[k, i] = rot.T @ (x - org)
+    return out
+
+
+@pytest.mark.parametrize(
+    ("robot", "points", "base"),
+    [
+        (NAO_H25, ("l_shoulder", "l_elbow", "l_wrist", "r_hand", "l_sole", "neck"), "torso"),
+        (UNITREE_G1, ("left_elbow_site", "right_hand_site", "left_toe_site", "pelvis"),
+         "torso_link"),
+    ],
+)  # fmt: skip
+def test_tree_fk_matches_mujoco(robot, points, base) -> None:
+    model = robot.load_model("fixed")
+    fk = TreeFK.from_model(model, robot.joint_names, points, base)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(robot.lower, robot.upper, (40, robot.n_joints)).astype(np.float32)
+    want = _mj_points(model, robot.joint_names, q, points, base)
+    assert np.abs(np.asarray(fk.points(q)) - want).max() < 2e-6  # m, float32 chains of ~1 m
+    # the analytic Jacobian against forward-mode differentiation, joints moving the base too
+    cols = tuple(range(robot.n_joints))
+    p, jac = fk.jacobian(q[:8], cols)
+    ref = jax.vmap(jax.jacfwd(fk.points))(jnp.asarray(q[:8]))
+    assert np.abs(np.asarray(jac) - np.asarray(ref)).max() < 1e-5
+    assert np.array_equal(np.asarray(p), np.asarray(fk.points(q[:8])))
+
+
+@pytest.fixture(scope="module")
+def nao_case():
+    """Held-out MSR descriptors, the closed form's answers and the generic IK's (one compile)."""
+    seqs = datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS)
+    d = np.asarray(datasets.valid_descriptors(seqs))
+    d = d[np.linspace(0, len(d) - 1, N_FRAMES).astype(int)]
+    ik = GenericIK.build(NAO_H25, NAO_ARMS, chains=NAO_H25.chains[1:])
+    solve = jax.jit(lambda x: ik.solve_info(x, "upper"))
+    q, info = solve(d)
+    return d, np.asarray(NAO_H25.solve_ik(d)), np.asarray(q), info, ik, solve
+
+
+def test_generic_ik_agrees_with_the_nao_closed_form(nao_case) -> None:
+    d, ref, q, info, _, _ = nao_case
+    arms = [NAO_H25.driven_joints.index(j) for c in NAO_H25.chains[1:] for j in c.joints]
+    err = np.degrees(np.abs(q[:, arms] - ref[:, arms]))
+    assert np.median(err) <= 0.01  # deg, over frames and arm joints
+    # where the closed form solves the same problem (elbow bent >= 30 deg: outside its
+    # straight-elbow rule; no joint at a limit: no joint-by-joint clamping), they agree
+    vec = d.reshape(len(d), len(UPPER_BODY), 3)
+    for side, (u_i, f_i) in (("left", (1, 2)), ("right", (3, 4))):
+        u, f = (vec[:, i] / np.linalg.norm(vec[:, i], axis=1, keepdims=True) for i in (u_i, f_i))
+        flex = np.degrees(np.arccos(np.clip(np.sum(u * f, axis=1), -1, 1)))
+        js = [NAO_H25.driven_joints.index(j) for j in NAO_H25.chain(f"{side}_arm").joints]
+        lo, hi = NAO_H25.lower_driven[js], NAO_H25.upper_driven[js]
+        at_limit = ((ref[:, js] - lo < 1e-5) | (hi - ref[:, js] < 1e-5)).any(axis=1)
+        same = (flex >= 30) & ~at_limit
+        assert same.sum() > 50, (side, same.sum())
+        assert np.degrees(np.abs(q[same][:, js] - ref[same][:, js])).max() < 0.01, side
+    assert np.isfinite(q).all()
+    lo, hi = NAO_H25.lower_driven, NAO_H25.upper_driven
+    assert ((q >= lo) & (q <= hi)).all()
+    # untouched chain (the head) stays standing; diagnostics per chain
+    head = [NAO_H25.driven_joints.index(j) for j in NAO_H25.chain("head").joints]
+    assert np.array_equal(q[:, head], np.broadcast_to(NAO_H25.standing_driven[head], (len(q), 2)))
+    assert info.objective.shape == (len(d), 2) and info.stationary.shape == (len(d), 2)
+    assert np.asarray(info.stationary).mean() > 0.85
+
+
+def test_generic_ik_deterministic_and_the_same_in_a_users_jit(nao_case) -> None:
+    d, _, q, _, ik, solve = nao_case
+    again, _ = solve(d)
+    assert np.array_equal(np.asarray(again), q)
+    # a user's own jit around the traceable solve, under the lowest default matmul precision
+    with jax.default_matmul_precision("bfloat16"):
+        mine = jax.jit(lambda x: ik.solve(x, "upper") * 1.0)(d)
+    assert np.array_equal(np.asarray(mine), q)
+
+
+def test_generic_ik_never_nan(nao_case) -> None:
+    d, _, _, _, _, solve = nao_case
+    bad = d.copy()
+    bad[:5, 3:6] = 0.0  # zero-length left upper arm
+    bad[5:10, 6:9] = np.nan  # non-finite left forearm
+    bad[10:15] = np.inf
+    q, _ = solve(bad)
+    q = np.asarray(q)
+    assert np.isfinite(q).all()
+    assert ((q >= NAO_H25.lower_driven) & (q <= NAO_H25.upper_driven)).all()
+    # a bone without usable input gets no weight: with both arm bones gone the arm stands
+    left = [NAO_H25.driven_joints.index(j) for j in NAO_H25.chain("left_arm").joints]
+    np.testing.assert_allclose(q[10:15][:, left], np.broadcast_to(
+        NAO_H25.standing_driven[left], (5, 4)), atol=1e-6)  # fmt: skip
+
+
+def test_collision_term_keeps_the_g1_forearm_out_of_its_torso() -> None:
+    """Forearms across the chest: without the term the forearm passes through the torso."""
+    bones = ("upper_arm_left", "forearm_left")
+    d = np.array([[0, 0, -1, 0, -1, 0], [0, 0, -1, 0.2, -1, 0.1], [0.3, 0.1, -0.9, 0.1, -1, 0.3]],
+                 np.float32)  # fmt: skip
+    model = UNITREE_G1.load_model("fixed")
+    data = mujoco.MjData(model)
+    gaps = {}
+    for weight in (0.0, g1.IK_CONFIG.collision):
+        cfg = IKConfig(collision=weight, starts=2, margin=g1.IK_CONFIG.margin)
+        ik = GenericIK.build(
+            UNITREE_G1, g1.CORRESPONDENCE, cfg, chains=(UNITREE_G1.chain("left_arm"),)
+        )
+        q = np.asarray(jax.jit(lambda x, ik=ik: ik.solve(x, bones))(d))
+        worst = np.inf
+        for row in q:
+            data.qpos[:] = UNITREE_G1.driven_to_full(row)
+            mujoco.mj_forward(model, data)
+            dist = [c.dist for c in data.contact[: data.ncon]]
+            worst = min([worst, *dist])
+        gaps[weight] = worst
+    assert gaps[0.0] < -0.03  # m: the forearm inside the torso
+    assert gaps[g1.IK_CONFIG.collision] == np.inf  # no contact at all (MuJoCo's own detection)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: BonePair("elbow", "a", "b"), "unknown bone"),
+        (lambda: BonePair("neck", "a", "a"), "same point"),
+        (lambda: BonePair("neck", "a", "b", weight=0.0), "weight"),
+        (lambda: BonePair("neck", "a", "b", minus="neck"), "minus"),
+        (lambda: BonePair("neck", "a", "b", rest=(0.0, 0.0, 0.0)), "rest"),
+        (lambda: Correspondence("torso", ()), "at least one"),
+        (lambda: IKConfig(starts=0), "starts"),
+        (
+            lambda: GenericIK.build(
+                NAO_H25,
+                Correspondence("torso", (BonePair("neck", "torso", "nowhere"),)),
+                chains=NAO_H25.chains[:1],
+            ),
+            "no site or body",
+        ),  # fmt: skip
+        (lambda: GenericIK.build(NAO_H25, NAO_ARMS, chains=NAO_H25.chains[:1]), "head"),
+    ],
+)
+def test_bad_correspondence_is_refused(make, message) -> None:
+    with pytest.raises(ConfigError, match=message):
+        make()
