@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from jaxproj import robots
 from jaxproj._internal.progress import bar
 from jaxproj.cli import options
 from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
@@ -36,11 +37,17 @@ def _add_build(sub: Any) -> None:
         "without --subjects; none with --subjects; evaluate scores UTKinect on the others)",
     )
     pb.add_argument(
+        "--robot",
+        default=robots.DEFAULT,
+        choices=robots.names(),
+        help="the robot the projector is for (its chains, limits and IK; the model records it)",
+    )
+    pb.add_argument(
         "--chains",
         default="upper",
         choices=("upper", "whole"),
-        help="upper: one projector per chain (head, left arm, right arm); whole: the paper's "
-        "whole-body projector",
+        help="upper: one projector per chain of the robot (the NAO's: head, left arm, right arm); "
+        "whole: the paper's whole-body projector",
     )
     size = pb.add_mutually_exclusive_group()
     size.add_argument(
@@ -147,6 +154,7 @@ def build(args: argparse.Namespace) -> int:
         seed=args.seed,
         mirror=args.mirror,
         utkinect_people=recorded,
+        robot=args.robot,
     )
     t0 = time.perf_counter()
     seqs, contents = options.load_data(args.data, args.subjects, "train", args.strict, args.bvh_map)

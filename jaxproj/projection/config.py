@@ -15,27 +15,32 @@ from typing import Any, Literal
 
 from jaxproj import robots
 from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import resolve_bones
 from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
 from jaxproj.robots import Robot
 
 HEAD_BANDWIDTH = 0.01125
-"""Mean-shift bandwidth of the head chain when ``BuildConfig.landmarks`` is one number (that
+"""The default robot's (the NAO's) ``Chain.bandwidth`` of its head chain (used, as a chain's
+own bandwidth, for a chain called ``head`` when ``BuildConfig.landmarks`` is one number: that
 number is then the count of each arm chain, and of the whole-body chain). The neck direction of
 a Kinect skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count
 target would bisect the bandwidth over many mean-shift runs; one run at this bandwidth (tuned
 leave-one-training-subject-out, ``benchmarks/TUNING.md``) gives ~800 head landmarks on subjects
 1,3,5,7,9."""
 
+DEFAULT_LANDMARKS = 1000
+"""Landmarks of a chain of the ``"upper"`` chain set whose robot gives it no tuned bandwidth
+(``Chain.bandwidth``; the G1's chains), when ``BuildConfig`` sets no size: not tuned."""
+
 DEFAULTS: dict[str, dict[str, object]] = {
-    "upper": dict(
-        bandwidth=(HEAD_BANDWIDTH, 0.01875, 0.01875), k=96, hidden=192, lam=1e-4, input_scale=0.5
-    ),
+    "upper": dict(k=96, hidden=192, lam=1e-4, input_scale=0.5),
     "whole": dict(landmarks=1644, k=96, hidden=96, lam=1e-3, input_scale=0.5),
 }
 """What a ``BuildConfig`` setting left at ``None`` means, per chain set. ``"upper"``: tuned per
 chain on the training subjects only (leave-one-training-subject-out over 1,3,5,7,9; the grid,
 fold means and the rule are in ``benchmarks/TUNING.md``): mean-shift bandwidths (head, left arm,
-right arm; the right arm takes the left arm's tuned value), 192 hidden units, ridge 1e-4.
+right arm; the right arm takes the left arm's tuned value: the robot's ``Chain.bandwidth``; a
+chain without one gets ``DEFAULT_LANDMARKS``), 192 hidden units, ridge 1e-4.
 ``"whole"``: the paper's 1644 landmarks and the whole-body engine's earlier defaults, so that
 its answers stay those measured before chains existed."""
 
@@ -82,7 +87,9 @@ class BuildConfig:
         ``HEAD_BANDWIDTH``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
         With neither ``landmarks`` nor ``bandwidth`` given, ``DEFAULTS[chains]`` decides.
       bandwidth: mean-shift bandwidth, used as is (per chain where ``landmarks`` is ``None``).
-      bones: descriptor bone subset (``skeleton.descriptor``); the IK needs ``"upper"`` bones.
+      bones: descriptor bone subset (``skeleton.descriptor``): ``"auto"`` (default) is
+        ``"upper"`` when the robot's IK reads only those bones (the NAO's), else ``"full"`` (the
+        G1's waist and legs read the hips, thighs, shins and feet); resolved when constructed.
       mirror: mirror imitation (human left drives robot right).
       k: training neighbours per ELM kernel (the landmark itself included), capped at the
         chain's number of landmarks ``K``: a small set (the paper's 86) trains every kernel on all
@@ -110,7 +117,7 @@ class BuildConfig:
     landmarks: int | PerChain | None = None
     bandwidth: float | PerChain | None = None
     chains: str = "upper"
-    bones: str = "upper"
+    bones: str = "auto"
     mirror: bool = False
     k: int | PerChain | None = None
     hidden: int | PerChain | None = None
@@ -141,7 +148,10 @@ class BuildConfig:
                 "(or register it: jaxproj.robots.register)"
             )
         chains = self.robot_spec.chain_set(self.chains)
-        if not isinstance(self.bones, str):
+        if self.bones == "auto":
+            upper = all(b in resolve_bones("upper") for b in self.robot_spec.ik_bones)
+            object.__setattr__(self, "bones", "upper" if upper else "full")
+        elif not isinstance(self.bones, str):
             object.__setattr__(self, "bones", tuple(self.bones))
         self.robot_spec.check_bones(self.bones)  # unknown names, or a subset the IK cannot use
         for c in range(len(chains)):
@@ -173,8 +183,12 @@ class BuildConfig:
             return _per_chain(value, c, n, field_name)
 
         landmarks, bandwidth = get("landmarks"), get("bandwidth")
-        if name == "head" and isinstance(self.landmarks, int) and bandwidth is None:
-            landmarks, bandwidth = None, HEAD_BANDWIDTH
+        if self.chains == "upper" and not sizes_given:  # the robot's tuned size, else a count
+            tuned = chains[c].bandwidth
+            landmarks, bandwidth = (None, tuned) if tuned is not None else (DEFAULT_LANDMARKS, None)
+        tuned_head = chains[c].bandwidth
+        if name == "head" and isinstance(self.landmarks, int) and bandwidth is None and tuned_head:
+            landmarks, bandwidth = None, tuned_head
         if (landmarks is None) == (bandwidth is None):
             raise ConfigError(f"chain {name}: give exactly one of landmarks (a count) or bandwidth")
         if landmarks is not None and landmarks < 2:

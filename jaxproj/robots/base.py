@@ -83,12 +83,16 @@ class Chain:
       joints: the driven joints it determines (a subset of ``Robot.driven_joints``, in that order).
       ik: its IK from its own descriptor columns to its joints (``ChainIK``), or ``None``. Not part
         of a chain's equality or hash (chains compare by name, bones and joints).
+      bandwidth: the mean-shift bandwidth its projector's landmarks take by default (tuned on
+        training people; ``BuildConfig``), or ``None``: ``config.DEFAULT_LANDMARKS`` landmarks.
+        Not part of equality or hash either.
     """
 
     name: str
     bones: tuple[str, ...]
     joints: tuple[str, ...]
     ik: ChainIK | None = field(default=None, compare=False, repr=False)
+    bandwidth: float | None = field(default=None, compare=False)
 
     def solve(self, x: np.ndarray) -> np.ndarray:
         """``(N, 3 * len(bones))`` -> ``(N, len(joints))`` angles (``ik``); ConfigError if none."""

@@ -103,19 +103,36 @@ def _chain_ik(x: np.ndarray, *, name: str) -> np.ndarray:
     return solve_chain(x, _CHAIN_BY_NAME[name])
 
 
+HEAD_BANDWIDTH = 0.01125
+"""Mean-shift bandwidth of the head chain's landmarks (``Chain.bandwidth``): tuned
+leave-one-training-subject-out over MSR subjects 1,3,5,7,9 (``benchmarks/TUNING.md``); ~800
+landmarks there. ``jaxproj.projection.config.HEAD_BANDWIDTH`` is this value."""
+
+ARM_BANDWIDTH = 0.01875
+"""Mean-shift bandwidth of each arm chain (the left arm's tuned value, ``benchmarks/TUNING.md``;
+the right arm takes it)."""
+
 CHAINS: tuple[Chain, ...] = (
-    Chain("head", ("neck",), ("HeadYaw", "HeadPitch"), partial(_chain_ik, name="head")),
+    Chain(
+        "head",
+        ("neck",),
+        ("HeadYaw", "HeadPitch"),
+        partial(_chain_ik, name="head"),
+        bandwidth=HEAD_BANDWIDTH,
+    ),
     Chain(
         "left_arm",
         ("upper_arm_left", "forearm_left"),
         ("LShoulderPitch", "LShoulderRoll", "LElbowYaw", "LElbowRoll"),
         partial(_chain_ik, name="left_arm"),
+        bandwidth=ARM_BANDWIDTH,
     ),
     Chain(
         "right_arm",
         ("upper_arm_right", "forearm_right"),
         ("RShoulderPitch", "RShoulderRoll", "RElbowYaw", "RElbowRoll"),
         partial(_chain_ik, name="right_arm"),
+        bandwidth=ARM_BANDWIDTH,
     ),
 )
 """How the IK factorises: the head angles depend only on the neck bone, each arm's four angles

@@ -116,6 +116,24 @@ of a straight arm and the hip yaw of a straight leg; the collision term weighs a
 penetration like a 0.1 rad direction error."""
 
 
+def _chain_ik(x: np.ndarray, *, name: str) -> np.ndarray:
+    """``Chain.ik`` of the chain called ``name``: ``(N, 3 * len(bones))`` its own descriptor
+    columns -> ``(N, len(joints))`` angles (the generic IK of that chain and of the chains it
+    reads before it: the waist for a leg)."""
+    fn = _chain_solver(name)
+    return np.asarray(call_bucketed(fn, np.asarray(x, np.float32), 1))
+
+
+@functools.cache
+def _chain_solver(name: str) -> jax.stages.Wrapped:
+    chain = UNITREE_G1.chain(name)
+    before = UNITREE_G1.chains[: UNITREE_G1.chains.index(chain)]
+    needed = (*(c for c in before if set(c.bones) <= set(chain.bones)), chain)
+    ik = GenericIK.build(UNITREE_G1, CORRESPONDENCE, IK_CONFIG, chains=needed)
+    cols = np.array(UNITREE_G1.chain_joints(chain), np.int32)
+    return jit(lambda d: ik.solve(d, chain.bones)[..., cols])
+
+
 def _joints(*names: str) -> tuple[str, ...]:
     return tuple(f"{n}_joint" for n in names)
 
@@ -125,6 +143,7 @@ def _leg(s: str) -> Chain:
         f"{s}_leg",
         (f"thigh_{s}", f"shin_{s}", f"foot_{s}", *_WAIST_BONES),
         _joints(*(f"{s}_{j}" for j in ("hip_pitch", "hip_roll", "hip_yaw", "knee", "ankle_pitch"))),
+        functools.partial(_chain_ik, name=f"{s}_leg"),
     )
 
 
@@ -135,11 +154,17 @@ def _arm(s: str) -> Chain:
         _joints(
             *(f"{s}_{j}" for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow"))
         ),
+        functools.partial(_chain_ik, name=f"{s}_arm"),
     )
 
 
 CHAINS: tuple[Chain, ...] = (
-    Chain("waist", _WAIST_BONES, _joints("waist_yaw", "waist_roll", "waist_pitch")),
+    Chain(
+        "waist",
+        _WAIST_BONES,
+        _joints("waist_yaw", "waist_roll", "waist_pitch"),
+        functools.partial(_chain_ik, name="waist"),
+    ),
     _arm("left"),
     _arm("right"),
     _leg("left"),
