@@ -295,7 +295,8 @@ class GenericIK:
                 [[point(caps[n][0]), point(caps[n][1])] for n in used], np.int32
             ).reshape(len(used), 2)
             fk = TreeFK.from_model(model, robot.joint_names, names, correspondence.base)
-            at_rest = np.asarray(fk.points(robot.standing), np.float64)
+            with jax.ensure_compile_time_eval():  # a build inside a caller's trace too
+                at_rest = np.asarray(fk.points(robot.standing), np.float64)
             rest_rotations = tuple(
                 None
                 if r.rest is None
