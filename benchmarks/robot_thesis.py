@@ -144,9 +144,10 @@ def main() -> None:
 
         corr = spec.CORRESPONDENCE
         direction_only = spec.generic_ik(collision=False)
+        solve_dir = jax.jit(lambda x: direction_only.solve(x, cfg.bones))
         methods: dict[str, Callable[[np.ndarray], np.ndarray]] = {
             "ik": lambda x: np.asarray(robot.solve_ik(x, cfg.bones)),
-            "ik_direction_only": lambda x: np.asarray(direction_only.solve(x, cfg.bones)),
+            "ik_direction_only": lambda x: np.asarray(solve_dir(x)),
         }
     else:
         corr = Correspondence("torso", (
@@ -172,6 +173,15 @@ def main() -> None:
                 m_max, m_avg = metrics.frame_errors(q, truth)
                 entry["vs_ik_M_avg_median"] = float(np.median(m_avg))
                 entry["vs_ik_M_max_p95"] = float(np.percentile(m_max, 95))
+                per_chain = {}
+                for chain in robot.chains:
+                    cols = list(robot.chain_joints(chain))
+                    c_max, c_avg = metrics.frame_errors(q[:, cols], truth[:, cols])
+                    per_chain[chain.name] = [
+                        float(np.median(c_avg)),
+                        float(np.percentile(c_max, 95)),
+                    ]
+                entry["vs_ik_per_chain_M_avg_median_M_max_p95"] = per_chain
             arm = arm_direction_errors(robot, corr, cfg.bones, d, q)
             entry["arm_direction_median_deg"] = float(np.median(arm))
             entry["arm_direction_p90_deg"] = float(np.percentile(arm, 90))
