@@ -32,8 +32,9 @@ too noisy to set the wrist's pitch and yaw; not measured yet), held at zero.
 
 Self-collision (``COLLISION_PAIRS``): the IK keeps the hands, wrists and forearms 1 cm
 (``IK_CONFIG.margin``) away from the torso, head, pelvis, hips and thighs and from the other
-arm, and the two legs (thighs, shins, the soles' capsules) apart, with the capsules and spheres
-of ``unitree_g1.xml``.
+arm (its upper arm too), the two legs (thighs, shins, the soles' capsules) apart, and each lower
+leg away from the pelvis and the other hip and thigh, with the capsules and spheres of
+``unitree_g1.xml``.
 """
 
 from __future__ import annotations
@@ -92,6 +93,15 @@ COLLISION_PAIRS: tuple[tuple[str, str], ...] = (
     *((f"left_foot_{a}_geom", f"right_foot_{b}_geom") for a in _SOLE for b in _SOLE),
     *((f"left_foot_{a}_geom", "right_shin_lower_geom") for a in _SOLE),
     *(("left_shin_lower_geom", f"right_foot_{a}_geom") for a in _SOLE),
+    # an arm against the other upper arm; a lower leg against the pelvis and the other hip
+    *((f"left_{a}_geom", "right_upper_arm_geom") for a in _ARM_GEOMS),
+    *((f"right_{a}_geom", "left_upper_arm_geom") for a in _ARM_GEOMS),
+    *(
+        (f"{s}_{g}_geom", b)
+        for s, o in (("left", "right"), ("right", "left"))
+        for g in ("shin_lower", "foot_inner", "foot_outer")
+        for b in ("pelvis_geom", f"{o}_hip_geom", f"{o}_thigh_geom")
+    ),
 )
 """Geom pairs the IK keeps apart (see the module doc)."""
 
