@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from jaxproj import robots
 from jaxproj.cli import options
 from jaxproj.errors import ConfigError, NoValidFrameError
 from jaxproj.io.formats import format_names
@@ -44,13 +45,21 @@ def add_parsers(sub: Any) -> None:
         help="projector file from `jaxproj build`, for --method relaxed / full (refused with "
         "--method ik, which uses no model)",
     )
+    pr.add_argument(
+        "--robot",
+        default=None,
+        choices=robots.names(),
+        help="the robot of --method ik (None: the model's robot, which a model records; without "
+        f"a model {robots.DEFAULT}); a robot other than the model's is refused",
+    )
     options.add_neighbour_options(pr)
     options.add_full_reading_option(pr)
     pr.add_argument(
         "--bones",
         default=None,
         choices=("upper", "full"),
-        help="descriptor bones (None: upper; a model fixes its own, a different value is refused)",
+        help="descriptor bones (None: upper, or full for a robot whose IK reads more, e.g. "
+        "unitree_g1; a model fixes its own, a different value is refused)",
     )
     pr.add_argument(
         "--mirror",
@@ -107,7 +116,8 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.projection import api as engine
 
     model = None
-    bones = "upper" if args.bones is None else args.bones
+    robot = robots.get(args.robot)
+    bones = engine.BuildConfig(robot=robot.name, bones=args.bones or "auto").bones
     mirror = bool(args.mirror)
     if args.method == "ik" and args.model is not None:
         raise ConfigError(
@@ -120,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
         model = engine.load(args.model)
         fixed: dict[str, tuple[Any, Any]] = {"--bones": (args.bones, model.config.bones)}
+        fixed["--robot"] = (args.robot, model.robot.name)
         fixed["--mirror"] = (args.mirror, model.config.mirror)
         for flag, (given, own) in fixed.items():
             if given is not None and given != own:
@@ -127,7 +138,10 @@ def run(args: argparse.Namespace) -> int:
                     f"{flag} {given} conflicts with the model {args.model}, built with "
                     f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
                 )
-        bones, mirror = model.config.bones, model.config.mirror
+        bones, mirror, robot = model.config.bones, model.config.mirror, model.robot
+    if args.plot is not None and robot.name != robots.DEFAULT:
+        raise ConfigError(f"--plot draws the {robots.DEFAULT} only; the robot here is "
+                          f"{robot.name}: leave --plot out")  # fmt: skip
     out = options.output_path(args.out, "--out", (".npz", ".csv", ".json"))
     plot = None if args.plot is None else options.output_path(args.plot, "--plot", (".png",))
     rec = read_skeleton(
@@ -147,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
             times=rec.times,
             feasible=feasible.FeasibleConfig(speeds=args.speeds) if args.feasible else None,
             full=FULL_READINGS[args.full_reading],
+            robot=None if model is not None else robot,
         )
     except NoValidFrameError as e:  # name the file (and the option that most often causes it)
         hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""
@@ -154,8 +169,8 @@ def run(args: argparse.Namespace) -> int:
         raise NoValidFrameError(args.input, problem, e.n_frames) from None
     angles = result.angles
     unfiltered = angles if result.unfiltered is None else result.unfiltered
-    before = feasible.feasibility_report(unfiltered, result.times)
-    after = feasible.feasibility_report(angles, result.times)
+    before = feasible.feasibility_report(unfiltered, result.times, robot=robot)
+    after = feasible.feasibility_report(angles, result.times, robot=robot)
     meta = {
         "method": args.method,
         "smoothed": args.smoother != "none",
@@ -170,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "full":
         meta["full_reading"] = args.full_reading
     motion = Motion(angles, result.times, result.valid, rec.positions, meta,
-                    confidence=result.confidence)  # fmt: skip
+                    confidence=result.confidence, robot=robot)  # fmt: skip
     save_motion(out, motion, joints=args.joints)
     n, nv = len(result.valid), int(result.valid.sum())
     print(

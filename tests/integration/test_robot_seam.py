@@ -127,6 +127,32 @@ def test_the_model_file_records_the_robot(toy: Robot, model: engine.Model, tmp_p
     assert a.tobytes() == b.tobytes()
 
 
+def test_cli_retarget_takes_the_robot_from_the_model(
+    toy: Robot, model: engine.Model, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``jaxproj retarget --model`` writes the model's robot's joints; ``--robot`` naming
+    another robot is refused; ``--robot toy`` alone runs the toy's IK."""
+    from jaxproj.cli import main
+
+    path = tmp_path / "toy.npz"
+    engine.save(model, path)
+    src = tmp_path / "rec.npz"
+    seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
+    np.savez(src, positions=seq.positions)
+    out = tmp_path / "toy.csv"
+    assert main(["retarget", str(src), "--method", "relaxed", "--model", str(path),
+                 "--out", str(out)]) == 0  # fmt: skip
+    header = out.read_text().splitlines()[0].split(",")
+    assert header == ["time", *JOINTS, "confidence"]
+    assert main(["retarget", str(src), "--method", "relaxed", "--model", str(path), "--robot",
+                 robots.DEFAULT, "--out", str(tmp_path / "x.csv")]) == 2  # fmt: skip
+    assert "conflicts with the model" in capsys.readouterr().err
+    assert not (tmp_path / "x.csv").exists()
+    ik_out = tmp_path / "toy_ik.csv"
+    assert main(["retarget", str(src), "--robot", toy.name, "--out", str(ik_out)]) == 0
+    assert ik_out.read_text().splitlines()[0].split(",")[1 : 1 + len(JOINTS)] == list(JOINTS)
+
+
 def test_a_model_file_without_a_robot_is_the_nao(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     human = rng.normal(size=(24, 15)).astype(np.float32)
