@@ -392,9 +392,10 @@ class Reference:
 
     def _solve_newton(self, h: np.ndarray, pr: dict, cfg: FullConfig) -> tuple[np.ndarray, float]:
         """The engine's projected Gauss-Newton (``simplex_newton``) in float64, every problem
-        run to convergence: until the model promises less than ``1e-12 F`` and the step moved
-        no joint by ``1e-9`` rad, or no damping lowers ``F`` (float64 exhausted); at most 500
-        steps. Returns (r(w*), F(w*))."""
+        run to convergence: until the model promises less than ``1e-12 F``, the step moved
+        no joint by ``1e-9`` rad and the Frank-Wolfe gap ``g.w - min(g)`` is at most
+        ``cfg.gap_tol * F`` (the engine's first-order test; none for ``gap_tol = 0``), or no
+        damping lowers ``F`` (float64 exhausted); at most 500 steps. Returns (r(w*), F(w*))."""
         w = pr["w0"].copy()
         f, g, hess = self._derivatives(h, pr, w, cfg)
         r = pr["verts"].T @ w
@@ -421,7 +422,8 @@ class Reference:
                 damping = max(damping * DAMPINGS[i] / 8.0, 1e-12)
             else:
                 damping *= 4096.0
-            if (predicted <= 1e-12 * max(f, 1e-8) and step <= 1e-9) or damping > 1e8:
+            kkt = cfg.gap_tol <= 0 or float(g @ w - g.min()) <= cfg.gap_tol * max(f, 1e-8)
+            if (predicted <= 1e-12 * max(f, 1e-8) and step <= 1e-9 and kkt) or damping > 1e8:
                 break
         return r, f
 

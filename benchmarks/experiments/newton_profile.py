@@ -67,7 +67,7 @@ def chain_costs(model: engine.Model, h_all: np.ndarray) -> dict:
     prs, w0 = jax.jit(jax.vmap(build))(h)
     rho, eps = jnp.asarray(cfg.proximal, h.dtype), jnp.asarray(cfg.ridge, h.dtype)
     prs = prs._replace(w_in=p.backward.w, h=h, rho=rho, eps=eps)
-    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol)
+    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol, cfg.gap_tol)
 
     def vv(f):  # over queries, then over their problems
         return jax.jit(jax.vmap(jax.vmap(f, in_axes=(full._AXES, 0)), in_axes=(_BATCH, 0)))

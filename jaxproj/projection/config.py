@@ -248,7 +248,13 @@ class FullConfig:
       dec_tol: Newton's stationarity test: its quadratic model predicts a decrease of at most
         ``dec_tol * max(F, 1e-8)``, ...
       step_tol: ... and its last step (none, if rejected) moved every joint by less than
-        ``step_tol`` rad.
+        ``step_tol`` rad, ...
+      gap_tol: ... and the Frank-Wolfe gap (``simplex_newton.frank_wolfe_gap``: the decrease
+        the gradient promises by moving all the way to the best vertex; 0 exactly at a KKT
+        point) is at most ``gap_tol * max(F, 1e-8)``: the first-order certificate that the
+        weighted objective's indefinite model does not give (before it, a rejected step of
+        that model stopped problems short of their minimum: answers that jumped by degrees
+        under a one-ulp input change, ``docs/results.md``). ``0``: no gap test. ``>= 0``.
       screen, finalists: Newton solves every problem for ``screen`` steps, then only the
         ``finalists`` with the least objective on to ``iterations`` (``0`` finalists: every
         problem to the end). Measured against solving all: ``benchmarks/results``.
@@ -273,7 +279,7 @@ class FullConfig:
     screen: int = 8
     finalists: int = 2
     tie_rtol: float = 1e-3
-    gap_tol: float = 0.0
+    gap_tol: float = 1e-2
 
     def __post_init__(self) -> None:
         if self.objective not in ("weighted", "min"):

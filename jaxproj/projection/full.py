@@ -125,7 +125,7 @@ def solve(pr: sn.Problem, w0: jax.Array, cfg: FullConfig) -> tuple[jax.Array, ja
     if cfg.solver == "adam":
         w, f = solve_adam(pr, w0, cfg)
         return pr.verts.T @ w, f
-    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol)
+    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol, cfg.gap_tol)
     s = solver.run(pr, solver.init(pr, w0), cfg.iterations)
     return s.d.r, s.d.f
 
@@ -140,7 +140,7 @@ def _solve_newton_screened(
     runs as long as its slowest problem, so the long tail is paid for two problems, not ``L``.
     ``order (P,)``: the problems' candidate ranks, for the near-tie rule (``pick``).
     """
-    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol)
+    solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol, cfg.gap_tol)
     axes = (_AXES, 0)
     states = jax.vmap(solver.init, in_axes=axes)(prs, w0)
     states = jax.vmap(lambda pr, s: solver.run(pr, s, cfg.screen), in_axes=axes)(prs, states)

@@ -22,10 +22,13 @@ active-set method, ``QP_SWEEPS`` modified-Cholesky KKT solves) at each of the Le
 dampings ``DAMPINGS`` x the current one; the best trial is kept if it lowers ``F`` (monotone: a
 solve never returns worse than its warm start), and the damping adapts. A problem is ``done``
 when it is stationary (the model promises a decrease below ``dec_tol * F`` *and* the step just
-taken moved ``r`` by less than ``step_tol``) or when no damping improves it any more (float32
-has nothing left to give). ``run`` loops ``update`` in a ``lax.while_loop`` until the problem is
-done or a step cap; vmapped, the loop runs until every problem of the batch is done (the
-batch's early exit) or the cap.
+taken moved ``r`` by less than ``step_tol`` *and* the Frank-Wolfe gap ``frank_wolfe_gap`` is at
+most ``gap_tol * F``) or when no damping improves it any more (float32 has nothing left to
+give). The gap is the first-order certificate: the model alone is not one, since the weighted
+objective's Hessian is indefinite (its cross terms) and a rejected trial of an indefinite model
+"promises" nothing at a point that is not stationary. ``run`` loops ``update`` in a
+``lax.while_loop`` until the problem is done or a step cap; vmapped, the loop runs until every
+problem of the batch is done (the batch's early exit) or the cap.
 
 The solver is optax-style, ``SimplexSolver(init, update, run)``, with a ``NamedTuple`` state.
 """
@@ -296,14 +299,24 @@ class SimplexSolver(NamedTuple):
     run: Callable[[Problem, NewtonState, int], NewtonState]
 
 
-def gauss_newton(dec_tol: float, step_tol: float) -> SimplexSolver:
+def frank_wolfe_gap(grad: jax.Array, w: jax.Array) -> jax.Array:
+    """``grad . w - min(grad)``: the decrease of ``F`` that its linearisation at ``w (P,)``
+    promises by moving all the way to the best vertex of the simplex; ``>= 0``, and ``0``
+    exactly at a KKT point of ``min F`` over the simplex (every weight in use has the least
+    partial derivative)."""
+    return grad @ w - jnp.min(grad)
+
+
+def gauss_newton(dec_tol: float, step_tol: float, gap_tol: float = 0.0) -> SimplexSolver:
     """The projected Gauss-Newton solver (module doc).
 
     Args:
       dec_tol: stationarity: the quadratic model predicts a decrease of ``F`` of at most
         ``dec_tol * max(F, 1e-8)`` (its least damped step) ...
       step_tol: ... and the step just taken (none, if rejected) moved every joint by less
-        than ``step_tol`` rad.
+        than ``step_tol`` rad ...
+      gap_tol: ... and the Frank-Wolfe gap at the new point is at most
+        ``gap_tol * max(F, 1e-8)`` (``0``: no gap test, the stop of 0.2.0).
     """
     dampings = jnp.asarray(DAMPINGS, jnp.float32)
     sweeps = QP_SWEEPS
@@ -342,7 +355,9 @@ def gauss_newton(dec_tol: float, step_tol: float) -> SimplexSolver:
         factor = jnp.where(better, dampings[i] / 8.0, 4096.0)
         damping = jnp.clip(s.damping * factor, 1e-9, 2 * DAMPING_STALL)
         flat = predicted <= dec_tol * jnp.maximum(d.f, 1e-8)
-        done = (flat & (step <= step_tol)) | (damping > DAMPING_STALL)
+        gap = frank_wolfe_gap(d_new.grad, w_new)
+        kkt = (gap_tol <= 0.0) | (gap <= gap_tol * jnp.maximum(d_new.f, 1e-8))
+        done = (flat & (step <= step_tol) & kkt) | (damping > DAMPING_STALL)
         return NewtonState(w_new, d_new, damping, step, s.done | done, s.steps + 1)
 
     def run(pr: Problem, state: NewtonState, cap: int) -> NewtonState:

@@ -644,6 +644,45 @@ def test_full_near_tie_rule_picks_the_first_candidate_among_ties():
         FullConfig(tie_rtol=-1e-3)
 
 
+def test_newton_stops_only_where_the_frank_wolfe_gap_is_small(model):
+    """``FullConfig.gap_tol``: a problem counts as stationary only where the Frank-Wolfe gap
+    (``g.w - min g``: 0 exactly at a KKT point of the simplex) is within ``gap_tol * F``.
+    Without it (``gap_tol = 0``) a rejected step of the indefinite model stopped problems far
+    from any KKT point, at objectives the solver with the test goes below."""
+    import jax.numpy as jnp
+
+    from jaxproj.projection import full as fo
+    from jaxproj.projection.projector import candidates
+    from jaxproj.projection.search import nearest
+
+    g = jnp.asarray([0.3, 0.1, 0.1, 0.5])  # a KKT point uses only the least derivatives
+    assert float(sn.frank_wolfe_gap(g, jnp.asarray([0.0, 0.25, 0.75, 0.0]))) == 0.0
+    assert float(sn.frank_wolfe_gap(g, jnp.asarray([0.5, 0.5, 0.0, 0.0]))) == pytest.approx(0.1)
+
+    p = model.projector.chain(0)
+
+    def solve_all(h, cfg):  # every problem of one query, as far as the solver goes
+        cand = candidates(p, h, 10)
+        ridx, _ = nearest(p.robot, p.robot_sq, cand, 10)
+        prs, w0 = jax.vmap(fo.problems, in_axes=(None, None, 0, 0, None))(p, h, cand, ridx, cfg)
+        prs = fo._shared(prs, p, h, cfg)
+        solver = sn.gauss_newton(cfg.dec_tol, cfg.step_tol, cfg.gap_tol)
+        s = jax.vmap(solver.init, in_axes=(fo._AXES, 0))(prs, w0)
+        s = jax.vmap(lambda pr, x: solver.run(pr, x, cfg.iterations), in_axes=(fo._AXES, 0))(prs, s)
+        gap = jax.vmap(sn.frank_wolfe_gap)(s.d.grad, s.w)
+        stationary = s.done & (s.damping <= sn.DAMPING_STALL)  # not stalled, not capped
+        return gap / jnp.maximum(s.d.f, 1e-8), stationary, s.d.f
+
+    d = _descriptors([2], actions=[1, 5])[:24]
+    fn = jax.jit(jax.vmap(solve_all, in_axes=(0, None)), static_argnums=1)
+    gap, stationary, f = (np.asarray(x) for x in fn(d, NEWTON))
+    gap0, stationary0, f0 = (np.asarray(x) for x in fn(d, dataclasses.replace(NEWTON, gap_tol=0)))
+    assert stationary.any() and (gap[stationary] <= NEWTON.gap_tol).all()
+    assert (gap0[stationary0] > 0.1).any()  # stopped where moving toward a vertex still pays
+    assert (f <= f0 * (1 + 1e-5) + 1e-9).mean() >= 0.95  # going on reaches lower objectives
+    assert (f < f0 * (1 - 1e-3)).any()
+
+
 def test_training_people_are_validated_and_recorded_in_the_model_file(model, tmp_path):
     import json
 
