@@ -115,15 +115,27 @@ class TreeFK:
         if base_id < 0:
             raise ConfigError(f"the MJCF has no body named {base!r} (the FK's base)")
         located = [_point(model, p) for p in points]
+
+        def ancestors(bid: int) -> list[int]:
+            out = []
+            while bid > 0:
+                out.append(bid)
+                bid = int(model.body_parentid[bid])
+            return out
+
+        # every point below the base: start the tree at the base (its own joints and those
+        # above it move all points alike, so they cancel in the base's frame)
+        below = all(base_id in ancestors(b) for b, _ in located)
         needed: set[int] = set()
         for bid in [base_id, *(b for b, _ in located)]:
-            while bid > 0:
-                needed.add(bid)
-                bid = int(model.body_parentid[bid])
+            needed.update(b for b in ancestors(bid) if not below or base_id in ancestors(b))
         order = sorted(needed)  # MuJoCo numbers parents before children
         slot = {bid: i for i, bid in enumerate(order)}
         bodies = []
         for bid in order:
+            if below and bid == base_id:
+                bodies.append(_Body(parent=-1, pos=np.zeros(3), rot=np.eye(3), joints=()))
+                continue
             joints = []
             for j in range(model.body_jntadr[bid], model.body_jntadr[bid] + model.body_jntnum[bid]):
                 kind = model.jnt_type[j]

@@ -63,6 +63,8 @@ def _mj_points(model: mujoco.MjModel, joints, q: np.ndarray, names, base: str) -
         (NAO_H25, ("l_shoulder", "l_elbow", "l_wrist", "r_hand", "l_sole", "neck"), "torso"),
         (UNITREE_G1, ("left_elbow_site", "right_hand_site", "left_toe_site", "pelvis"),
          "torso_link"),
+        # every point below the base: the tree starts at the base (waist joints skipped)
+        (UNITREE_G1, ("left_elbow_site", "right_hand_site", "head_site"), "torso_link"),
     ],
 )  # fmt: skip
 def test_tree_fk_matches_mujoco(robot, points, base) -> None:
