@@ -41,7 +41,7 @@ from jaxproj import robots
 from jaxproj.eval import metrics
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK
+from jaxproj.robots.generic_ik import Correspondence, GenericIK
 from jaxproj.robots.kinematics import TreeFK
 from jaxproj.timing import time_calls
 
@@ -150,12 +150,9 @@ def main() -> None:
             "ik_direction_only": lambda x: np.asarray(solve_dir(x)),
         }
     else:
-        corr = Correspondence("torso", (
-            BonePair("upper_arm_left", "l_shoulder", "l_elbow"),
-            BonePair("forearm_left", "l_elbow", "l_wrist"),
-            BonePair("upper_arm_right", "r_shoulder", "r_elbow"),
-            BonePair("forearm_right", "r_elbow", "r_wrist"),
-        ))  # fmt: skip
+        from jaxproj.robots.nao_h25 import spec as nao_spec
+
+        corr = nao_spec.ARM_CORRESPONDENCE
         generic = GenericIK.build(robot, corr, chains=robot.chains[1:])
         solve = jax.jit(lambda x: generic.solve(x, cfg.bones))
         head = list(robot.chain_joints(robot.chain("head")))

@@ -20,18 +20,10 @@ from jaxproj.io import datasets
 from jaxproj.robots import NAO_H25, UNITREE_G1
 from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
 from jaxproj.robots.kinematics import TreeFK
+from jaxproj.robots.nao_h25 import spec as nao_spec
 from jaxproj.robots.unitree_g1 import spec as g1
 
-NAO_ARMS = Correspondence(
-    "torso",
-    (
-        BonePair("upper_arm_left", "l_shoulder", "l_elbow"),
-        BonePair("forearm_left", "l_elbow", "l_wrist"),
-        BonePair("upper_arm_right", "r_shoulder", "r_elbow"),
-        BonePair("forearm_right", "r_elbow", "r_wrist"),
-    ),
-)
-"""The NAO's arms as data: the shoulder -> elbow segment and the forearm, as the closed form."""
+NAO_ARMS = nao_spec.ARM_CORRESPONDENCE
 
 N_FRAMES = 512
 

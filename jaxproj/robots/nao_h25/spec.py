@@ -8,6 +8,7 @@ from __future__ import annotations
 import jax
 
 from jaxproj.robots.base import Mjcf, Robot
+from jaxproj.robots.generic_ik import BonePair, Correspondence
 from jaxproj.robots.nao_h25 import ik, naoqi, robot
 
 ARM_SITES: dict[str, tuple[str, str, str]] = {
@@ -16,6 +17,19 @@ ARM_SITES: dict[str, tuple[str, str, str]] = {
 }
 """MJCF sites (shoulder, elbow, wrist) of each arm: the joint origins of LShoulderPitch /
 LElbowYaw / LWristYaw (and the right ones); the task-space metrics' points."""
+
+ARM_CORRESPONDENCE = Correspondence(
+    "torso",
+    tuple(
+        BonePair(f"{bone}_{side}", a, b)
+        for side, (shoulder, elbow, wrist) in ARM_SITES.items()
+        for bone, a, b in (("upper_arm", shoulder, elbow), ("forearm", elbow, wrist))
+    ),
+    source="the closed form's own choice: the shoulder -> elbow segment and the forearm",
+)
+"""The NAO's arms as data for the generic IK (``jaxproj.robots.generic_ik``): each upper arm
+follows the shoulder -> elbow segment, each forearm the elbow -> wrist, in the torso frame, as
+the closed form matches them (its head rule is not a direction and stays the closed form's)."""
 
 HAND_SITES: tuple[str, str] = ("l_hand", "r_hand")
 """End-effector sites (left, right) of ``jaxproj.eval.rollout.hand_error_cm``."""

@@ -39,6 +39,7 @@ leg away from the pelvis and the other hip and thigh, with the capsules and sphe
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -186,7 +187,7 @@ CHAINS: tuple[Chain, ...] = (
 @functools.cache
 def generic_ik(collision: bool = True) -> GenericIK:
     """The G1's generic IK (built once: it reads the MJCF), with or without the collision term."""
-    cfg = IK_CONFIG if collision else IKConfig(**{**IK_CONFIG.__dict__, "collision": 0.0})
+    cfg = IK_CONFIG if collision else dataclasses.replace(IK_CONFIG, collision=0.0)
     return GenericIK.build(UNITREE_G1, CORRESPONDENCE, cfg)
 
 
