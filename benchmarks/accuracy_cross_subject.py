@@ -40,6 +40,7 @@ from jaxproj.eval import evaluate, metrics
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection.config import FullConfig
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik
 
 OBJECTIVES = {
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> dict:
         train = train[::4]
         tests = {k: v[::20] for k, v in tests.items()}
     truth = {k: np.asarray(ik.solve_driven(v)) for k, v in tests.items()}
-    points = {k: metrics.arm_points(v) for k, v in truth.items()}  # one FK per split
+    points = {k: metrics.arm_points(v, robot=NAO_H25) for k, v in truth.items()}  # one FK per split
     objectives = dict(OBJECTIVES)
     if args.quick:
         objectives.pop("full_min_with_candidate")
@@ -120,12 +121,12 @@ def run(args: argparse.Namespace) -> dict:
                 pred, _ = engine.project(model, d, objective, full=fc)
                 wall = time.perf_counter() - t0
                 methods[name] = metrics.summarize_errors(
-                    pred, truth[split_name], truth_points=points[split_name]
+                    pred, truth[split_name], truth_points=points[split_name], robot=NAO_H25
                 ) | {"wall_s": wall}
             for name in BASELINES:
                 pred = evaluate.predict_method(model, name, d)
                 methods[name] = metrics.summarize_errors(
-                    pred, truth[split_name], truth_points=points[split_name]
+                    pred, truth[split_name], truth_points=points[split_name], robot=NAO_H25
                 )
             rec["splits"][split_name] = methods
         out["models"][chains] = rec
@@ -143,7 +144,7 @@ def print_table(out: dict) -> None:
         print(head)
         for split_name, methods in rec["splits"].items():
             for name, s in methods.items():
-                hand = [s["task_space"][side]["hand_cm"] for side in metrics.SIDES]
+                hand = [s["task_space"][side]["hand_cm"] for side in metrics.sides(NAO_H25)]
                 print(
                     f"{chains:6s} {split_name:9s} {name:24s} {s['M_avg']['median']:9.2f} "
                     f"{s['M_max']['p95']:9.1f} {s['M_max_no_elbow_yaw']['p95']:9.1f} "

@@ -73,6 +73,7 @@ from jaxproj.projection import api as engine
 from jaxproj.projection import landmarks
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.meanshift import find_bandwidth
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik, robot
 
 TRAIN_SUBJECTS = (1, 3, 5, 7, 9)
@@ -654,8 +655,10 @@ def elbow_yaw_limit(tuner: Tuner, settings: dict, queries: dict, log) -> dict:
         joints = list(ik.chain_joints(chain))
         full_p[:, joints] = pred
         full_t[:, joints] = truth
-        ae = metrics.arm_errors(metrics.arm_points(full_p), metrics.arm_points(full_t))
-        si = metrics.SIDES.index(side)
+        ae = metrics.arm_errors(
+            metrics.arm_points(full_p, robot=NAO_H25), metrics.arm_points(full_t, robot=NAO_H25)
+        )
+        si = metrics.sides(NAO_H25).index(side)
         for label, m in (("ey_err_over_20", big), ("all", np.ones_like(big))):
             if m.any():
                 task[label] = {
@@ -686,8 +689,8 @@ def elbow_yaw_limit(tuner: Tuner, settings: dict, queries: dict, log) -> dict:
 
 def _headline(pred: np.ndarray, truth: np.ndarray) -> dict:
     m_max, m_avg = metrics.frame_errors(pred, truth)
-    no_ey = metrics.m_max_without(pred, truth)
-    pj = metrics.joint_percentiles(pred, truth)
+    no_ey = metrics.m_max_without(pred, truth, robot=NAO_H25)
+    pj = metrics.joint_percentiles(pred, truth, robot=NAO_H25)
     return {
         "M_avg_median": float(np.median(m_avg)),
         "M_max_p95": float(np.percentile(m_max, 95)),

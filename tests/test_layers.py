@@ -163,3 +163,38 @@ def test_module_size(module: str) -> None:
     assert any(line.startswith("Size:") for line in doc.splitlines()), (
         f"{module}: {n} lines and no 'Size:' line in its docstring saying why"
     )
+
+
+def _names_the_nao(source: str) -> list[str]:
+    """Where ``source`` imports ``jaxproj.robots.nao_h25`` or refers to ``NAO_H25``."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+        if any(n.startswith("jaxproj.robots.nao_h25") for n in names):
+            found.append(f"line {node.lineno}: imports jaxproj.robots.nao_h25")
+        elif any(n.endswith(".NAO_H25") for n in names):
+            found.append(f"line {node.lineno}: imports NAO_H25")
+        if (isinstance(node, ast.Name) and node.id == "NAO_H25") or (
+            isinstance(node, ast.Attribute) and node.attr == "NAO_H25"
+        ):
+            found.append(f"line {node.lineno}: refers to NAO_H25")
+    return found
+
+
+def test_no_module_above_robots_names_the_nao() -> None:
+    """Above ``robots/`` a robot comes from the caller, a model, a motion or the registry
+    (``robots.get``): no import of ``jaxproj.robots.nao_h25``, no ``NAO_H25`` default or
+    module constant (issue 44)."""
+    probe = "from jaxproj.robots import nao_h25\ndef f(robot=robots.NAO_H25):\n    pass\n"
+    assert len(_names_the_nao(probe)) == 2
+    bad = [
+        f"{m} {where}"
+        for m, path in MODULES.items()
+        if m != "jaxproj.robots" and not m.startswith("jaxproj.robots.")
+        for where in _names_the_nao(path.read_text())
+    ]
+    assert not bad, "modules above robots/ that name the NAO:\n" + "\n".join(bad)

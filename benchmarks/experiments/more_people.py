@@ -96,7 +96,7 @@ def scores(model: engine.Model, data: ev.EvalData) -> tuple[np.ndarray, ...]:
     truth = data.truth[data.valid]
     m_max, m_avg = metrics.frame_errors(q, truth)
     per_joint = np.degrees(np.abs(np.asarray(q, np.float64) - truth))
-    return m_max, m_avg, metrics.m_max_without(q, truth), per_joint
+    return m_max, m_avg, metrics.m_max_without(q, truth, robot=model.robot), per_joint
 
 
 def summary(m_max: np.ndarray, m_avg: np.ndarray, no_ey: np.ndarray, per_joint: np.ndarray) -> dict:

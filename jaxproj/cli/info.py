@@ -21,8 +21,10 @@ def collect() -> dict:
     import jax
     import mujoco
 
+    from jaxproj import robots
     from jaxproj.io import datasets
-    from jaxproj.robots.nao_h25 import robot
+
+    robot = robots.get()  # the default robot
 
     msr = datasets.dataset_summary("msr")
     utk = datasets.dataset_summary("utkinect")
@@ -32,10 +34,10 @@ def collect() -> dict:
         "mujoco": mujoco.__version__,
         "devices": [str(d) for d in jax.devices()],
         "robot": {
-            "name": robot.NAME,
-            "mjcf": str(robot.mjcf_path().resolve()),
-            "joints": list(robot.JOINT_NAMES),
-            "driven_joints": list(robot.DRIVEN_JOINTS),
+            "name": robot.title,
+            "mjcf": str(robot.require_mjcf().path.resolve()),
+            "joints": list(robot.joint_names),
+            "driven_joints": list(robot.driven_joints),
         },
         "datasets": {
             "msr_action3d": {k: msr[k] for k in ("sequences", "frames", "subjects")},

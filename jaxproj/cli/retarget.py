@@ -212,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
         for line in confidence_lines(args.method, result.low_confidence_valid_share):
             print(line)
     if plot is not None:
-        _plot(plot, args, rec, angles, result, bones, mirror)
+        _plot(plot, args, rec, angles, result, bones, mirror, robot)
     return 0
 
 
@@ -266,26 +266,26 @@ def _plot(
     result: Any,
     bones: str,
     mirror: bool,
+    robot: robots.Robot,
 ) -> None:
     """``retarget --plot``: the demo's motion figure for this recording (``report.plot_retarget``):
-    human and NAO at key frames, the driven joints over time against the per-frame IK."""
+    human and robot at key frames, the driven joints over time against the per-frame IK."""
     import numpy as np
 
     from jaxproj.motion.retarget import retarget
-    from jaxproj.robots.nao_h25 import robot
     from jaxproj.viz import report
 
     truth = retarget(
         rec.positions, rec.valid, method="ik", bones=bones, mirror=mirror, smoothing=None,
-        times=rec.times,
+        times=rec.times, robot=robot,
     )  # fmt: skip
-    out = angles[:, robot.DRIVEN_INDEX]
-    ik_q = truth.angles[:, robot.DRIVEN_INDEX]
+    out = angles[:, robot.driven_index]
+    ik_q = truth.angles[:, robot.driven_index]
     ranges = np.degrees(out.max(axis=0) - out.min(axis=0))
-    widest = ", ".join(f"{robot.DRIVEN_JOINTS[i]} {ranges[i]:.0f}" for i in np.argsort(-ranges)[:4])
+    widest = ", ".join(f"{robot.driven_joints[i]} {ranges[i]:.0f}" for i in np.argsort(-ranges)[:4])
     span = float(result.times[-1] - result.times[0])
     title = (f"{Path(args.input).name}: {args.method}, {len(out)} frames over {span:.1f} s "
              f"({rec.time_source}; {rec.fps:.3g} frames/s on average)")  # fmt: skip
     report.plot_retarget(plot, title, rec.positions, result.valid, result.times, out, ik_q,
-                         label=args.method)  # fmt: skip
+                         label=args.method, robot=robot)  # fmt: skip
     print(f"  plot -> {plot} (widest joint ranges, deg: {widest})")

@@ -23,7 +23,7 @@ from mujoco import mjx
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError, InputError
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import Robot
 
 FK_BATCH = 4096
 """Frames per compiled forward-kinematics call (the last batch is padded)."""
@@ -55,7 +55,7 @@ class _FK(NamedTuple):
     sids: jax.Array  # (3 * n_sides,) int32 site ids, arm_sites side after side
 
 
-def arm_model(robot: Robot = NAO_H25) -> mujoco.MjModel:
+def arm_model(robot: Robot) -> mujoco.MjModel:
     """The fixed-mount MJCF without ``robot.mjcf.fk_without``: the model ``arm_points`` evaluates.
 
     The same bodies, joints and sites as ``robot.load_model("fixed")`` for the torso and the
@@ -145,18 +145,19 @@ def _configurations(x: np.ndarray | jax.Array, name: str, robot: Robot) -> np.nd
     return full
 
 
-def arm_points(angles: np.ndarray | jax.Array, *, robot: Robot = NAO_H25) -> np.ndarray:
+def arm_points(angles: np.ndarray | jax.Array, *, robot: Robot) -> np.ndarray:
     """Forward kinematics of the arm sites (MJX, jitted, ``FK_BATCH`` frames per call).
 
     Args:
       angles: ``(F, n_driven)`` driven angles (``robot.driven_joints`` order; the other joints
         at ``robot.standing``, as ``robot.driven_to_full``) or ``(F, n_joints)`` configurations
         (``robot.joint_names`` order), rad.
-      robot: the robot (default the NAO H25); it needs an MJCF with ``arm_sites``.
+      robot: the robot; it needs an MJCF with ``arm_sites``.
 
     Returns:
       ``(F, n_sides, 3, 3)`` float32 positions in the torso frame, m: ``[frame, side
-      (robot.mjcf.arm_sites order; NAO: SIDES), point (shoulder, elbow, wrist), xyz]``.
+      (robot.mjcf.arm_sites order, ``metrics.sides(robot)``), point (shoulder, elbow, wrist),
+      xyz]``.
 
     Raises:
       ConfigError: bad shape or non-finite angles; a robot without an MJCF.

@@ -1,6 +1,6 @@
 """Evaluation metrics: how far a projected pose is from the IK truth, and where the error is.
 
-Every function takes the ``robot: Robot`` (``jaxproj.robots``; default the NAO H25) whose joint
+Every function takes the ``robot: Robot`` (``jaxproj.robots``; no default) whose joint
 order and driven joints the angles follow: ``(F, n_driven)`` driven angles
 (``robot.driven_joints`` order) or ``(F, n_joints)`` configurations (``robot.joint_names``).
 
@@ -15,13 +15,13 @@ Joint space, in degrees over ``robot.driven_joints``, against the robot's analyt
 * ``m_max_without``: ``M_max`` over the driven joints minus some, by default the robot's
   ``loose_joints`` (NAO: the two elbow-yaw joints). With a near-straight arm the elbow's yaw turns
   the forearm about its own length: the IK truth's elbow yaw is then ill-conditioned (set by
-  Kinect noise, blended towards 0 below 30 deg of human elbow flexion, see
-  ``jaxproj.robots.nao_h25.ik``), and a large elbow-yaw error there can be a small error of the
+  Kinect noise, blended towards 0 below 30 deg of human elbow flexion, see the NAO's ``ik``
+  module), and a large elbow-yaw error there can be a small error of the
   pose.
 
 Task space, from forward kinematics of the robot's MJCF (``robot.mjcf``, fixed mount: base welded
 at the origin, so positions are in the torso frame), per arm (``robot.mjcf.arm_sites``: side ->
-shoulder, elbow, wrist sites; ``SIDES`` for the NAO), projected pose against IK pose:
+shoulder, elbow, wrist sites; ``sides(robot)``), projected pose against IK pose:
 
 * ``hand_cm``: distance between the wrist points (NAO: ``l_wrist`` / ``r_wrist``, the origin of
   the wrist body, where the hand attaches, on the forearm axis; the undriven wrist yaw cannot move
@@ -70,22 +70,18 @@ import numpy as np
 from jaxproj.errors import ConfigError
 from jaxproj.eval.fk import FK_BATCH, arm_model, arm_points, check_angles
 from jaxproj.projection.confidence import LOW_CONFIDENCE
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import Robot
 
-__all__ = ["ARM_SITES", "FK_BATCH", "NO_ELBOW_YAW", "SIDES", "TASK_METRICS", "ArmErrors",
-           "arm_errors", "arm_model", "arm_points", "describe", "frame_errors",
-           "joint_errors_deg", "joint_percentiles", "m_max_without", "summarize_errors",
-           "task_space_errors"]  # fmt: skip
+__all__ = ["FK_BATCH", "TASK_METRICS", "ArmErrors", "arm_errors", "arm_model", "arm_points",
+           "describe", "frame_errors", "joint_errors_deg", "joint_percentiles", "m_max_without",
+           "sides", "summarize_errors", "task_space_errors"]  # fmt: skip
 
-ARM_SITES: dict[str, tuple[str, str, str]] = dict(NAO_H25.require_mjcf().arm_sites)
-"""The NAO's MJCF sites (shoulder, elbow, wrist) of each arm (``robot.mjcf.arm_sites``)."""
 
-SIDES: tuple[str, ...] = tuple(ARM_SITES)
-"""The NAO's arms, ``("left", "right")``: the order of the side axis of ``arm_points`` /
-``ArmErrors`` (for any robot: the order of ``robot.mjcf.arm_sites``)."""
+def sides(robot: Robot) -> tuple[str, ...]:
+    """The robot's arms (``robot.mjcf.arm_sites`` keys; NAO: ``("left", "right")``): the order
+    of the side axis of ``arm_points`` / ``ArmErrors``. ConfigError for a robot without MJCF."""
+    return tuple(robot.require_mjcf().arm_sites)
 
-NO_ELBOW_YAW: tuple[str, ...] = NAO_H25.loose_joints
-"""The joints ``m_max_without`` leaves out by default for the NAO (``robot.loose_joints``)."""
 
 TASK_METRICS: tuple[str, ...] = ("hand_cm", "elbow_cm", "upper_arm_deg", "forearm_deg")
 """The task-space summaries per side, in the order of ``ArmErrors``' fields."""
@@ -228,14 +224,14 @@ def _driven(a: np.ndarray, robot: Robot) -> np.ndarray:
 
 
 def joint_errors_deg(
-    pred: np.ndarray | jax.Array, truth: np.ndarray | jax.Array, *, robot: Robot = NAO_H25
+    pred: np.ndarray | jax.Array, truth: np.ndarray | jax.Array, *, robot: Robot
 ) -> np.ndarray:
     """``|pred - truth|`` per driven joint, float64 degrees.
 
     Args:
       pred, truth: ``(F, n_driven)`` driven angles (``robot.driven_joints`` order) or
         ``(F, n_joints)`` configurations (``robot.joint_names`` order), rad, both the same shape.
-      robot: the robot (default the NAO H25).
+      robot: the robot.
 
     Returns:
       ``(F, n_driven)`` in ``robot.driven_joints`` order.
@@ -258,13 +254,13 @@ def _percentiles(err: np.ndarray, robot: Robot) -> dict[str, dict[str, float]]:
 
 
 def joint_percentiles(
-    pred: np.ndarray | jax.Array, truth: np.ndarray | jax.Array, *, robot: Robot = NAO_H25
+    pred: np.ndarray | jax.Array, truth: np.ndarray | jax.Array, *, robot: Robot
 ) -> dict[str, dict[str, float]]:
     """p50 / p95 of the error of each driven joint, degrees.
 
     Args:
       pred, truth: ``(F, n_driven)`` driven angles or ``(F, n_joints)`` configurations, rad.
-      robot: the robot (default the NAO H25).
+      robot: the robot.
 
     Returns:
       ``{joint: {"p50": deg, "p95": deg}}`` for every joint of ``robot.driven_joints`` (zeros
@@ -292,15 +288,15 @@ def m_max_without(
     truth: np.ndarray | jax.Array,
     exclude: Sequence[str] | None = None,
     *,
-    robot: Robot = NAO_H25,
+    robot: Robot,
 ) -> np.ndarray:
     """Per-frame ``M_max`` over the driven joints not in ``exclude``.
 
     Args:
       pred, truth: ``(F, n_driven)`` driven angles or ``(F, n_joints)`` configurations, rad.
       exclude: names of driven joints to leave out (``None``, the default: the robot's
-        ``loose_joints``; NAO: the two elbow-yaw joints, ``NO_ELBOW_YAW``).
-      robot: the robot (default the NAO H25).
+        ``loose_joints``; NAO: the two elbow-yaw joints).
+      robot: the robot.
 
     Returns:
       ``(F,)`` float64 degrees.
@@ -404,7 +400,7 @@ def task_space_errors(
     truth: np.ndarray | jax.Array,
     *,
     truth_points: np.ndarray | jax.Array | None = None,
-    robot: Robot = NAO_H25,
+    robot: Robot,
 ) -> dict[str, dict[str, dict[str, float]]]:
     """Task-space errors of ``pred`` against ``truth``, summarised per side.
 
@@ -413,7 +409,7 @@ def task_space_errors(
         rest at the standing posture), rad, both the same shape.
       truth_points: ``arm_points(truth)`` when already computed (one FK of the truth serves
         every method), else computed here.
-      robot: the robot (default the NAO H25).
+      robot: the robot.
 
     Returns:
       ``{side: {"hand_cm" | "elbow_cm" | "upper_arm_deg" | "forearm_deg": describe}}`` for
@@ -433,7 +429,7 @@ def summarize_errors(
     *,
     truth_points: np.ndarray | jax.Array | None = None,
     pred_points: np.ndarray | jax.Array | None = None,
-    robot: Robot = NAO_H25,
+    robot: Robot,
 ) -> dict:
     """Every metric of one method, JSON-ready (plain floats and ints).
 
@@ -444,7 +440,7 @@ def summarize_errors(
       truth_points: ``arm_points(truth)`` when already computed (pass it to score several
         methods against one truth with one FK of the truth).
       pred_points: ``arm_points(pred)`` when already computed (the caller uses them too).
-      robot: the robot (default the NAO H25).
+      robot: the robot.
 
     Returns:
       ``{"M_max": describe, "M_avg": describe`` (the headline, ``frame_errors`` over the driven

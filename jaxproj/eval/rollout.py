@@ -1,4 +1,4 @@
-"""Physics check of retargeted motions: batched MuJoCo rollouts of a robot (default the NAO).
+"""Physics check of retargeted motions: batched MuJoCo rollouts of a robot.
 
 Two backends behind ``simulate(backend=)``: MuJoCo MJX (jitted, vmapped, on any JAX device;
 the default on accelerators) and CPU MuJoCo (the C library, a host thread per motion; the
@@ -6,8 +6,8 @@ default on a CPU-only machine, where MJX would spend tens of seconds compiling e
 shape). Four modules: this one (``simulate``, ``hand_error_cm``, ``summarize``: the public entry
 points), ``rollout_model`` (``RolloutConfig``, ``RolloutResult``, the per-part models and index
 tables), ``rollout_physics`` (the MJX step and the jitted batched rollouts) and ``rollout_cpu``
-(the CPU MuJoCo backend). Every entry point takes ``robot: Robot`` (``jaxproj.robots``; its
-``mjcf``), default the NAO H25.
+(the CPU MuJoCo backend). Every entry point takes ``robot=``: a ``Robot`` (``jaxproj.robots``;
+its ``mjcf``) or a registered name, ``None`` the default robot (``robots.get()``; the NAO H25).
 
 A retargeted motion is a ``(T, n_joints)`` joint-angle trajectory (rad, ``robot.joint_names``
 order) sampled at the Kinect rate. ``simulate`` plays a padded batch of them on the robot's MJCF
@@ -91,17 +91,14 @@ from jaxproj.eval.rollout_model import (
     _head_ball as _head_ball,
 )
 from jaxproj.eval.rollout_physics import _legs_jit, _merge_jit, _simulate_jit
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import Robot
+from jaxproj.robots import get as get_robot
 from jaxproj.robots.base import joint_qpos_index
 
-__all__ = ["BACKENDS", "CONTACT_GROUPS", "HAND_SITES", "LIMIT_TOLERANCE", "RolloutConfig",
+__all__ = ["BACKENDS", "CONTACT_GROUPS", "LIMIT_TOLERANCE", "RolloutConfig",
            "RolloutResult", "hand_error_cm", "resolve_backend", "simulate",
            "summarize"]  # fmt: skip
 # (``_setup``, ``_fixed_model``, ``_head_ball`` are re-exported for the tests.)
-
-HAND_SITES: tuple[str, ...] = NAO_H25.require_mjcf().hand_sites
-"""The NAO's end-effector sites compared by ``hand_error_cm`` (left, right;
-``robot.mjcf.hand_sites``)."""
 
 _DEFAULT_CONFIG = RolloutConfig()
 
@@ -139,7 +136,7 @@ def simulate(
     config: RolloutConfig = _DEFAULT_CONFIG,
     devices: Sequence[jax.Device] | None = None,
     *,
-    robot: Robot = NAO_H25,
+    robot: Robot | str | None = None,
     backend: str = "auto",
     threads: int | None = None,
 ) -> RolloutResult:
@@ -158,8 +155,8 @@ def simulate(
         XLA's GPU compiler (jax 0.11.2) crashed with a segmentation fault compiling the
         shard_mapped MJX step on two H200s, while the one-device program is the one every
         single-GPU rollout already runs.
-      robot: the robot (default the NAO H25); it needs an MJCF (and ``mjcf.split`` for
-        ``split_legs``; without it the whole model runs).
+      robot: the robot (a ``Robot`` or a registered name; ``None``: the default robot); it
+        needs an MJCF (and ``mjcf.split`` for ``split_legs``; without it the whole model runs).
       backend: ``"mjx"`` (MuJoCo MJX: jitted, vmapped, on JAX devices), ``"mujoco"`` (CPU
         MuJoCo, the C library in float64, one host thread per motion, ``rollout_cpu``; no
         compile; ``devices`` must be None) or ``"auto"`` (default): ``"mujoco"`` when no
@@ -175,6 +172,7 @@ def simulate(
       ConfigError: bad shapes, lengths out of range, non-finite valid frames, bad config.
     """
     _check_config(config)
+    robot = get_robot(robot)
     q, n = _as_batch(targets, lengths, robot)
     devices = None if devices is None else list(devices)
     if devices and len(set(devices)) != len(devices):
@@ -331,24 +329,26 @@ def hand_error_cm(
     angles_a: np.ndarray | jax.Array,
     angles_b: np.ndarray | jax.Array,
     *,
-    robot: Robot = NAO_H25,
+    robot: Robot | str | None = None,
 ) -> jax.Array:
     """Distance between the hand sites of two configurations, with MJX kinematics (jitted).
 
     Args:
       angles_a: (N, n_joints) joint angles, ``robot.joint_names`` order, rad.
       angles_b: (N, n_joints) joint angles, same order.
-      robot: the robot (default the NAO H25); its ``mjcf.hand_sites`` are compared.
+      robot: the robot (a ``Robot`` or a registered name; ``None``: the default robot); its
+        ``mjcf.hand_sites`` are compared.
 
     Returns:
       (N, n_hands) float32 distances in cm between the hand sites (``robot.mjcf.hand_sites``;
-      NAO: ``HAND_SITES``, left then right) of ``angles_a[i]`` and ``angles_b[i]`` (torso frame;
+      NAO: ``l_hand``, ``r_hand``) of ``angles_a[i]`` and ``angles_b[i]`` (torso frame;
       each coupled follower joint takes its leader's angle, ``robot.coupled_joints``). One
       compile per N.
 
     Raises:
       ConfigError: the shapes differ or are not (N, n_joints).
     """
+    robot = get_robot(robot)
     qa = jnp.asarray(angles_a, dtype=jnp.float32)
     qb = jnp.asarray(angles_b, dtype=jnp.float32)
     if qa.ndim != 2 or qa.shape[-1] != robot.n_joints or qa.shape != qb.shape:
@@ -367,7 +367,7 @@ def summarize(
     lengths: np.ndarray | jax.Array,
     targets: np.ndarray | jax.Array,
     *,
-    robot: Robot = NAO_H25,
+    robot: Robot | str | None = None,
 ) -> dict:
     """Plain-number report of a rollout (JSON-serialisable: floats, ints, strings, lists).
 
@@ -375,7 +375,8 @@ def summarize(
       result: the output of ``simulate``.
       lengths: (B,) valid frames per motion, as given to ``simulate``.
       targets: (B, T, n_joints) the targets given to ``simulate``, rad.
-      robot: the robot simulated (default the NAO H25); it needs ``velocity_limits``.
+      robot: the robot simulated (a ``Robot`` or a registered name; ``None``: the default
+        robot); it needs ``velocity_limits``.
 
     Returns:
       dict with (over valid frames only; tracking over ``robot.driven_joints``):
@@ -396,6 +397,7 @@ def summarize(
     Raises:
       ConfigError: shapes not matching the result; a robot without velocity limits.
     """
+    robot = get_robot(robot)
     if robot.velocity_limits is None:
         raise ConfigError(f"summarize needs the velocity limits of robot {robot.name!r}")
     qpos = np.asarray(result.qpos, dtype=np.float64)

@@ -22,7 +22,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxproj.errors import ConfigError
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import Robot
 
 CONTACT_GROUPS: tuple[str, ...] = ("arm_torso", "arm_head", "arm_arm")
 """The self-contact groups reported, in the order of the last axis of ``RolloutResult.contact``."""
@@ -221,7 +221,7 @@ def _can_collide(model: mujoco.MjModel, g1: int, g2: int) -> bool:
 
 
 @functools.lru_cache(maxsize=4)
-def _head_ball(robot: Robot = NAO_H25) -> tuple[np.ndarray, float, float, frozenset[str]]:
+def _head_ball(robot: Robot) -> tuple[np.ndarray, float, float, frozenset[str]]:
     """The ball about the neck (``robot.mjcf.head_root``) that holds the head's geoms at every
     head angle.
 
@@ -288,9 +288,7 @@ def _parts(robot: Robot) -> dict[str, tuple[str, ...]]:
     return {"whole": (), **robot.require_mjcf().split}
 
 
-def _fixed_model(
-    config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25
-) -> mujoco.MjModel:
+def _fixed_model(config: RolloutConfig, part: str, robot: Robot) -> mujoco.MjModel:
     """The fixed-torso MjModel of ``part`` (``_parts``) with the config's gains and gravity."""
     model = robot.load_model("fixed", _parts(robot)[part])
     if config.kp_scale != 1.0:
@@ -339,7 +337,7 @@ class _Tables(NamedTuple):
 
 
 @functools.lru_cache(maxsize=8)
-def _tables(config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25) -> _Tables:
+def _tables(config: RolloutConfig, part: str, robot: Robot) -> _Tables:
     """The MjModel of ``part`` for ``config``, checked for what the protocol assumes, with its
     index tables and physics steps per frame."""
     model = _fixed_model(config, part, robot)
@@ -382,9 +380,7 @@ def _ramp(config: RolloutConfig, substeps: int) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _setup(
-    config: RolloutConfig, part: str = "whole", robot: Robot = NAO_H25
-) -> tuple[_Setup, int]:
+def _setup(config: RolloutConfig, part: str, robot: Robot) -> tuple[_Setup, int]:
     """Model of ``part`` on device, its index tables for ``config``, and steps per frame."""
     t = _tables(config, part, robot)
     mx = mjx.put_model(t.model, impl="jax")

@@ -1,8 +1,9 @@
 """Robot-motion files: a robot joint trajectory (``Motion``) saved as NPZ, CSV or the robot's own
-document (``Robot.exports``; the NAO H25's is NAOqi JSON, ``jaxproj.robots.nao_h25.naoqi``).
+document (``Robot.exports``; the NAO H25's is NAOqi JSON, the ``naoqi`` module of its package).
 
 ``save_motion(path, motion)`` picks the format from the extension; ``load_motion(path)`` reads any
-of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, default the NAO):
+of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, a ``Robot`` or a
+registered name; ``None``, the default: the registry's default robot, ``jaxproj.robots.get()``):
 
 - ``.npz`` (lossless, everything): ``angles`` ``(T, n_joints)`` float32 rad, ``times`` ``(T,)``
   float64 s, ``valid`` ``(T,)`` bool, ``joint_names`` ``(n_joints,)`` str (``robot.joint_names``),
@@ -16,7 +17,7 @@ of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, de
   when the motion has one. There is no validity column: loading a CSV marks every frame valid
   (and it has no positions and no meta).
 - the robot's exports (NAO: ``.json``, NAOqi's ``angleInterpolation`` arguments; ``joints`` and
-  ``lead_in`` of ``save_motion`` are its options): see ``jaxproj.robots.nao_h25.naoqi``.
+  ``lead_in`` of ``save_motion`` are its options): see the NAO's ``naoqi`` module.
 
 The CSV and the robot's exports are files for the robot: ``save_motion`` writes their angles
 ``EXPORT_MARGIN`` (2e-4 rad, 0.011 deg) inside each joint's range, ``[lower + margin, upper -
@@ -56,7 +57,8 @@ import numpy as np
 from jaxproj._internal.atomic import atomic_write, check_folder, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import N_JOINTS as N_HUMAN_JOINTS
-from jaxproj.robots import NAO_H25, Robot, clip_coupled
+from jaxproj.robots import Robot, clip_coupled
+from jaxproj.robots import get as get_robot
 from jaxproj.robots.export import MetaValue, check_meta, check_times
 
 __all__ = ["DEFAULT_FPS", "EXPORT_MARGIN", "FORMATS", "MetaValue", "Motion", "exact_strings",
@@ -98,7 +100,8 @@ class Motion:
         non-finite values at invalid frames), or ``None``.
       meta: JSON scalars describing the motion, e.g. ``method``, ``smoothed``, ``feasible``,
         ``source``, ``fps``.
-      robot: the robot the angles are for (default the NAO H25).
+      robot: the robot the angles are for (a ``Robot`` or a registered name; ``None``, the
+        default: the default robot, ``jaxproj.robots.get()``); a ``Robot`` once constructed.
       confidence: ``(T,)`` float32 in ``[0, 1]``, each frame's confidence
         (``jaxproj.projection.confidence``; ``RetargetResult.confidence``), or ``None``.
 
@@ -113,10 +116,12 @@ class Motion:
     valid: np.ndarray
     positions: np.ndarray | None = None
     meta: Mapping[str, MetaValue] = field(default_factory=dict)
-    robot: Robot = NAO_H25
+    robot: Robot = field(default_factory=get_robot)
     confidence: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        if self.robot is None or isinstance(self.robot, str):
+            object.__setattr__(self, "robot", get_robot(self.robot))
         if not isinstance(self.robot, Robot):
             kind = type(self.robot).__name__
             raise ConfigError(f"robot must be a jaxproj.robots.Robot, got {kind}")
@@ -195,9 +200,10 @@ class Motion:
         return DEFAULT_FPS
 
 
-def formats(robot: Robot = NAO_H25) -> tuple[str, ...]:
-    """File extensions of ``robot``'s motions: ``FORMATS`` and its exports' (NAO: ``.json``)."""
-    return (*FORMATS, *robot.exports)
+def formats(robot: Robot | str | None = None) -> tuple[str, ...]:
+    """File extensions of ``robot``'s motions (``None``: the default robot's): ``FORMATS`` and
+    its exports' (NAO: ``.json``)."""
+    return (*FORMATS, *get_robot(robot).exports)
 
 
 def _check_format(path: Path, robot: Robot) -> str:
@@ -246,7 +252,7 @@ def save_motion(
       InputError: the file cannot be written (nothing is left behind).
     """
     path = Path(path)
-    robot = motion.robot if isinstance(motion, Motion) else NAO_H25
+    robot = motion.robot if isinstance(motion, Motion) else get_robot()
     ext = _check_format(path, robot)
     if not isinstance(motion, Motion):
         kind = type(motion).__name__
@@ -355,13 +361,14 @@ def _write_csv(tmp: Path, motion: Motion, angles: np.ndarray) -> None:
 # --- reading ---------------------------------------------------------------------------------
 
 
-def load_motion(path: str | os.PathLike[str], robot: Robot = NAO_H25) -> Motion:
+def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) -> Motion:
     """Read a motion written by ``save_motion`` (or by ``jaxproj retarget``, ``.npz``).
 
     Args:
       path: ``.npz``, ``.csv`` or one of ``robot.exports`` (NAO: ``.json``); the format follows
         the extension.
-      robot: the robot the motion is for (default the NAO H25).
+      robot: the robot the motion is for: a ``Robot`` or a registered name (``None``, the
+        default: the default robot, ``jaxproj.robots.get()``).
 
     Returns:
       The ``Motion``. Joints the file does not name take ``robot.standing``. CSV: every frame
@@ -374,6 +381,7 @@ def load_motion(path: str | os.PathLike[str], robot: Robot = NAO_H25) -> Motion:
         increasing); the message names the file and the problem.
     """
     path = Path(path)
+    robot = get_robot(robot)
     ext = _check_format(path, robot)
     if not path.is_file():
         raise InputError(path, "no such file" if not path.exists() else "not a file")

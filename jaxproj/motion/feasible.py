@@ -3,7 +3,7 @@
 A projected (or IK) motion follows the person frame by frame, and a Kinect skeleton can move a
 joint target by a large angle in one frame (tracking noise, an ill-defined elbow yaw, a lost
 frame filled by holding the last pose). A robot cannot follow: its joints have speed limits
-(``Robot.speed_limits``, rad/s; every function here takes ``robot=``, default the NAO H25).
+(``Robot.speed_limits``, rad/s; every function here takes ``robot=``, no default).
 ``make_feasible`` turns a motion into one the robot can play
 while staying as close as it can to it:
 
@@ -84,7 +84,7 @@ import numpy as np
 from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError
 from jaxproj.io.motion_files import EXPORT_MARGIN
-from jaxproj.robots import NAO_H25, Robot, clip_coupled
+from jaxproj.robots import Robot, clip_coupled
 
 ACCEL_LIMIT = 80.0
 """rad/s^2: the acceleration bound of ``FeasibleConfig`` on every joint (ours; see module doc)."""
@@ -153,7 +153,7 @@ class FeasibleConfig:
         if not float(self.wrap_patience) >= 0.0:
             raise ConfigError(f"wrap_patience={self.wrap_patience} must be >= 0 s")
 
-    def params(self, robot: Robot = NAO_H25) -> jax.Array:
+    def params(self, robot: Robot) -> jax.Array:
         """``(5, n_joints)`` float32 rows of ``robot``: lower and upper (``limit_margin``
         inside), speed limit
         (``speed_fraction * robot.speed_limits(speeds)``), accel, and
@@ -252,9 +252,7 @@ def _coupled_bounds(
     return lo, hi
 
 
-def _forward(
-    y: jax.Array, dt: jax.Array, params: jax.Array, arms: Arms, robot: Robot = NAO_H25
-) -> jax.Array:
+def _forward(y: jax.Array, dt: jax.Array, params: jax.Array, arms: Arms, robot: Robot) -> jax.Array:
     """One forward pass of the filter over a ``(T, n_joints)`` motion with steps ``dt`` ``(T,)``,
     the elbow pairs ``arms`` and ``robot``'s coupled ranges."""
     lo, hi, vmax, amax = params[0], params[1], params[2], params[3]
@@ -302,7 +300,7 @@ def feasible_motion(
     params: jax.Array,
     *,
     zero_phase: bool,
-    robot: Robot = NAO_H25,
+    robot: Robot,
 ) -> jax.Array:
     """The traceable core of ``make_feasible`` for one padded motion (call it inside a jit).
 
@@ -367,7 +365,8 @@ def make_feasible(
     times: np.ndarray,
     lengths: np.ndarray | None = None,
     config: FeasibleConfig = DEFAULT_FEASIBLE,
-    robot: Robot = NAO_H25,
+    *,
+    robot: Robot,
 ) -> np.ndarray:
     """Make motions robot-feasible (see the module doc); one compiled call for a batch.
 
@@ -447,7 +446,8 @@ def feasibility_report(
     angles: np.ndarray,
     times: np.ndarray,
     config: FeasibleConfig = DEFAULT_FEASIBLE,
-    robot: Robot = NAO_H25,
+    *,
+    robot: Robot,
 ) -> dict:
     """How one motion stands against a robot's limits (JSON-ready numbers).
 
@@ -455,7 +455,7 @@ def feasibility_report(
       angles: ``(T, n_joints)`` radians; times: ``(T,)`` seconds.
       config: the acceleration bound and speed fraction the motion is judged against (the speed
         figures use the full no-load ``robot.velocity_limits``).
-      robot: the robot (default the NAO H25).
+      robot: the robot.
 
     Returns:
       dict: ``frames``; ``speed_violation_frames`` (frames whose step from the previous frame

@@ -24,7 +24,8 @@ pipeline for one motion (descriptor -> map -> finish -> all ``n_joints``), ``fra
 frame of the same stages with the smoother's ``step`` (causal). No function here is jitted: the
 callers jit at their entry points and add the batch axis (``jax.vmap``) where they call it.
 Every stage that needs the robot (limits, posture, IK) takes ``robot`` (a ``Robot``, a static
-argument of the callers' jits; default the NAO H25), so ``n`` is its ``n_driven``.
+argument of the callers' jits; no default: the callers pass the model's or the caller's robot),
+so ``n`` is its ``n_driven``.
 
 The callers, and the options that keep each one's answers as they were measured:
 
@@ -74,7 +75,7 @@ from jaxproj.projection.api import project_batch
 from jaxproj.projection.confidence import confidence
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector, StackedProjector
-from jaxproj.robots import NAO_H25, Robot
+from jaxproj.robots import Robot
 
 Standing = Literal["first", "last"]
 """When ``finish`` puts a motion with no valid frame at the standing posture: ``"first"``
@@ -149,7 +150,7 @@ def map_frames(
     n_m: int,
     full: FullConfig,
     bones: str | tuple[str, ...],
-    robot: Robot = NAO_H25,
+    robot: Robot,
 ) -> tuple[jax.Array, jax.Array]:
     """Per-frame mapping: ``(T, m)`` descriptors -> ``(T, n)`` driven angles (rad) and ``(T,)``
     confidence (``projection.confidence``).
@@ -188,14 +189,14 @@ def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
     return jnp.where(jnp.isfinite(out), out, 0.0)
 
 
-def clip_to_limits(q: jax.Array, robot: Robot = NAO_H25) -> jax.Array:
+def clip_to_limits(q: jax.Array, robot: Robot) -> jax.Array:
     """``(..., n_driven)`` driven angles clipped to ``robot``'s limits (float32 limits), then
     each follower of ``robot.coupled_limits`` to its range at its leader (``Robot.clip_driven``:
     the NAO's HeadPitch to the head anti-collision envelope at its HeadYaw)."""
     return robot.clip_driven(q)
 
 
-def stand_if_lost(q: jax.Array, valid: jax.Array, robot: Robot = NAO_H25) -> jax.Array:
+def stand_if_lost(q: jax.Array, valid: jax.Array, robot: Robot) -> jax.Array:
     """``(T, n_driven)`` -> the standing posture's driven joints on every frame if no frame of
     ``valid`` ``(T,)`` is true, else ``q`` unchanged."""
     return jnp.where(jnp.any(valid), q, jnp.asarray(standing_driven(robot), q.dtype))
@@ -208,7 +209,7 @@ def finish(
     gains: jax.Array | None,
     *,
     standing: Standing,
-    robot: Robot = NAO_H25,
+    robot: Robot,
     smoother: str = "paper",
 ) -> tuple[jax.Array, jax.Array]:
     """The stages after the mapping for one motion: fill -> smooth -> clip, and the standing
@@ -256,7 +257,7 @@ def motion(
     bones: str | tuple[str, ...],
     mirror: bool,
     smoother: str | None,
-    robot: Robot = NAO_H25,
+    robot: Robot,
     neck: NeckLevel = "off",
     neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -303,7 +304,7 @@ def frame(
     n_m: int,
     bones: str | tuple[str, ...],
     mirror: bool,
-    robot: Robot = NAO_H25,
+    robot: Robot,
 ) -> tuple[jax.Array, jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
     """One frame of the pipeline, causal (``streaming.update``'s compiled call).
 
@@ -327,7 +328,8 @@ def frame(
     """
     d, ok = frame_descriptors(positions, None, bones=bones, mirror=mirror)  # (m,), ()
     full = FullConfig()  # unused by the relaxed projection
-    r, conf = map_frames(p, d[None], method="relaxed", n_l=n_l, n_m=n_m, full=full, bones=bones)
+    r, conf = map_frames(p, d[None], method="relaxed", n_l=n_l, n_m=n_m, full=full, bones=bones,
+                         robot=robot)  # fmt: skip
     r = r[0]
     s_t, b_t = smoothing_step(level, trend, r, gains)
     # the first valid frame starts the smoother, as smooth_motion starts a motion
@@ -341,7 +343,7 @@ def frame(
     return out, jnp.where(ok, conf[0], 0.0), (new_level, new_trend, new_started)
 
 
-def standing_driven(robot: Robot = NAO_H25) -> np.ndarray:
+def standing_driven(robot: Robot) -> np.ndarray:
     """``(n_driven,)`` float32: the standing posture's driven joints (the output before any
     valid frame, and of a motion without one)."""
     return robot.standing_driven.astype(np.float32)

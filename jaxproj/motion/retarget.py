@@ -5,9 +5,9 @@
 function (``jaxproj.motion.pipeline.motion``, the one pipeline): descriptor -> per-frame mapping
 -> fill invalid frames -> smoothing -> clip to the joint limits -> the robot's full
 ``(T, n_joints)`` configuration. The robot is the model's (``Model.robot``) or, for the IK,
-``robot=`` (default the NAO H25). A recording's length is padded to a bucket (``_bucket``) so
-recordings of similar length share one compilation. Options are checked here, in Python,
-before tracing.
+``robot=`` (``None``: the default robot). A recording's length is padded to a bucket
+(``_bucket``) so recordings of similar length share one compilation. Options are checked here,
+in Python, before tracing.
 
 Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
 documented rule, so a motion never dies halfway and never contains NaN:

@@ -20,7 +20,7 @@ whose descriptor is invalid (lost tracking, a degenerate bone or body frame, non
 leaves the state untouched and repeats the previous output. The first valid frame starts the
 smoother (``s = y``, zero trend), exactly as ``smoothing.smooth`` starts a motion; before it the
 output is the standing posture's driven joints (``Robot.standing_driven`` of the model's robot,
-``Model.robot``; a bare projector streams for ``robot=``, default the NAO H25).
+``Model.robot``; a bare projector streams for ``robot=``, default the default robot).
 The output is never NaN. On a recording whose frames are all valid, streaming it frame by frame
 gives ``clip(smooth(project(descriptors)))`` of the whole recording
 (``tests/motion/test_streaming.py`` states the tolerance).

@@ -41,8 +41,6 @@ from jaxproj.paper import demo_report
 from jaxproj.paper.demo_report import QUICK_LANDMARKS, QUICK_TEST_STRIDE, QUICK_TRAIN_STRIDE
 from jaxproj.projection import api as engine
 from jaxproj.robots import Robot
-from jaxproj.robots.nao_h25 import robot
-from jaxproj.robots.nao_h25.ik import driven_to_full
 from jaxproj.viz import report
 
 TRAIN_SUBJECTS = datasets.TRAIN_SUBJECTS
@@ -118,22 +116,24 @@ def _rollout_section(
     }
     batches = {}
     for name, per_frame in traj.items():
-        b = np.tile(robot.STANDING_POSTURE, (len(picks), t_max, 1)).astype(np.float32)
+        b = np.tile(spec.standing, (len(picks), t_max, 1)).astype(np.float32)
         for row, s in enumerate(picks):
             a, e = data.offsets[s], data.offsets[s + 1]
-            b[row, : e - a] = np.asarray(driven_to_full(per_frame[a:e]))
+            b[row, : e - a] = np.asarray(spec.driven_to_full(per_frame[a:e]))
             b[row, e - a :] = b[row, e - a - 1]
         batches[name] = b
     times = np.tile(np.arange(t_max) * out["frame_dt"], (len(picks), 1))
     smoothed_ik = batches.pop("ik_smoothed")
-    batches["ik_feasible"] = feasible.make_feasible(smoothed_ik, times, lengths[picks])
-    batches["relaxed_feasible"] = feasible.make_feasible(batches["relaxed"], times, lengths[picks])
+    batches["ik_feasible"] = feasible.make_feasible(smoothed_ik, times, lengths[picks], robot=spec)
+    batches["relaxed_feasible"] = feasible.make_feasible(
+        batches["relaxed"], times, lengths[picks], robot=spec
+    )
     for name in ROLLOUT_TRAJECTORIES:
         b = batches[name]
-        res = rollout.simulate(b, lengths[picks], devices=devices)
-        out[name] = rollout.summarize(res, lengths[picks], b)
+        res = rollout.simulate(b, lengths[picks], devices=devices, robot=spec)
+        out[name] = rollout.summarize(res, lengths[picks], b, robot=spec)
         # the targets' own distance from the per-frame IK (what the person did), deg
-        err = [np.degrees(np.abs(b[r, : lengths[s]][:, robot.DRIVEN_INDEX]
+        err = [np.degrees(np.abs(b[r, : lengths[s]][:, spec.driven_index]
                                  - ev["_truth"][data.offsets[s] : data.offsets[s + 1]]))
                for r, s in enumerate(picks)]  # fmt: skip
         valid = np.concatenate([data.valid[data.offsets[s] : data.offsets[s + 1]] for s in picks])
@@ -268,7 +268,7 @@ def run_demo(
         "test_subjects": list(TEST_SUBJECTS),
         "test_actions": list(TEST_ACTIONS),
     }
-    plots = _plots(out_dir, data, ev, test_seqs, sizes, eff, result)
+    plots = _plots(out_dir, data, ev, test_seqs, sizes, eff, result, model.robot)
     result["plots"] = plots
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
@@ -279,7 +279,9 @@ def run_demo(
     return result
 
 
-def _plots(out_dir: Path, data, ev, seqs, sizes: dict, eff: dict, result: dict) -> list[str]:
+def _plots(
+    out_dir: Path, data, ev, seqs, sizes: dict, eff: dict, result: dict, robot: Robot
+) -> list[str]:
     names = []
     preds = ev["_predictions"]
     truth = ev["_truth"]
@@ -305,6 +307,7 @@ def _plots(out_dir: Path, data, ev, seqs, sizes: dict, eff: dict, result: dict) 
             valid[a:b],
             truth[a:b],
             sel,
+            robot=robot,
         )
         names.append(fname)
     report.plot_per_joint(out_dir / "per_joint_error.png", ev["summary"])

@@ -35,8 +35,15 @@ from jaxproj.paper.synthetic import (
 from jaxproj.projection import api as engine
 from jaxproj.projection.config import FullConfig
 from jaxproj.projection.projector import Projector, StackedProjector
-from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.robots import Robot
+from jaxproj.robots import get as get_robot
 from jaxproj.timing import compile_timed, time_calls
+
+
+def _robot_of(model: engine.Model | Projector) -> Robot:
+    """A model's robot (``Model.robot``); a bare projector's: the default robot, the paper's
+    (the NAO H25)."""
+    return model.robot if isinstance(model, engine.Model) else get_robot()
 
 
 def _bones_of(model: engine.Model | Projector) -> tuple[str, bool]:
@@ -50,12 +57,12 @@ def _batch_size(n: int) -> int:
     return int(min(4096, max(256, 2 ** math.ceil(math.log2(max(n, 1))))))
 
 
-def _ik(d: np.ndarray, bones: str) -> np.ndarray:
-    """``ik.solve_driven`` on a padded power-of-two batch (one compile for many sizes)."""
+def _ik(d: np.ndarray, bones: str, robot: Robot) -> np.ndarray:
+    """``robot.solve_ik`` on a padded power-of-two batch (one compile for many sizes)."""
     n = len(d)
     size = _batch_size(n) if n <= 4096 else n
     padded = np.concatenate([d, np.repeat(d[:1], size - n, axis=0)]) if size > n else d
-    return np.asarray(ik.solve_driven(padded, bones))[:n]
+    return np.asarray(robot.solve_ik(padded, bones))[:n]
 
 
 def _descriptors(model: engine.Model | Projector, positions: np.ndarray) -> np.ndarray:
@@ -189,10 +196,11 @@ def run_pose_experiments(
         "summary": {},
     }
     d = _descriptors(model, frames)
-    truth = _ik(d, bones)
+    robot = _robot_of(model)
+    truth = _ik(d, bones, robot)
     truth_deg = np.degrees(truth.astype(np.float64))
     cover = _nearest_landmark_deg(p, d)
-    joints = robot.DRIVEN_JOINTS
+    joints = robot.driven_joints
     for objective in objectives:
         pred, _ = engine.project(
             model, d, objective, n_l=n_l, n_m=n_m, full=full, batch_size=_batch_size(len(d))
@@ -244,7 +252,7 @@ def _held_out_metrics(
 ) -> dict[str, float]:
     bones = model.config.bones
     h = np.asarray(eval_descriptors, np.float32)
-    truth = _ik(h, bones)
+    truth = _ik(h, bones, model.robot)
     pred, _ = engine.project(model, h, objective, n_l=n_l, n_m=n_m, batch_size=_batch_size(len(h)))
     m_max, m_avg = frame_errors(pred, truth)
     a, x = describe(m_avg), describe(m_max)
@@ -425,7 +433,7 @@ def efficiency_study(
     for n in ls:
         engine.check_neighbours(p, n, n)
     full = FullConfig() if full is None else full
-    truth = _ik(h, bones)
+    truth = _ik(h, bones, _robot_of(model))
     b = int(batch)
     while b > 1 and b * _bytes_per_query(p, max(ls), max(ls)) > max_bytes:
         b //= 2

@@ -23,11 +23,12 @@ changes the frame and hence every other bone's descriptor). The neck, arm, pelvi
 bones are free.
 
 Common to all poses: spine bones ``(0, 0, 1)``; neck ``(sin a, 0, cos a)`` with
-``a = ik.HEAD_PITCH_NEUTRAL`` (-27.1 deg, i.e. tilted *backwards*, the median neck tilt of the
-Kinect recordings, so HeadPitch = HeadYaw = 0); clavicles ``(0, +/-1, 0)``; pelvis
-``(0, +/-0.6, -0.8)``; thighs and shins ``(0, 0, -1)`` (standing straight); feet ``(1, 0, 0)``;
-each hand bone continues its forearm. Arms (left side; the right side mirrors ``y`` unless the
-table gives it; ``bend(u, t, a)`` rotates ``u`` by ``a`` towards the direction ``t``):
+``a = skeleton.NECK_TILT_REFERENCE`` (-27.1 deg, i.e. tilted *backwards*, the median neck tilt
+of the Kinect recordings, the NAO IK's neutral, so HeadPitch = HeadYaw = 0); clavicles
+``(0, +/-1, 0)``; pelvis ``(0, +/-0.6, -0.8)``; thighs and shins ``(0, 0, -1)`` (standing
+straight); feet ``(1, 0, 0)``; each hand bone continues its forearm. Arms (left side; the right
+side mirrors ``y`` unless the table gives it; ``bend(u, t, a)`` rotates ``u`` by ``a`` towards
+the direction ``t``):
 
 ========  ==================================  ==============================
 pose      upper arm ``u``                     forearm ``f``
@@ -95,9 +96,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import BONE_NAMES, BONES, N_JOINTS, J, descriptor
+from jaxproj.human.skeleton import BONE_NAMES, BONES, N_JOINTS, NECK_TILT_REFERENCE, J, descriptor
 from jaxproj.io import datasets
-from jaxproj.robots.nao_h25 import ik, robot
+from jaxproj.robots import Robot
+from jaxproj.robots import get as get_robot
 
 N_BONES = len(BONES)
 POSE_NAMES: tuple[str, ...] = tuple(f"POSE_{i}" for i in range(1, 9))
@@ -245,7 +247,7 @@ def _cd(deg: float) -> float:
 
 
 NEUTRAL_NECK = np.array(
-    [math.sin(ik.HEAD_PITCH_NEUTRAL), 0.0, math.cos(ik.HEAD_PITCH_NEUTRAL)], np.float64
+    [math.sin(NECK_TILT_REFERENCE), 0.0, math.cos(NECK_TILT_REFERENCE)], np.float64
 )
 """Neck direction whose IK is HeadPitch = HeadYaw = 0 (tilted back by 27.1 deg)."""
 
@@ -331,13 +333,17 @@ def check_pose(name: str) -> np.ndarray:
     return BASIC_POSES[name]
 
 
-def basic_pose_angles(bones: str = "upper") -> dict[str, dict[str, float]]:
-    """IK ground truth of every basic pose: name -> {driven joint: degrees}."""
+def basic_pose_angles(
+    bones: str = "upper", robot: Robot | str | None = None
+) -> dict[str, dict[str, float]]:
+    """IK ground truth of every basic pose: name -> {driven joint: degrees}, for ``robot`` (a
+    ``Robot`` or a registered name; ``None``: the default robot, the paper's NAO H25)."""
+    robot = get_robot(robot)
     out = {}
     for name, dirs in BASIC_POSES.items():
         d, _ = descriptor(skeleton_from_directions(dirs), bones=bones)
-        q = np.degrees(np.asarray(ik.solve_driven(d, bones), np.float64))
-        out[name] = {j: float(v) for j, v in zip(robot.DRIVEN_JOINTS, q, strict=True)}
+        q = np.degrees(np.asarray(robot.solve_ik(d, bones), np.float64))
+        out[name] = {j: float(v) for j, v in zip(robot.driven_joints, q, strict=True)}
     return out
 
 

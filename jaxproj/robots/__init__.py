@@ -3,7 +3,11 @@
 A robot is one module that builds a ``Robot`` (``jaxproj.robots.base``) and one ``register``
 line below. Registered: ``nao_h25`` (the NAO H25 V5, the default; closed-form IK) and
 ``unitree_g1`` (the Unitree G1, 29 DoF; the generic IK, ``jaxproj.robots.generic_ik``).
-Everything above ``robots/`` takes a ``robot: Robot`` (default ``NAO_H25``).
+Everything above ``robots/`` takes a ``robot: Robot`` and names no robot: below the public API
+as a required argument; the public entry points take the robot from what they are given (a
+``Model`` records its robot, a ``Motion`` carries one) or ``robot=`` (a ``Robot`` or a name;
+``None``: ``get()``, the default robot). ``tests/test_layers.py`` checks that no module above
+``robots/`` imports ``nao_h25`` or binds ``NAO_H25``.
 
 ``register(robot)`` adds a robot under ``robot.name``; ``get(name)`` returns it; ``names()``
 lists them; ``DEFAULT`` is the name of the default robot (``"nao_h25"``).

@@ -102,6 +102,32 @@ class Chain:
 
 
 @dataclass(frozen=True)
+class Figure:
+    """How the plots and videos of ``jaxproj.viz`` draw a robot as a stick figure (names in its
+    MJCF). The defaults draw a plain figure: every body joined to its parent, no feet, no head.
+
+    Attributes:
+      label: the robot's name in captions and legends (e.g. ``"NAO"``; empty: ``Robot.title``).
+      links: site pairs joined by a line in the report's sketch (``jaxproj.viz.report``);
+        a site named ``l_*`` / ``r_*`` draws orange / blue.
+      head: ``(body, length)``: the sketch's head point lies ``length`` m along the body's z
+        axis from its origin, or ``None``: no head point.
+      parents: the render's stick panel (``jaxproj.viz.panels``) joins each body named here to
+        the body it maps to instead of its MJCF parent.
+      feet: ``(body, site)`` pairs the stick panel joins (ankle to sole); the lowest of these
+        sites in the standing posture sets its floor.
+      head_geom: the geom whose centre is the stick panel's head marker, or ``None``.
+    """
+
+    label: str = ""
+    links: tuple[tuple[str, str], ...] = ()
+    head: tuple[str, float] | None = None
+    parents: Mapping[str, str] = field(default_factory=dict)
+    feet: tuple[tuple[str, str], ...] = ()
+    head_geom: str | None = None
+
+
+@dataclass(frozen=True)
 class Mjcf:
     """A robot's MuJoCo model and the names in it that the evaluation uses.
 
@@ -119,6 +145,7 @@ class Mjcf:
       split: rollout parts, part name -> bodies removed for it (``"upper"``: the legs' roots,
         ``"legs"``: the head's and arms' roots); empty: no split rollout.
       head_root: the body the head turns about (the split rollout's certificate), or ``None``.
+      figure: how plots and videos draw the robot (``Figure``).
     """
 
     path: Path
@@ -129,6 +156,7 @@ class Mjcf:
     hand_sites: tuple[str, ...] = ()
     split: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     head_root: str | None = None
+    figure: Figure = field(default_factory=Figure)
 
 
 @dataclass(frozen=True)

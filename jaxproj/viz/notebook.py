@@ -62,11 +62,12 @@ def render_backend() -> str:
     """``"mujoco"`` where MuJoCo's offscreen renderer can be created (an OpenGL context:
     ``MUJOCO_GL=egl`` / ``osmesa`` or a display), else ``"matplotlib"``; decided once, quietly
     (``render``'s ``"auto"`` backend says so on stderr at every call)."""
+    from jaxproj import robots
     from jaxproj.io.motion_files import Motion
-    from jaxproj.robots.nao_h25 import robot
     from jaxproj.viz import render
 
-    standing = Motion(robot.STANDING_POSTURE[None], np.zeros(1), np.ones(1, bool))
+    robot = robots.get()  # the default robot: any robot's MJCF tells whether OpenGL works
+    standing = Motion(robot.standing[None], np.zeros(1), np.ones(1, bool), robot=robot)
     try:
         render.render_frames(standing, backend="mujoco", size=(32, 32))
     except render.RenderError:

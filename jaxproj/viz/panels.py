@@ -1,18 +1,21 @@
-"""The matplotlib panels of ``jaxproj.viz.render``: the human skeleton and the NAO stick figure
-(MuJoCo CPU kinematics, no OpenGL), each a 3-D axes on an Agg canvas of exact pixel size, and
-the ``Camera`` both panels (and the MuJoCo one) are seen from."""
+"""The matplotlib panels of ``jaxproj.viz.render``: the human skeleton and the robot's stick
+figure (MuJoCo CPU kinematics, no OpenGL; drawn as ``robot.mjcf.figure`` says), each a 3-D axes on
+an Agg canvas of exact pixel size, and the ``Camera`` both panels (and the MuJoCo one) are seen
+from; ``robot_qpos`` / ``kinematics``, a robot's configuration in its MuJoCo model."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONES, J
-from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots import Robot
+from jaxproj.robots.base import joint_qpos_index
 
 LEFT_COLOR = (0.95, 0.6, 0.2)
 RIGHT_COLOR = (0.2, 0.6, 0.95)
@@ -20,10 +23,84 @@ CENTRE_COLOR = (0.25, 0.25, 0.3)
 
 _DPI = 100
 
-# the robot panel's fixed box (torso frame, m): the NAO spans z -0.333 (soles, standing
-# straight) .. +0.33 (hands up), |x|, |y| < 0.33 with the arms out
+# the robot panel's fixed box (torso frame, m), sized for the NAO: it spans z -0.333 (soles,
+# standing straight) .. +0.33 (hands up), |x|, |y| < 0.33 with the arms out
 _ROBOT_CENTRE = np.array([0.0, 0.0, -0.02])
 _ROBOT_HALF = 0.34
+
+
+def robot_label(robot: Robot) -> str:
+    """How captions and legends name ``robot``: ``robot.mjcf.figure.label`` (NAO: ``"NAO"``),
+    else ``robot.title``."""
+    return (robot.mjcf.figure.label if robot.mjcf is not None else "") or robot.title
+
+
+def robot_qpos(robot: Robot, model: Any, angles: np.ndarray) -> np.ndarray:
+    """MuJoCo ``qpos`` of one configuration of ``robot``.
+
+    Args:
+      model: ``robot.load_model(...)`` (either mount).
+      angles: ``(n_joints,)`` joint angles, ``robot.joint_names`` order, rad.
+
+    Returns:
+      ``(nq,)`` float64: ``model.qpos0`` with the angles placed, each coupled follower at its
+      leader (``Robot.couple``) and, for the free mount, the base at the origin with identity
+      orientation.
+    """
+    import mujoco
+
+    q = np.asarray(angles, dtype=np.float64)
+    if q.shape != (robot.n_joints,):
+        raise ConfigError(f"angles must have shape ({robot.n_joints},), got {q.shape}")
+    q = robot.couple(q)
+    qpos = np.array(model.qpos0, dtype=np.float64)
+    free = np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE)
+    if free.size:
+        a = int(model.jnt_qposadr[free[0]])
+        qpos[a : a + 7] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    qpos[joint_qpos_index(model, robot.joint_names)] = q
+    return qpos
+
+
+class Kinematics(NamedTuple):
+    """Forward kinematics of one configuration (``kinematics``), in the root body's frame."""
+
+    sites: np.ndarray
+    """``(len(sites), 3)`` float64 positions of the named sites, m."""
+    bodies: np.ndarray
+    """``(nbody, 3)`` float64 body origins, m."""
+    axes: np.ndarray
+    """``(nbody, 3, 3)`` float64 body orientations (columns: the body's x, y, z axes)."""
+
+
+def kinematics(robot: Robot, model: Any, angles: np.ndarray, sites: Sequence[str]) -> Kinematics:
+    """CPU MuJoCo forward kinematics (``mj_kinematics``) of one configuration, in the frame of the
+    root body (the MJCF's first body: the NAO's torso).
+
+    Args:
+      model: ``robot.load_model(...)`` (either mount); angles: ``(n_joints,)`` rad.
+      sites: MJCF site names.
+
+    Raises:
+      ConfigError: a bad shape, or a site the model does not have.
+    """
+    import mujoco
+
+    sids = []
+    for name in sites:
+        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+        if sid < 0:
+            raise ConfigError(f"model has no site named {name!r}")
+        sids.append(sid)
+    data = mujoco.MjData(model)
+    data.qpos[:] = robot_qpos(robot, model, angles)
+    mujoco.mj_kinematics(model, data)
+    root, rot = data.xpos[1], data.xmat[1].reshape(3, 3)
+    return Kinematics(
+        (data.site_xpos[sids] - root) @ rot,
+        (data.xpos - root) @ rot,
+        rot.T @ data.xmat.reshape(-1, 3, 3),
+    )
 
 
 @dataclass(frozen=True)
@@ -163,45 +240,56 @@ class _HumanPanel:
 
 
 class _StickRobotPanel:
-    """The NAO as a stick figure from MuJoCo CPU kinematics (no OpenGL), matplotlib."""
+    """A robot as a stick figure from MuJoCo CPU kinematics (no OpenGL), matplotlib: body origins
+    joined parent -> child, its feet and head marker (``robot.mjcf.figure``)."""
 
     name = "matplotlib"
 
-    def __init__(self, size: tuple[int, int], camera: Camera):
+    def __init__(self, robot: Robot, size: tuple[int, int], camera: Camera):
         import mujoco
 
         self._mj = mujoco
+        self.robot = robot
+        figure = robot.require_mjcf().figure
         self.model = robot.load_model("fixed")
         self.data = mujoco.MjData(self.model)
         m = self.model
         body = {m.body(b).name: b for b in range(m.nbody)}
         site = {m.site(s).name: s for s in range(m.nsite)}
-        self.data.qpos[:] = robot.config_to_qpos(m, robot.STANDING_POSTURE)
+        self.data.qpos[:] = robot_qpos(robot, m, robot.standing)
         mujoco.mj_kinematics(m, self.data)
         # parent -> child body origins; bodies at their parent's origin draw nothing
-        # (the shoulders hang from the neck, as the skeleton's from ShoulderCenter)
+        # (figure.parents: the NAO's shoulders hang from the neck)
         parent = {b: int(m.body_parentid[b]) for b in range(1, m.nbody)}
-        parent[body["LShoulder"]] = parent[body["RShoulder"]] = body["Neck"]
+        for child, new in figure.parents.items():
+            parent[body[child]] = body[new]
         self.body_pairs = [
             (parent[b], b)
             for b in range(1, m.nbody)
             if parent[b] != 0 and np.linalg.norm(m.body_pos[b]) > 1e-9
         ]
-        self.site_pairs = [(body["l_ankle"], site["l_sole"]), (body["r_ankle"], site["r_sole"])]
+        self.site_pairs = [(body[b], site[s]) for b, s in figure.feet]
         self.colors = [_side_color(m.body(b).name) for _, b in self.body_pairs]
-        self.colors += [LEFT_COLOR, RIGHT_COLOR]
-        self.head_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "head_geom")
-        floor = float(self.data.site_xpos[[site["l_sole"], site["r_sole"]], 2].min())
+        self.colors += [_side_color(s) for _, s in figure.feet]
+        self.head_geom = (
+            None
+            if figure.head_geom is None
+            else mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, figure.head_geom)
+        )
+        soles = [s for _, s in self.site_pairs]
+        lowest = self.data.site_xpos[soles, 2] if soles else self.data.xpos[1:, 2]
+        floor = float(lowest.min())
         self.canvas = _Canvas(size, camera, _ROBOT_CENTRE, _ROBOT_HALF)
         self.canvas.floor(floor, _ROBOT_CENTRE, _ROBOT_HALF)
 
     def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
         d = self.data
-        d.qpos[:] = robot.config_to_qpos(self.model, angles)
+        d.qpos[:] = robot_qpos(self.robot, self.model, angles)
         self._mj.mj_kinematics(self.model, d)
         segments = [d.xpos[[a, b]].copy() for a, b in self.body_pairs]
         segments += [np.stack([d.xpos[b], d.site_xpos[s]]) for b, s in self.site_pairs]
-        return self.canvas.draw(segments, self.colors, d.geom_xpos[self.head_geom].copy(), label)
+        head = None if self.head_geom is None else d.geom_xpos[self.head_geom].copy()
+        return self.canvas.draw(segments, self.colors, head, label)
 
     def close(self) -> None:
         self.canvas.close()

@@ -2,11 +2,11 @@
 
 Each frame holds two panels side by side, each ``size = (width, height)`` pixels: the human
 skeleton (when ``motion.positions`` is given; a matplotlib 3-D stick figure) on the left and the
-NAO playing ``motion.angles`` on the right. Both are seen from the same ``Camera`` direction in
-their own body frame (x forward, y left, z up): the human in the body frame built from the
-skeleton itself (``jaxproj.human.skeleton.body_frame``, hips at the origin; the frame the
-descriptor and the IK use), the robot in its torso frame. Left limbs are orange, right limbs
-blue (the MJCF's colours).
+motion's robot (``motion.robot``, e.g. the NAO) playing ``motion.angles`` on the right. Both are
+seen from the same ``Camera`` direction in their own body frame (x forward, y left, z up): the
+human in the body frame built from the skeleton itself (``jaxproj.human.skeleton.body_frame``,
+hips at the origin; the frame the descriptor and the IK use), the robot in its torso frame. Left
+limbs are orange, right limbs blue (the MJCF's colours).
 
 Backends of the robot panel (``render_frames(..., backend=)``):
 
@@ -49,7 +49,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.io.motion_files import Motion, load_motion
-from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots import Robot
 from jaxproj.viz.panels import (
     CENTRE_COLOR,
     LEFT_COLOR,
@@ -57,6 +57,8 @@ from jaxproj.viz.panels import (
     Camera,
     _HumanPanel,
     _StickRobotPanel,
+    robot_label,
+    robot_qpos,
 )
 from jaxproj.viz.video import (
     MAX_GIF_FPS,
@@ -170,14 +172,15 @@ def _create_renderer(model: Any, width: int, height: int) -> Any:
 
 
 class _MujocoPanel:
-    """The NAO rendered by MuJoCo's OpenGL renderer, torso fixed, free camera."""
+    """A robot rendered by MuJoCo's OpenGL renderer, torso fixed, free camera."""
 
     name = "mujoco"
 
-    def __init__(self, size: tuple[int, int], camera: Camera):
+    def __init__(self, robot: Robot, size: tuple[int, int], camera: Camera):
         import mujoco
 
         self._mj = mujoco
+        self.robot = robot
         width, height = size
         self.model = robot.load_model("fixed")
         vis = self.model.vis.global_
@@ -194,7 +197,7 @@ class _MujocoPanel:
 
     def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
         del label  # no text on OpenGL images
-        self.data.qpos[:] = robot.config_to_qpos(self.model, angles)
+        self.data.qpos[:] = robot_qpos(self.robot, self.model, angles)
         self._mj.mj_forward(self.model, self.data)
         self.renderer.update_scene(self.data, camera=self.camera)
         return np.ascontiguousarray(self.renderer.render())
@@ -204,12 +207,12 @@ class _MujocoPanel:
 
 
 def _robot_panel(
-    backend: str, size: tuple[int, int], camera: Camera
+    robot: Robot, backend: str, size: tuple[int, int], camera: Camera
 ) -> _MujocoPanel | _StickRobotPanel:
     if backend == "matplotlib":
-        return _StickRobotPanel(size, camera)
+        return _StickRobotPanel(robot, size, camera)
     try:
-        return _MujocoPanel(size, camera)
+        return _MujocoPanel(robot, size, camera)
     except RenderError:
         if backend == "mujoco":
             raise
@@ -219,7 +222,7 @@ def _robot_panel(
             file=sys.stderr,
             flush=True,
         )
-        return _StickRobotPanel(size, camera)
+        return _StickRobotPanel(robot, size, camera)
 
 
 # --- frames ---------------------------------------------------------------------------------
@@ -240,7 +243,8 @@ class _Frames:
     ):
         self.motion = motion
         self.index = np.asarray(index)
-        self.robot = _robot_panel(backend, size, camera)
+        self.robot = _robot_panel(motion.robot, backend, size, camera)
+        self.label = robot_label(motion.robot)
         self.backend = self.robot.name
         self.human = None
         if motion.positions is not None:
@@ -260,7 +264,7 @@ class _Frames:
                 t = int(i)
                 held = "" if m.valid[t] else "\ninvalid input: pose held"
                 clock = f"t={m.times[t] - m.times[0]:.2f}s #{t}"
-                robot_img = self.robot.draw(m.angles[t], f"NAO {clock}{held}")
+                robot_img = self.robot.draw(m.angles[t], f"{self.label} {clock}{held}")
                 if self.human is None:
                     yield robot_img
                 else:
@@ -322,15 +326,17 @@ class Rendered(NamedTuple):
     longest_hold_s: float = 0.0
     """The longest time one frame stays on screen (a gap in the recording is held)."""
     human: bool = False
-    """Whether the human skeleton was drawn (the motion holds ``positions``) beside the NAO."""
+    """Whether the human skeleton was drawn (the motion holds ``positions``) beside the robot."""
+    robot: str = "robot"
+    """How the robot was named (``robot.mjcf.figure.label``; NAO: ``"NAO"``)."""
 
     def describe(self) -> str:
         """What the video shows, in words (``jaxproj render`` prints it)."""
         who = (
-            "human skeleton (left) and NAO (right) side by side"
+            f"human skeleton (left) and {self.robot} (right) side by side"
             if self.human
-            else "the NAO only (the motion holds no human positions: only an NPZ with "
-            "`positions` has them)"
+            else f"the {self.robot} only (the motion holds no human positions: only an NPZ "
+            "with `positions` has them)"
         )
         gap = (
             f", longest gap held {self.longest_hold_s:.2f} s"
@@ -381,7 +387,7 @@ def render_to_file(
     finally:
         frames.close()
     return Rendered(path, len(frames), frames.backend, sched.fps, sched.seconds,
-                    sched.longest_hold_s, frames.human is not None)  # fmt: skip
+                    sched.longest_hold_s, frames.human is not None, frames.label)  # fmt: skip
 
 
 def _rate(motion: Motion, stride: int, fps: float | None, ext: str) -> float:

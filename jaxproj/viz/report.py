@@ -2,8 +2,9 @@
 
 Plots written by ``write_report``:
 
-* ``motion_<name>.png`` — a sample motion: the human skeleton and the NAO (projected and IK
-  poses, from MuJoCo forward kinematics of our MJCF) side by side at a few frames, front and side
+* ``motion_<name>.png`` — a sample motion: the human skeleton and the robot (projected and IK
+  poses, from MuJoCo forward kinematics of its MJCF, drawn as ``robot.mjcf.figure`` says) side by
+  side at a few frames, front and side
   views in the body / torso frame, and M_max / M_avg over time per method;
 * ``error_distributions.png`` — cumulative distributions of M_avg and M_max per method;
 * ``landmark_size.png`` — median M_avg and p95 M_max against the landmark count;
@@ -27,23 +28,12 @@ import numpy as np
 
 from jaxproj._internal.atomic import atomic_write
 from jaxproj.human.skeleton import BONES, J, body_frame
-from jaxproj.robots.nao_h25 import robot
+from jaxproj.robots import Robot
+from jaxproj.viz.panels import kinematics, robot_label
 from jaxproj.viz.tables import per_joint_table as per_joint_table  # re-exported
 from jaxproj.viz.tables import summary_table as summary_table
 from jaxproj.viz.tables import where_error_table as where_error_table
 
-_NAO_SITES = (
-    "torso", "neck", "l_shoulder", "l_elbow", "l_wrist", "l_hand",
-    "r_shoulder", "r_elbow", "r_wrist", "r_hand",
-    "l_hip", "l_knee", "l_ankle", "l_sole", "r_hip", "r_knee", "r_ankle", "r_sole",
-)  # fmt: skip
-_NAO_LINKS = (
-    ("neck", "l_shoulder"), ("l_shoulder", "l_elbow"), ("l_elbow", "l_wrist"),
-    ("l_wrist", "l_hand"), ("neck", "r_shoulder"), ("r_shoulder", "r_elbow"),
-    ("r_elbow", "r_wrist"), ("r_wrist", "r_hand"), ("neck", "torso"),
-    ("torso", "l_hip"), ("l_hip", "l_knee"), ("l_knee", "l_ankle"), ("l_ankle", "l_sole"),
-    ("torso", "r_hip"), ("r_hip", "r_knee"), ("r_knee", "r_ankle"), ("r_ankle", "r_sole"),
-)  # fmt: skip
 _COLORS = {
     "relaxed": "tab:blue",
     "full": "tab:orange",
@@ -112,15 +102,19 @@ def human_points(positions: np.ndarray) -> np.ndarray:
     return (positions - positions[J["HipCenter"]]) @ r.T
 
 
-def nao_points(model, angles: np.ndarray) -> dict[str, np.ndarray]:
-    """Site positions (torso frame) of a ``(26,)`` configuration, plus a head point."""
-    pts = robot.site_positions(model, angles, _NAO_SITES)
-    out = dict(zip(_NAO_SITES, pts, strict=True))
-    yaw = float(angles[robot.IDX["HeadYaw"]])
-    pitch = float(angles[robot.IDX["HeadPitch"]])
-    up = np.array([math.cos(yaw) * math.sin(pitch), math.sin(yaw) * math.sin(pitch),
-                   math.cos(pitch)])  # fmt: skip
-    out["head"] = out["neck"] + 0.09 * up
+def robot_points(robot: Robot, model: Any, angles: np.ndarray) -> dict[str, np.ndarray]:
+    """The sketch's points (root frame, m) of one ``(n_joints,)`` configuration: the sites of
+    ``robot.mjcf.figure.links`` and, with ``figure.head``, the head body's origin
+    (``"head_root"``) and the head point (``"head"``)."""
+    figure = robot.require_mjcf().figure
+    names = tuple(dict.fromkeys(n for link in figure.links for n in link))
+    fk = kinematics(robot, model, angles, names)
+    out = dict(zip(names, fk.sites, strict=True))
+    if figure.head is not None:
+        body, length = figure.head
+        b = model.body(body).id
+        out["head_root"] = fk.bodies[b]
+        out["head"] = fk.bodies[b] + length * fk.axes[b][:, 2]
     return out
 
 
@@ -144,20 +138,30 @@ def _draw_human(ax, pts: np.ndarray, axes: tuple[int, int]) -> None:
     ax.plot(pts[J["Head"], a], pts[J["Head"], b], "o", color=_side("Head"), ms=8)
 
 
-def _draw_nao(ax, pts: dict[str, np.ndarray], axes: tuple[int, int], style: str) -> None:
-    """One NAO pose: ``style`` ``"-"`` (the output, thick) or ``"--"`` (the IK, thin)."""
+def _draw_robot(
+    ax: Any,
+    links: tuple[tuple[str, str], ...],
+    pts: dict[str, np.ndarray],
+    axes: tuple[int, int],
+    style: str,
+) -> None:
+    """One robot pose (``robot_points``): ``style`` ``"-"`` (the output, thick) or ``"--"``
+    (the IK, thin)."""
     a, b = axes
     lw = 2.0 if style == "-" else 1.2
-    for p, c in _NAO_LINKS:
+    for p, c in links:
         ax.plot([pts[p][a], pts[c][a]], [pts[p][b], pts[c][b]], style, color=_side(c), lw=lw)
-    grey = _side("neck")
-    ax.plot([pts["neck"][a], pts["head"][a]], [pts["neck"][b], pts["head"][b]], style, color=grey)
-    ax.plot(pts["head"][a], pts["head"][b], "o", color=grey, ms=8 if style == "-" else 5,
+    if "head" not in pts:
+        return
+    grey = _side("head")
+    root, head = pts["head_root"], pts["head"]
+    ax.plot([root[a], head[a]], [root[b], head[b]], style, color=grey)
+    ax.plot(head[a], head[b], "o", color=grey, ms=8 if style == "-" else 5,
             fillstyle="full" if style == "-" else "none")  # fmt: skip
 
 
-def _legend(fig: Any, label: str) -> None:
-    """One legend for the figure's colour and line rule."""
+def _legend(fig: Any, label: str, name: str) -> None:
+    """One legend for the figure's colour and line rule (``name``: the robot's)."""
     from matplotlib.lines import Line2D
 
     from jaxproj.viz.panels import LEFT_COLOR, RIGHT_COLOR
@@ -165,8 +169,8 @@ def _legend(fig: Any, label: str) -> None:
     handles = [
         Line2D([], [], color=LEFT_COLOR, lw=2, label="left limbs"),
         Line2D([], [], color=RIGHT_COLOR, lw=2, label="right limbs"),
-        Line2D([], [], color="k", lw=2, ls="-", label=f"NAO: {label}"),
-        Line2D([], [], color="k", lw=1.2, ls="--", label="NAO: per-frame IK"),
+        Line2D([], [], color="k", lw=2, ls="-", label=f"{name}: {label}"),
+        Line2D([], [], color="k", lw=1.2, ls="--", label=f"{name}: per-frame IK"),
     ]
     fig.legend(handles=handles, loc="upper right", ncol=4, fontsize=8, frameon=False)
 
@@ -180,38 +184,39 @@ def _key_frames(
     angles: np.ndarray,
     ik_angles: np.ndarray,
     label: str,
+    robot: Robot,
 ) -> None:
     """The top two rows of ``plot_motion`` / ``plot_retarget``: at each key frame ``picks[col]``
-    (titled by ``when[col]``) the human (front and side view) and the NAO playing ``angles``
+    (titled by ``when[col]``) the human (front and side view) and the robot playing ``angles``
     (solid, ``label``) over the per-frame IK ``ik_angles`` (dashed); left limbs orange, right
     limbs blue (``_side``), with one legend for the figure.
 
     Args:
       positions: ``(T, 20, 3)`` human joints, Kinect order.
-      angles, ik_angles: ``(T, 10)`` radians, ``robot.DRIVEN_JOINTS`` order.
+      angles, ik_angles: ``(T, n_driven)`` radians, ``robot.driven_joints`` order.
     """
-    from jaxproj.robots.nao_h25.ik import driven_to_full
-
     model = robot.load_model("fixed")
+    links = robot.require_mjcf().figure.links
+    name = robot_label(robot)
     for col, t in enumerate(picks):
         hp = human_points(positions[t])
-        out = nao_points(model, np.asarray(driven_to_full(angles[t])))
-        ik_p = nao_points(model, np.asarray(driven_to_full(ik_angles[t])))
+        out = robot_points(robot, model, np.asarray(robot.driven_to_full(angles[t])))
+        ik_p = robot_points(robot, model, np.asarray(robot.driven_to_full(ik_angles[t])))
         for row, (axes, view) in enumerate((((1, 2), "front"), ((0, 2), "side"))):
             sub = grid[row, col].subgridspec(1, 2, wspace=0.05)
             ax_h, ax_r = fig.add_subplot(sub[0]), fig.add_subplot(sub[1])
             # front view: seen from in front, so the person's left (+y, orange) is on the
             # right; side view: seen from the person's right, forward (+x) to the right
             _draw_human(ax_h, hp, axes)
-            _draw_nao(ax_r, ik_p, axes, "--")
-            _draw_nao(ax_r, out, axes, "-")
+            _draw_robot(ax_r, links, ik_p, axes, "--")
+            _draw_robot(ax_r, links, out, axes, "-")
             for ax in (ax_h, ax_r):
                 ax.set_aspect("equal")
                 ax.set_xticks([])
                 ax.set_yticks([])
             ax_h.set_title(f"human, {when[col]} ({view})", fontsize=8)
-            ax_r.set_title(f"NAO: {label} / IK (dashed)", fontsize=8)
-    _legend(fig, label)
+            ax_r.set_title(f"{name}: {label} / IK (dashed)", fontsize=8)
+    _legend(fig, label, name)
 
 
 def plot_motion(
@@ -222,12 +227,16 @@ def plot_motion(
     truth: np.ndarray,
     predictions: dict[str, np.ndarray],
     key_frames: int = 3,
+    *,
+    robot: Robot,
 ) -> None:
-    """One motion: skeleton vs NAO at a few frames, and the errors over time.
+    """One motion: skeleton vs robot at a few frames, and the errors over time.
 
     Args:
       positions: ``(T, 20, 3)`` human joints; ``valid`` ``(T,)``.
-      truth: ``(T, 10)`` IK angles (driven joints); ``predictions``: method -> ``(T, 10)``.
+      truth: ``(T, n_driven)`` IK angles (driven joints); ``predictions``: method ->
+        ``(T, n_driven)``.
+      robot: the robot the angles are for.
     """
     plt = _plt()
     frames = np.flatnonzero(valid)
@@ -236,7 +245,7 @@ def plot_motion(
     grid = fig.add_gridspec(3, key_frames, height_ratios=[1.0, 1.0, 0.9])
     method = "relaxed" if "relaxed" in predictions else next(iter(predictions))
     when = [f"frame {t}" for t in picks]
-    _key_frames(fig, grid, picks, when, positions, predictions[method], truth, method)
+    _key_frames(fig, grid, picks, when, positions, predictions[method], truth, method, robot)
     ax = fig.add_subplot(grid[2, :])
     for name, pred in predictions.items():
         err = np.degrees(np.abs(pred - truth))
@@ -279,20 +288,24 @@ def plot_retarget(
     ik_angles: np.ndarray,
     label: str = "output",
     key_frames: int = 4,
+    *,
+    robot: Robot,
 ) -> None:
     """One retargeted recording (``jaxproj retarget --plot``): the figure of ``plot_motion`` with
     the joint angles over time instead of the errors.
 
-    Top rows: the human (body frame, front and side view) and the NAO playing ``angles``
+    Top rows: the human (body frame, front and side view) and the robot playing ``angles``
     (solid) and the per-frame IK (dashed) at ``key_frames`` frames spread over the valid ones;
     left limbs orange, right limbs blue, as ``render`` draws them, with a legend. Bottom: the
-    driven joints over time, head / left arm / right arm, ``angles`` solid and the IK dashed
+    driven joints over time, one row per chain of ``robot.chains`` (NAO: head / left arm /
+    right arm), ``angles`` solid and the IK dashed
     (not drawn at invalid frames); no line across a tracker gap (a step over 3x the median).
 
     Args:
       positions: ``(T, 20, 3)`` human joints, Kinect order; ``valid`` ``(T,)``; ``times``
         ``(T,)`` seconds.
-      angles, ik_angles: ``(T, 10)`` radians, ``robot.DRIVEN_JOINTS`` order.
+      angles, ik_angles: ``(T, n_driven)`` radians, ``robot.driven_joints`` order.
+      robot: the robot the angles are for.
     """
     plt = _plt()
     frames = np.flatnonzero(valid)
@@ -300,20 +313,20 @@ def plot_retarget(
         frames = np.arange(len(valid))
     picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
     fig = plt.figure(figsize=(3.6 * key_frames, 14.0))
-    grid = fig.add_gridspec(5, key_frames, height_ratios=[1.0, 1.0, 0.7, 0.7, 0.7])
+    chains = robot.chains
+    grid = fig.add_gridspec(2 + len(chains), key_frames,
+                            height_ratios=[1.0, 1.0, *(0.7 for _ in chains)])  # fmt: skip
     when = [f"{times[t]:.2f} s" for t in picks]
-    _key_frames(fig, grid, picks, when, positions, angles, ik_angles, label)
-    groups = (("head", ("Head",)), ("left arm", ("LShoulder", "LElbow")),
-              ("right arm", ("RShoulder", "RElbow")))  # fmt: skip
+    _key_frames(fig, grid, picks, when, positions, angles, ik_angles, label, robot)
     cut = _gaps(times)
     t_gap = _gapped(np.asarray(times, np.float64), cut)
-    for row, (name, prefixes) in enumerate(groups, start=2):
+    for row, chain in enumerate(chains, start=2):
         ax = fig.add_subplot(grid[row, :])
-        joints = [i for i, n in enumerate(robot.DRIVEN_JOINTS) if n.startswith(prefixes)]
-        for k, i in enumerate(joints):
+        name = chain.name.replace("_", " ")
+        for k, i in enumerate(robot.chain_joints(chain)):
             c = f"C{k}"
             ax.plot(t_gap, _gapped(np.degrees(angles[:, i]), cut), "-", color=c, lw=1.5,
-                    label=robot.DRIVEN_JOINTS[i])  # fmt: skip
+                    label=robot.driven_joints[i])  # fmt: skip
             ik_deg = np.where(valid, np.degrees(ik_angles[:, i]), np.nan)  # no IK where invalid
             ax.plot(t_gap, _gapped(ik_deg, cut), "--", color=c, lw=0.8, alpha=0.7)
         for t in picks:
@@ -433,7 +446,7 @@ def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) 
     """
     methods = methods or [m for m in PROJECTION_METHODS if m in summary] or list(summary)
     plt = _plt()
-    joints = list(robot.DRIVEN_JOINTS)
+    joints = list(summary[methods[0]]["per_joint"])  # the robot's driven joints, in order
     x = np.arange(len(joints), dtype=np.float64)
     width = 0.8 / len(methods)
     fig, ax = plt.subplots(figsize=(11, 4))

@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from jaxproj.robots.nao_h25 import robot
-
 
 def summary_table(summary: dict, methods: list[str] | None = None) -> str:
     """Markdown table of ``summary.<method>.<M_avg|M_max>.<stat>``."""
@@ -54,13 +52,14 @@ def where_error_table(summary: dict, methods: list[str] | None = None) -> str:
 
 
 def per_joint_table(summary: dict, methods: list[str] | None = None) -> str:
-    """Markdown table: ``p50 / p95`` error (deg) per driven joint (rows) and method (columns)."""
+    """Markdown table: ``p50 / p95`` error (deg) per driven joint (rows, the robot's driven
+    joints in the order of the blocks' ``per_joint``) and method (columns)."""
     methods = methods or list(summary)
     lines = [
         "| joint | " + " | ".join(methods) + " |",
         "|---|" + "---:|" * len(methods),
     ]
-    for j in robot.DRIVEN_JOINTS:
+    for j in summary[methods[0]]["per_joint"]:
         cells = [
             f"{summary[m]['per_joint'][j]['p50']:.1f} / {summary[m]['per_joint'][j]['p95']:.1f}"
             for m in methods

@@ -4,6 +4,7 @@ import pytest
 from jaxproj.eval import evaluate, metrics
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik, robot
 from jaxproj.viz import report
 
@@ -108,7 +109,9 @@ def test_plots_are_written(model, data, tmp_path):
         assert out["summary"][m]["M_max"] == evaluate.describe(m_max)
         assert out["summary"][m]["M_avg"] == evaluate.describe(m_avg)
         assert out["summary"][m] == out["unsmoothed"][m]
-        assert out["summary"][m]["task_space"] == metrics.task_space_errors(pred[ok], truth[ok])
+        assert out["summary"][m]["task_space"] == metrics.task_space_errors(
+            pred[ok], truth[ok], robot=NAO_H25
+        )
     report.plot_distributions(tmp_path / "d.png", preds, truth)
     seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
     n = len(seq.valid)
@@ -119,6 +122,7 @@ def test_plots_are_written(model, data, tmp_path):
         seq.valid,
         truth[:n],
         {k: v[:n] for k, v in preds.items()},
+        robot=NAO_H25,
     )
     report.plot_landmark_size(
         tmp_path / "s.png",

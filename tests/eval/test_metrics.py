@@ -14,6 +14,7 @@ import pytest
 from jaxproj.errors import ConfigError
 from jaxproj.eval import evaluate, metrics
 from jaxproj.paper.demo_report import _where_md
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik, robot
 from jaxproj.viz import report
 
@@ -34,17 +35,20 @@ def _set(q: np.ndarray, **angles: float | np.ndarray) -> np.ndarray:
 
 
 def _errors(a: np.ndarray, b: np.ndarray) -> metrics.ArmErrors:
-    return metrics.arm_errors(metrics.arm_points(a), metrics.arm_points(b))
+    return metrics.arm_errors(
+        metrics.arm_points(a, robot=NAO_H25), metrics.arm_points(b, robot=NAO_H25)
+    )
 
 
 def test_fk_matches_cpu_mujoco_on_the_whole_model():
     # independent reference: CPU MuJoCo (float64) on the full fixed-mount MJCF (head and legs too)
     q = _random_configs(7, seed=1)
     q[0] = robot.STANDING_POSTURE
-    got = metrics.arm_points(q)
+    got = metrics.arm_points(q, robot=NAO_H25)
     model = robot.load_model("fixed")
     data = mujoco.MjData(model)
-    names = [n for side in metrics.SIDES for n in metrics.ARM_SITES[side]]
+    arm_sites = NAO_H25.require_mjcf().arm_sites
+    names = [n for side in metrics.sides(NAO_H25) for n in arm_sites[side]]
     for i, qi in enumerate(q):
         data.qpos[:] = robot.config_to_qpos(model, qi)
         mujoco.mj_kinematics(model, data)
@@ -60,24 +64,25 @@ def test_fk_over_several_batches_and_driven_input():
     # more frames than one compiled batch: the padding never leaks into the answers
     n = metrics.FK_BATCH + 3
     q = _random_configs(n, seed=2)
-    pts = metrics.arm_points(q)
-    np.testing.assert_array_equal(pts[-3:], metrics.arm_points(q[-3:]))
-    np.testing.assert_array_equal(pts[:5], metrics.arm_points(q[:5]))
+    pts = metrics.arm_points(q, robot=NAO_H25)
+    np.testing.assert_array_equal(pts[-3:], metrics.arm_points(q[-3:], robot=NAO_H25))
+    np.testing.assert_array_equal(pts[:5], metrics.arm_points(q[:5], robot=NAO_H25))
     # (F, 10) driven angles: the other joints at the standing posture, as ik.driven_to_full
     drv = q[:5, robot.DRIVEN_INDEX]
     np.testing.assert_array_equal(
-        metrics.arm_points(drv), metrics.arm_points(np.asarray(ik.driven_to_full(drv)))
+        metrics.arm_points(drv, robot=NAO_H25),
+        metrics.arm_points(np.asarray(ik.driven_to_full(drv)), robot=NAO_H25),
     )
-    assert metrics.arm_points(np.zeros((0, 26), np.float32)).shape == (0, 2, 3, 3)
+    assert metrics.arm_points(np.zeros((0, 26), np.float32), robot=NAO_H25).shape == (0, 2, 3, 3)
 
 
 def test_identical_poses_have_zero_error():
     q = _random_configs(6, seed=3)
-    block = metrics.summarize_errors(q, q)
+    block = metrics.summarize_errors(q, q, robot=NAO_H25)
     for key in ("M_max", "M_avg", "M_max_no_elbow_yaw"):
         assert block[key]["max"] == 0.0
     assert all(v == {"p50": 0.0, "p95": 0.0} for v in block["per_joint"].values())
-    for side in metrics.SIDES:
+    for side in metrics.sides(NAO_H25):
         for key in metrics.TASK_METRICS:
             assert block["task_space"][side][key]["max"] == 0.0
 
@@ -94,7 +99,7 @@ def test_elbow_roll_turns_only_the_left_forearm_by_exactly_d():
     assert np.abs(e.upper_arm[:, L]).max() < 1e-5 and np.abs(e.elbow[:, L]).max() < 1e-6
     for field in e:
         assert np.abs(field[:, R]).max() < 1e-6  # nothing moved on the right
-    ts = metrics.task_space_errors(moved, base)
+    ts = metrics.task_space_errors(moved, base, robot=NAO_H25)
     want = np.degrees(np.abs(d))
     assert ts["left"]["forearm_deg"]["max"] == pytest.approx(want.max(), abs=1e-3)
     assert ts["left"]["forearm_deg"]["median"] == pytest.approx(np.median(want), abs=1e-3)
@@ -118,7 +123,10 @@ def test_shoulder_pitch_turns_the_upper_arm_by_d():
     # any other roll: the part of the segment along the pitch axis (y) does not turn
     base = _set(_random_configs(4, seed=6), LShoulderPitch=0.1)
     moved = _set(base, LShoulderPitch=0.1 + d)
-    v = metrics.arm_points(base)[:, L, 1] - metrics.arm_points(base)[:, L, 0]
+    v = (
+        metrics.arm_points(base, robot=NAO_H25)[:, L, 1]
+        - metrics.arm_points(base, robot=NAO_H25)[:, L, 0]
+    )
     v = v.astype(np.float64)
     along = v[:, 1] ** 2 / (v**2).sum(axis=1)
     want = np.arccos(along + (1 - along) * np.cos(d))
@@ -135,7 +143,7 @@ def test_elbow_yaw_of_a_straight_arm_moves_no_point():
     e = _errors(moved, base)
     assert e.hand[:, L].max() < 1e-6 and e.elbow[:, L].max() < 1e-6
     assert np.degrees(e.forearm[:, L]).max() < 1e-3
-    block = metrics.summarize_errors(moved, base)
+    block = metrics.summarize_errors(moved, base, robot=NAO_H25)
     assert block["M_max"]["max"] == pytest.approx(np.degrees(np.abs(dy)).max(), abs=1e-3)
     assert block["M_max_no_elbow_yaw"]["max"] == 0.0
     assert block["task_space"]["left"]["hand_cm"]["max"] < 1e-4
@@ -151,27 +159,35 @@ def test_joint_metrics_against_numpy():
     truth = rng.uniform(-1, 1, (301, 10))
     pred = truth + rng.normal(0, 0.2, truth.shape)
     err = np.degrees(np.abs(pred - truth))
-    got = metrics.joint_percentiles(pred, truth)
+    got = metrics.joint_percentiles(pred, truth, robot=NAO_H25)
     assert list(got) == list(robot.DRIVEN_JOINTS)
     for j, name in enumerate(robot.DRIVEN_JOINTS):
         assert got[name]["p50"] == pytest.approx(np.median(err[:, j]), rel=1e-12)
         assert got[name]["p95"] == pytest.approx(np.percentile(err[:, j], 95), rel=1e-12)
     keep = [j for j, n in enumerate(robot.DRIVEN_JOINTS) if "ElbowYaw" not in n]
     assert len(keep) == 8
-    np.testing.assert_allclose(metrics.m_max_without(pred, truth), err[:, keep].max(axis=1))
-    only_head = metrics.m_max_without(pred, truth, exclude=robot.DRIVEN_JOINTS[2:])
+    np.testing.assert_allclose(
+        metrics.m_max_without(pred, truth, robot=NAO_H25), err[:, keep].max(axis=1)
+    )
+    only_head = metrics.m_max_without(pred, truth, exclude=robot.DRIVEN_JOINTS[2:], robot=NAO_H25)
     np.testing.assert_allclose(only_head, err[:, :2].max(axis=1))
     # (F, 26) configurations give the driven joints' numbers
     full = np.asarray(ik.driven_to_full(pred)), np.asarray(ik.driven_to_full(truth))
     drv = full[0][:, robot.DRIVEN_INDEX], full[1][:, robot.DRIVEN_INDEX]
-    np.testing.assert_array_equal(metrics.m_max_without(*full), metrics.m_max_without(*drv))
-    assert metrics.joint_percentiles(*full) == metrics.joint_percentiles(*drv)
+    np.testing.assert_array_equal(
+        metrics.m_max_without(*full, robot=NAO_H25), metrics.m_max_without(*drv, robot=NAO_H25)
+    )
+    assert metrics.joint_percentiles(*full, robot=NAO_H25) == metrics.joint_percentiles(
+        *drv, robot=NAO_H25
+    )
     # the block agrees with the functions; the headline is the paper's frame_errors
-    block = metrics.summarize_errors(pred, truth)
+    block = metrics.summarize_errors(pred, truth, robot=NAO_H25)
     m_max, m_avg = metrics.frame_errors(pred, truth)
     assert block["M_max"] == metrics.describe(m_max) and block["M_avg"] == metrics.describe(m_avg)
     assert block["per_joint"] == got
-    assert block["M_max_no_elbow_yaw"] == metrics.describe(metrics.m_max_without(pred, truth))
+    assert block["M_max_no_elbow_yaw"] == metrics.describe(
+        metrics.m_max_without(pred, truth, robot=NAO_H25)
+    )
     assert block["M_max_no_elbow_yaw"]["p95"] < block["M_max"]["p95"]
 
 
@@ -179,23 +195,25 @@ def test_summary_block_keys_and_truth_points_reuse():
     rng = np.random.default_rng(9)
     truth = np.asarray(ik.driven_to_full(rng.uniform(-0.5, 0.5, (40, 10))))
     pred = truth + rng.normal(0, 0.1, truth.shape).astype(np.float32)
-    pts = metrics.arm_points(truth)
-    block = metrics.summarize_errors(pred, truth, truth_points=pts)
-    assert block == metrics.summarize_errors(pred, truth)
+    pts = metrics.arm_points(truth, robot=NAO_H25)
+    block = metrics.summarize_errors(pred, truth, truth_points=pts, robot=NAO_H25)
+    assert block == metrics.summarize_errors(pred, truth, robot=NAO_H25)
     assert set(block) == {"M_max", "M_avg", "per_joint", "M_max_no_elbow_yaw", "task_space"}
     stats = {"mean", "median", "p95", "max", "n"}
     assert set(block["M_max"]) == set(block["M_max_no_elbow_yaw"]) == stats
     assert set(block["per_joint"]) == set(robot.DRIVEN_JOINTS)
     assert set(block["task_space"]) == {"left", "right"}
-    for side in metrics.SIDES:
+    for side in metrics.sides(NAO_H25):
         assert set(block["task_space"][side]) == set(metrics.TASK_METRICS)
         for v in block["task_space"][side].values():
             assert set(v) == stats and v["n"] == 40 and v["median"] > 0
-    assert block["task_space"] == metrics.task_space_errors(pred, truth, truth_points=pts)
+    assert block["task_space"] == metrics.task_space_errors(
+        pred, truth, truth_points=pts, robot=NAO_H25
+    )
     back = json.loads(json.dumps(block, allow_nan=False))
     assert back == block
     # empty input: NaN-free zeros
-    empty = metrics.summarize_errors(np.zeros((0, 10)), np.zeros((0, 10)))
+    empty = metrics.summarize_errors(np.zeros((0, 10)), np.zeros((0, 10)), robot=NAO_H25)
     assert empty["M_max"]["n"] == 0 and empty["task_space"]["left"]["hand_cm"]["n"] == 0
     json.dumps(empty, allow_nan=False)
 
@@ -203,17 +221,17 @@ def test_summary_block_keys_and_truth_points_reuse():
 def test_typed_errors():
     q = np.zeros((3, 10))
     with pytest.raises(ConfigError, match="shape"):
-        metrics.summarize_errors(np.zeros((3, 9)), np.zeros((3, 9)))
+        metrics.summarize_errors(np.zeros((3, 9)), np.zeros((3, 9)), robot=NAO_H25)
     with pytest.raises(ConfigError, match="same shape"):
-        metrics.joint_percentiles(q, np.zeros((4, 10)))
+        metrics.joint_percentiles(q, np.zeros((4, 10)), robot=NAO_H25)
     with pytest.raises(ConfigError, match="non-finite"):
-        metrics.arm_points(np.full((2, 26), np.nan))
+        metrics.arm_points(np.full((2, 26), np.nan), robot=NAO_H25)
     with pytest.raises(ConfigError, match="not driven"):
-        metrics.m_max_without(q, q, exclude=("LWristYaw",))
+        metrics.m_max_without(q, q, exclude=("LWristYaw",), robot=NAO_H25)
     with pytest.raises(ConfigError, match="every driven joint"):
-        metrics.m_max_without(q, q, exclude=robot.DRIVEN_JOINTS)
+        metrics.m_max_without(q, q, exclude=robot.DRIVEN_JOINTS, robot=NAO_H25)
     with pytest.raises(ConfigError, match="frames"):
-        metrics.summarize_errors(q, q, truth_points=np.zeros((2, 2, 3, 3)))
+        metrics.summarize_errors(q, q, truth_points=np.zeros((2, 2, 3, 3)), robot=NAO_H25)
     with pytest.raises(ConfigError, match="arm_points"):
         metrics.arm_errors(np.zeros((3, 6, 3)), np.zeros((3, 6, 3)))
 
@@ -226,9 +244,11 @@ def test_evaluate_keeps_the_old_names():
 def _fake_summary() -> dict:
     rng = np.random.default_rng(10)
     truth = rng.uniform(-0.5, 0.5, (30, 10))
-    pts = metrics.arm_points(truth)
+    pts = metrics.arm_points(truth, robot=NAO_H25)
     return {
-        m: metrics.summarize_errors(truth + rng.normal(0, s, truth.shape), truth, truth_points=pts)
+        m: metrics.summarize_errors(
+            truth + rng.normal(0, s, truth.shape), truth, truth_points=pts, robot=NAO_H25
+        )
         for m, s in (("relaxed", 0.05), ("full", 0.04), ("nearest_landmark", 0.2))
     }
 

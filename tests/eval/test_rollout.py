@@ -17,6 +17,7 @@ import pytest
 
 from jaxproj.errors import ConfigError
 from jaxproj.eval import rollout, rollout_model
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
 
 T = 10  # frames per motion (15 frames/s: 0.67 s)
@@ -171,9 +172,9 @@ def test_frictionless_contacts(batch, cpu_batch: rollout.RolloutResult) -> None:
     # contact-free motions are bit-identical, the colliding one still reports its contact. Run
     # on the C backend (the config is the model's, both backends read it): an MJX compile of
     # its own costs ~50 s on 2 cores; benchmarks/bench_rollout.py --frictionless runs MJX.
-    model = rollout._fixed_model(rollout.RolloutConfig(contact_friction=False))
+    model = rollout._fixed_model(rollout.RolloutConfig(contact_friction=False), "whole", NAO_H25)
     assert np.all(model.geom_condim == 1)
-    assert np.all(rollout._fixed_model(rollout.RolloutConfig()).geom_condim == 3)
+    assert np.all(rollout._fixed_model(rollout.RolloutConfig(), "whole", NAO_H25).geom_condim == 3)
     targets, lengths, _ = batch
     r = cpu_batch
     rows = [STANDING, STEP, COLLIDE]
@@ -332,7 +333,7 @@ def test_split_with_moving_legs(batch, whole: rollout.RolloutResult) -> None:
     moved = targets.copy()
     knee = IDX["LKneePitch"]
     moved[:, 4:, knee] = 1.0
-    legs = np.asarray(rollout._setup(rollout.RolloutConfig(), "legs")[0].joints)
+    legs = np.asarray(rollout._setup(rollout.RolloutConfig(), "legs", NAO_H25)[0].joints)
     rows, inverse = rollout._leg_motions(moved, lengths, legs)
     assert rows.shape == (1, T, 12) and set(inverse.tolist()) == {0}
     assert rows[0, -1, list(legs).index(knee)] == 1.0
@@ -373,19 +374,19 @@ def test_leg_motions_dedup() -> None:
 def test_head_ball_known_answer() -> None:
     # MJCF: the head sphere (r = 0.065) sits 0.055 above the neck joint (0, 0, 0.1265), about
     # which both head joints turn; the arm geoms cannot collide with a leg geom
-    center, reach, margin, names = rollout._head_ball()
+    center, reach, margin, names = rollout._head_ball(NAO_H25)
     np.testing.assert_allclose(center, [0.0, 0.0, robot.NECK_OFFSET_Z], atol=1e-12)
     assert reach == pytest.approx(0.055 + 0.065) and margin == 0.0 and names == {"head_geom"}
-    legs, _ = rollout._setup(rollout.RolloutConfig(), "legs")
+    legs, _ = rollout._setup(rollout.RolloutConfig(), "legs", NAO_H25)
     assert legs.guard_geom.shape == (6,)  # thighs, tibias, feet: their filter bits meet the head's
-    upper, _ = rollout._setup(rollout.RolloutConfig(), "upper")
+    upper, _ = rollout._setup(rollout.RolloutConfig(), "upper", NAO_H25)
     assert upper.guard_geom.shape == (0,)
 
 
 def test_split_guard_falls_back(batch, whole: rollout.RolloutResult, monkeypatch) -> None:
     # a head ball reaching the legs fails the certificate: the whole model runs instead
     targets, lengths, _ = batch
-    center, _, margin, names = rollout._head_ball()
+    center, _, margin, names = rollout._head_ball(NAO_H25)
     rollout._setup.cache_clear()
     monkeypatch.setattr(rollout_model, "_head_ball", lambda robot: (center, 0.3, margin, names))
     try:
@@ -481,7 +482,7 @@ def test_hand_error_cm(fixed: mujoco.MjModel) -> None:
     b[1, IDX["LShoulderPitch"]] += 0.3  # left arm only
     err = np.asarray(rollout.hand_error_cm(a, b))
     assert err.shape == (8, 2) and err.dtype == np.float32
-    sites = list(rollout.HAND_SITES)
+    sites = list(NAO_H25.require_mjcf().hand_sites)
     pa = robot.site_positions(fixed, a.astype(np.float64), sites)
     pb = robot.site_positions(fixed, b.astype(np.float64), sites)
     ref = 100.0 * np.linalg.norm(pa - pb, axis=-1)

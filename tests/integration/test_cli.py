@@ -12,6 +12,7 @@ from jaxproj.io import datasets
 from jaxproj.io.readers import MSR_TO_SDK
 from jaxproj.projection import api as engine
 from jaxproj.projection.confidence import LOW_CONFIDENCE
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik, robot
 
 
@@ -112,14 +113,16 @@ def test_retarget_utkinect_to_robot_files_with_time_and_no_speed_violation(tmp_p
     assert _run(capsys, "retarget", str(src), "--out", str(raw), "--no-feasible")[0] == 0
     raw_m = load_motion(raw)
     np.testing.assert_allclose(raw_m.times, want_t, rtol=0, atol=1e-9)
-    assert feasibility_report(raw_m.angles, raw_m.times)["speed_violation_frames"] > 0
+    assert (
+        feasibility_report(raw_m.angles, raw_m.times, robot=NAO_H25)["speed_violation_frames"] > 0
+    )
     for ext in ("csv", "json", "npz"):
         out = tmp_path / f"motion.{ext}"
         code, stdout, _ = _run(capsys, "retarget", str(src), "--out", str(out))
         assert code == 0 and "speed-limit frames" in stdout and "[feasible]" in stdout
         m = load_motion(out)
         np.testing.assert_allclose(m.times, want_t, rtol=0, atol=1e-6)
-        rep = feasibility_report(m.angles, m.times)
+        rep = feasibility_report(m.angles, m.times, robot=NAO_H25)
         assert rep["speed_violation_frames"] == 0 and rep["limit_violation_frames"] == 0
     doc = json.loads((tmp_path / "motion.json").read_text())
     assert set(doc) >= {"names", "angleLists", "timeLists", "isAbsolute"}

@@ -14,6 +14,7 @@ from jaxproj.motion.feasible import (
     feasibility_report,
     make_feasible,
 )
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
 
 J = robot.JOINT_NAMES.index
@@ -37,11 +38,11 @@ def test_output_respects_limits_speed_and_acceleration(zero_phase: bool, fps: fl
     q = _jerky_motion(120)
     times = np.arange(len(q)) / fps
     cfg = FeasibleConfig(zero_phase=zero_phase)
-    before = feasibility_report(q, times, cfg)
+    before = feasibility_report(q, times, cfg, robot=NAO_H25)
     assert before["speed_violation_frames"] > 10  # the input is really infeasible
-    out = make_feasible(q, times, config=cfg)
+    out = make_feasible(q, times, config=cfg, robot=NAO_H25)
     assert out.dtype == np.float32 and out.shape == q.shape and np.isfinite(out).all()
-    rep = feasibility_report(out, times, cfg)
+    rep = feasibility_report(out, times, cfg, robot=NAO_H25)
     assert rep["limit_violation_frames"] == 0
     margin = np.float32(cfg.limit_margin)  # 2e-4 rad inside, as the robot files hold it
     assert (
@@ -64,14 +65,20 @@ def test_rated_speeds_by_default_no_load_on_request() -> None:
     """The default caps at 99 % of the rated speeds; ``speeds="no-load"`` keeps the former cap,
     90 % of the no-load speeds, which lets the arms move faster than rated."""
     assert DEFAULT_FEASIBLE.speeds == "rated" and DEFAULT_FEASIBLE.speed_fraction == 0.99
-    np.testing.assert_allclose(DEFAULT_FEASIBLE.params()[2], 0.99 * robot.RATED_SPEEDS, rtol=1e-6)
+    np.testing.assert_allclose(
+        DEFAULT_FEASIBLE.params(robot=NAO_H25)[2], 0.99 * robot.RATED_SPEEDS, rtol=1e-6
+    )
     free = FeasibleConfig(speeds="no-load")
     assert free.speed_fraction == 0.9
-    np.testing.assert_allclose(free.params()[2], 0.9 * robot.VELOCITY_LIMITS, rtol=1e-6)
+    np.testing.assert_allclose(
+        free.params(robot=NAO_H25)[2], 0.9 * robot.VELOCITY_LIMITS, rtol=1e-6
+    )
     assert FeasibleConfig(speeds="no-load", speed_fraction=0.5).speed_fraction == 0.5
     q = _jerky_motion(120)
     times = np.arange(len(q)) / 30.0
-    fast = feasibility_report(make_feasible(q, times, config=free), times)
+    fast = feasibility_report(
+        make_feasible(q, times, config=free, robot=NAO_H25), times, robot=NAO_H25
+    )
     assert fast["speed_violation_frames"] == 0 and fast["max_speed_ratio"] <= 0.9 + 1e-4
     assert fast["rated_speed_ratio"] > 1.1  # faster than the rated speeds
 
@@ -81,7 +88,7 @@ def test_a_feasible_motion_is_followed_closely() -> None:
     q = np.tile(robot.STANDING_POSTURE, (len(t), 1)).astype(np.float32)
     q[:, J("LShoulderPitch")] = 0.5 * np.sin(2 * np.pi * 0.5 * t)  # 1.6 rad/s, 4.9 rad/s^2
     q[:, J("LElbowRoll")] = -0.8 + 0.3 * np.sin(2 * np.pi * 0.3 * t)
-    out = make_feasible(q, t)
+    out = make_feasible(q, t, robot=NAO_H25)
     assert np.abs(out - q).max() < math.radians(1.0)
 
 
@@ -89,8 +96,8 @@ def test_zero_phase_cancels_the_lag_of_one_pass() -> None:
     t = np.arange(60) / 15.0
     q = np.tile(robot.STANDING_POSTURE, (len(t), 1)).astype(np.float32)
     q[20:, J("RShoulderPitch")] = -1.0  # a step: 2.2 rad (+1.4 -> -1.0, beyond one frame's reach)
-    fwd = make_feasible(q, t, config=FeasibleConfig(zero_phase=False))
-    both = make_feasible(q, t)
+    fwd = make_feasible(q, t, config=FeasibleConfig(zero_phase=False), robot=NAO_H25)
+    both = make_feasible(q, t, robot=NAO_H25)
     j = J("RShoulderPitch")
     mid = 0.5 * (q[0, j] + q[-1, j])
     crossing = lambda x: int(np.argmax(x < mid))  # noqa: E731
@@ -111,13 +118,13 @@ def test_elbow_yaw_flicker_at_the_range_ends_is_ignored_and_a_real_move_followed
     q[10:15, yaw] = bottom  # short visits (< wrap_patience) to the other end: the IK's
     q[25:31, yaw] = bottom  # wrap-around flicker
     q[70:, yaw] = bottom  # then the target really stays at the other end
-    out = make_feasible(q, t)
+    out = make_feasible(q, t, robot=NAO_H25)
     # flicker (frames 10..30): held. The real move is followed by the backward pass too: it
     # waits its patience after frame 70, then crosses the 239 deg range at the rated speed in
     # ~0.7 s (21 frames), leaving the top end from frame ~40 on
     assert np.abs(out[:40, yaw] - top).max() < math.radians(2.0)
     assert abs(out[-1, yaw] - bottom) < 1e-3  # a real move is followed
-    plain = make_feasible(q, t, config=FeasibleConfig(wrap_patience=0.0))
+    plain = make_feasible(q, t, config=FeasibleConfig(wrap_patience=0.0), robot=NAO_H25)
     assert np.abs(plain[:40, yaw] - top).max() > math.radians(30.0)  # without the rule it moves
 
 
@@ -128,11 +135,11 @@ def test_elbow_yaw_of_a_straight_arm_is_held() -> None:
     q[:, roll] = robot.LOWER[roll]  # straight (0.0349 rad): yaw does not move the forearm
     q[::2, yaw] = 1.5
     q[1::2, yaw] = -1.5  # noise-driven yaw of a straight arm
-    out = make_feasible(q, t)
+    out = make_feasible(q, t, robot=NAO_H25)
     assert np.abs(out[:, yaw] - out[0, yaw]).max() < 1e-6
     bent = q.copy()
     bent[:, roll] = 1.2
-    moved = make_feasible(bent, t)
+    moved = make_feasible(bent, t, robot=NAO_H25)
     assert np.abs(moved[:, yaw] - moved[0, yaw]).max() > 0.5
 
 
@@ -146,25 +153,25 @@ def test_batch_with_padding_equals_one_by_one_and_is_deterministic() -> None:
         batch[i, : len(q)] = q
         batch[i, len(q) :] = np.nan  # padding must not leak
         times[i] = np.arange(t_max) / 15.0
-    out = make_feasible(batch, times, np.array(lengths))
+    out = make_feasible(batch, times, np.array(lengths), robot=NAO_H25)
     for i, q in enumerate(qs):
-        one = make_feasible(q, times[i, : len(q)])
+        one = make_feasible(q, times[i, : len(q)], robot=NAO_H25)
         np.testing.assert_allclose(out[i, : len(q)], one, rtol=0, atol=1e-6)
-    again = make_feasible(batch, times, np.array(lengths))
+    again = make_feasible(batch, times, np.array(lengths), robot=NAO_H25)
     np.testing.assert_array_equal(np.nan_to_num(out), np.nan_to_num(again))
     # one frame: the input, held the limit margin inside the joint ranges (it has angles at a limit)
     m = np.float32(DEFAULT_FEASIBLE.limit_margin)
     one_frame = np.clip(qs[2], robot.LOWER + m, robot.UPPER - m)
     assert (one_frame != qs[2]).any()
-    np.testing.assert_array_equal(make_feasible(qs[2], times[2, :1]), one_frame)
+    np.testing.assert_array_equal(make_feasible(qs[2], times[2, :1], robot=NAO_H25), one_frame)
 
 
 def test_irregular_time_steps_are_respected() -> None:
     q = _jerky_motion(80, seed=3)
     steps = np.random.default_rng(4).choice([1 / 30, 2 / 30, 4 / 30], size=len(q))
     times = np.cumsum(steps) - steps[0]
-    out = make_feasible(q, times)
-    rep = feasibility_report(out, times)
+    out = make_feasible(q, times, robot=NAO_H25)
+    rep = feasibility_report(out, times, robot=NAO_H25)
     assert rep["speed_violation_frames"] == 0 and rep["limit_violation_frames"] == 0
     assert rep["max_accel"] <= DEFAULT_FEASIBLE.accel * 1.01
 
@@ -173,17 +180,17 @@ def test_bad_arguments_raise_config_errors() -> None:
     q = _jerky_motion(5)
     t = np.arange(5) / 15.0
     with pytest.raises(ConfigError, match="times"):
-        make_feasible(q, t[:4])
+        make_feasible(q, t[:4], robot=NAO_H25)
     with pytest.raises(ConfigError, match="increase"):
-        make_feasible(q, t[::-1])
+        make_feasible(q, t[::-1], robot=NAO_H25)
     with pytest.raises(ConfigError, match=r"\(T, 26\)"):
-        make_feasible(q[:, :10], t)
+        make_feasible(q[:, :10], t, robot=NAO_H25)
     bad = q.copy()
     bad[2, 0] = np.nan
     with pytest.raises(ConfigError, match="finite"):
-        make_feasible(bad, t)
+        make_feasible(bad, t, robot=NAO_H25)
     with pytest.raises(ConfigError, match="lengths"):
-        make_feasible(q[None], t[None], np.array([0]))
+        make_feasible(q[None], t[None], np.array([0]), robot=NAO_H25)
     for kw in ({"speed_fraction": 0.0}, {"speeds": "peak"}, {"accel": -1.0},
                {"straight_elbow": (0.3, 0.1)},
                {"wrap_band": -0.1}, {"wrap_patience": -1.0}):  # fmt: skip

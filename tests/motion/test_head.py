@@ -24,6 +24,7 @@ from jaxproj.motion import streaming
 from jaxproj.motion.feasible import FeasibleConfig, feasibility_report
 from jaxproj.motion.retarget import retarget
 from jaxproj.projection import api as engine
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik, robot
 
 YAW, PITCH = robot.IDX["HeadYaw"], robot.IDX["HeadPitch"]
@@ -127,7 +128,7 @@ def test_retarget_and_the_feasibility_filter_stay_inside(sweep, model, method, s
         assert f.unfiltered is not None
         assert (_outside(f.unfiltered) <= TOL).all()  # retarget's own output
         assert (_outside(f.angles) <= TOL).all()
-        rep = feasibility_report(f.angles, times)
+        rep = feasibility_report(f.angles, times, robot=NAO_H25)
         assert rep["limit_violation_frames"] == 0 and rep["speed_violation_frames"] == 0
 
 
@@ -147,7 +148,7 @@ def test_feasibility_report_counts_frames_outside_the_envelope():
     q[:, YAW] = np.radians(60.0)
     q[:, PITCH] = np.radians([0.0, 17.0, 17.5, -30.0])  # bound at 60 deg: -25.3 .. 17.6
     q[2, PITCH] = np.radians(18.0)
-    assert feasibility_report(q, np.arange(4) / 100.0)["limit_violation_frames"] == 2
+    assert feasibility_report(q, np.arange(4) / 100.0, robot=NAO_H25)["limit_violation_frames"] == 2
 
 
 # ------------------------------------------------------------------ the neck's neutral

@@ -17,6 +17,7 @@ from jaxproj.motion import feasible, pipeline, streaming
 from jaxproj.motion.retarget import retarget
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, frame_gains
 from jaxproj.projection import api as engine
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
 
 LO, HI = robot.LOWER[robot.DRIVEN_INDEX], robot.UPPER[robot.DRIVEN_INDEX]
@@ -106,8 +107,8 @@ def test_finish_is_fill_smoothclip_driven_np(standing, gains):
         "timed": frame_gains(PAPER_SMOOTHING, times, t),
         None: None,
     }[gains]
-    fn = jax.jit(pipeline.finish, static_argnames=("standing",))
-    filled, out = fn(q, valid, np.int32(t), g, standing=standing)
+    fn = jax.jit(pipeline.finish, static_argnames=("standing", "robot"))
+    filled, out = fn(q, valid, np.int32(t), g, standing=standing, robot=NAO_H25)
     filled, out = np.asarray(filled), np.asarray(out)
     want_filled = _fill_loop(q[:t], valid[:t])
     np.testing.assert_array_equal(filled[:t], want_filled.astype(np.float32))
@@ -124,8 +125,10 @@ def test_finish_is_fill_smoothclip_driven_np(standing, gains):
 def test_a_motion_without_valid_frames_stands(standing):
     q = np.full((16, 10), np.nan, np.float32)
     valid = np.zeros(16, bool)
-    fn = jax.jit(pipeline.finish, static_argnames=("standing",))
-    filled, out = fn(q, valid, np.int32(16), PAPER_SMOOTHING.gains(), standing=standing)
+    fn = jax.jit(pipeline.finish, static_argnames=("standing", "robot"))
+    filled, out = fn(
+        q, valid, np.int32(16), PAPER_SMOOTHING.gains(), standing=standing, robot=NAO_H25
+    )
     np.testing.assert_array_equal(np.asarray(out), np.tile(STANDING, (16, 1)))
     if standing == "first":  # evaluate's order: the filled motion already stands
         np.testing.assert_array_equal(np.asarray(filled), np.tile(STANDING, (16, 1)))
@@ -137,22 +140,24 @@ def test_finish_vmapped_equals_a_loop_and_eager():
     valid = rng.random((3, 40)) > 0.2
     lengths = np.array([40, 25, 7], np.int32)
     g = PAPER_SMOOTHING.gains()
-    one = jax.jit(lambda a, v, n: pipeline.finish(a, v, n, g, standing="last")[1])
-    batch = jax.jit(jax.vmap(lambda a, v, n: pipeline.finish(a, v, n, g, standing="last")[1]))
+    one = jax.jit(lambda a, v, n: pipeline.finish(a, v, n, g, standing="last", robot=NAO_H25)[1])
+    batch = jax.jit(
+        jax.vmap(lambda a, v, n: pipeline.finish(a, v, n, g, standing="last", robot=NAO_H25)[1])
+    )
     got = np.asarray(batch(q, valid, lengths))
     for i in range(3):
         np.testing.assert_allclose(got[i], np.asarray(one(q[i], valid[i], lengths[i])), atol=1e-6)
-    eager = pipeline.finish(jnp.asarray(q[0]), valid[0], 40, g, standing="last")[1]
+    eager = pipeline.finish(jnp.asarray(q[0]), valid[0], 40, g, standing="last", robot=NAO_H25)[1]
     np.testing.assert_allclose(got[0], np.asarray(eager), rtol=0, atol=1e-6)
 
 
 def test_clip_to_limits_is_numpy_clip_then_the_head_envelope():
     x = np.random.default_rng(5).uniform(-4, 4, (9, 10)).astype(np.float32)
-    got = np.asarray(pipeline.clip_to_limits(x))
+    got = np.asarray(pipeline.clip_to_limits(x, robot=NAO_H25))
     np.testing.assert_allclose(got, clip_driven_np(x), rtol=0, atol=ENVELOPE_TOL_RAD)
     assert (got[:, 1] != np.clip(x, LO, HI)[:, 1]).any()  # the envelope did clip some frames
     np.testing.assert_array_equal(got[:, 2:], np.clip(x, LO, HI)[:, 2:])  # the rest: np.clip
-    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x[0])), got[0])
+    np.testing.assert_array_equal(np.asarray(pipeline.clip_to_limits(x[0], robot=NAO_H25)), got[0])
 
 
 # ------------------------------------------------------------------ the callers agree
@@ -237,7 +242,9 @@ def test_retarget_feasible_is_the_filter_of_the_unfiltered_motion(model, sequenc
     safe = retarget(seq.positions, seq.valid, model=model, feasible=feasible.DEFAULT_FEASIBLE)
     assert plain.unfiltered is None
     np.testing.assert_array_equal(safe.unfiltered, plain.angles)
-    np.testing.assert_array_equal(safe.angles, feasible.make_feasible(plain.angles, plain.times))
+    np.testing.assert_array_equal(
+        safe.angles, feasible.make_feasible(plain.angles, plain.times, robot=NAO_H25)
+    )
     assert not np.array_equal(safe.angles, plain.angles)
 
 

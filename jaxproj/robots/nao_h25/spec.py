@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import jax
 
-from jaxproj.robots.base import Mjcf, Robot
+from jaxproj.robots.base import Figure, Mjcf, Robot
 from jaxproj.robots.generic_ik import BonePair, Correspondence
 from jaxproj.robots.nao_h25 import ik, naoqi, robot
 
@@ -58,6 +58,36 @@ def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array
     return ik.driven_angles(d, ik.bone_index(bones))
 
 
+FIGURE = Figure(
+    label="NAO",
+    links=(
+        ("neck", "l_shoulder"),
+        ("l_shoulder", "l_elbow"),
+        ("l_elbow", "l_wrist"),
+        ("l_wrist", "l_hand"),
+        ("neck", "r_shoulder"),
+        ("r_shoulder", "r_elbow"),
+        ("r_elbow", "r_wrist"),
+        ("r_wrist", "r_hand"),
+        ("neck", "torso"),
+        ("torso", "l_hip"),
+        ("l_hip", "l_knee"),
+        ("l_knee", "l_ankle"),
+        ("l_ankle", "l_sole"),
+        ("torso", "r_hip"),
+        ("r_hip", "r_knee"),
+        ("r_knee", "r_ankle"),
+        ("r_ankle", "r_sole"),
+    ),  # fmt: skip
+    head=("Head", 0.09),
+    parents={"LShoulder": "Neck", "RShoulder": "Neck"},  # as the skeleton's from ShoulderCenter
+    feet=(("l_ankle", "l_sole"), ("r_ankle", "r_sole")),
+    head_geom="head_geom",
+)
+"""How ``jaxproj.viz`` draws the NAO: the report's sketch (sites from the neck down the arms and
+from the torso down the legs, the head 9 cm along the Head body's z axis) and the render's stick
+panel (shoulders hung from the neck, ankles to soles, the head geom's centre)."""
+
 MJCF = Mjcf(
     path=robot.mjcf_path(),
     load=robot.load_model,
@@ -67,6 +97,7 @@ MJCF = Mjcf(
     hand_sites=HAND_SITES,
     split={"upper": robot.LEG_ROOTS, "legs": robot.UPPER_ROOTS},
     head_root=HEAD_ROOT,
+    figure=FIGURE,
 )
 
 NAO_H25 = Robot(
