@@ -45,7 +45,7 @@ geometry out when a second kind of penalty comes.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -143,12 +143,19 @@ class Correspondence:
       pairs: the rows (``BonePair``).
       collision_pairs: pairs of the MJCF's capsule / sphere geoms (names) that must stay apart
         by ``IKConfig.margin`` (the collision term).
+      ranges: per joint name, a ``(lower, upper)`` range (rad) that narrows the IK's box to the
+        range the human counterpart of the joint can take (e.g. an elbow that does not
+        over-extend): a robot joint whose range exceeds the human's gives one bone direction
+        two solutions (an over-extended elbow with the upper arm turned half a turn), between
+        which an IK answer would jump on noise. ``-inf`` / ``inf``: no bound on that side.
+        Intersected with the robot's limits.
       source: where the table's choices come from (a sentence).
     """
 
     base: str
     pairs: tuple[BonePair, ...]
     collision_pairs: tuple[tuple[str, str], ...] = ()
+    ranges: tuple[tuple[str, float, float], ...] = ()
     source: str = ""
 
     def __post_init__(self) -> None:
@@ -157,6 +164,24 @@ class Correspondence:
         for pair in self.collision_pairs:
             if len(pair) != 2 or pair[0] == pair[1]:
                 raise ConfigError(f"collision pair {pair!r}: two different geoms")
+        for name, lo, hi in self.ranges:
+            if not lo < hi:  # NaN fails too
+                raise ConfigError(f"range of {name!r}: need lower < upper, got {lo}, {hi}")
+
+    def box(self, robot: Robot, joints: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)`` float32 IK box of ``joints``: the robot's limits narrowed by
+        ``ranges``. Raises ConfigError for a range of an unknown joint or an empty box."""
+        lo = np.array([robot.lower[robot.index(j)] for j in joints], np.float32)
+        hi = np.array([robot.upper[robot.index(j)] for j in joints], np.float32)
+        for name, r_lo, r_hi in self.ranges:
+            if not robot.has_joint(name):
+                raise ConfigError(f"range of {name!r}: {robot.name} has no such joint")
+            if name in joints:
+                k = list(joints).index(name)
+                lo[k], hi[k] = max(lo[k], r_lo), min(hi[k], r_hi)
+                if lo[k] >= hi[k]:
+                    raise ConfigError(f"range of {name!r} does not meet the robot's limits")
+        return lo, hi
 
     def rows(self, bones: Sequence[str]) -> tuple[BonePair, ...]:
         """The rows whose bone is one of ``bones``."""
@@ -280,7 +305,7 @@ class GenericIK:
                 )
             joints = np.array([robot.index(j) for j in chain.joints], np.int32)
             driven = np.array(robot.chain_joints(chain), np.int32)
-            lo, hi = robot.lower[joints], robot.upper[joints]
+            lo, hi = correspondence.box(robot, chain.joints)
             # capsules this chain can move, and the pairs among the correspondence's
             pairs = [
                 pr
@@ -392,76 +417,60 @@ class GenericIK:
         parts.append(lam * (x - jnp.asarray(prob.starts[0])))
         jacs.append(lam * jnp.eye(n, dtype=jnp.float32))
         if self.config.collision > 0 and len(prob.collide):
-            i, j = prob.collide[:, 0], prob.collide[:, 1]
-            ca, cb = prob.capsule_points[:, 0], prob.capsule_points[:, 1]
-            a1, b1, a2, b2 = p[ca[i]], p[cb[i]], p[ca[j]], p[cb[j]]
-            s1, s2 = _closest(a1, b1, a2, b2)
-            c1 = a1 + (b1 - a1) * s1[:, None]
-            c2 = a2 + (b2 - a2) * s2[:, None]
-            diff = c1 - c2
-            dist = jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
-            gap = dist - prob.radii[i] - prob.radii[j]
-            pen = jnp.maximum(np.float32(self.config.margin) - gap, 0.0)
-            sc = np.float32(math.sqrt(self.config.collision))
-            parts.append(sc * pen)
-            if dp is not None:
-                # envelope theorem: the closest points' parameters held fixed
-                dc1 = dp[ca[i]] * (1 - s1)[:, None, None] + dp[cb[i]] * s1[:, None, None]
-                dc2 = dp[ca[j]] * (1 - s2)[:, None, None] + dp[cb[j]] * s2[:, None, None]
-                normal = diff / dist[:, None]
-                dgap = jnp.einsum("ci,cik->ck", normal, dc1 - dc2, precision=_HIGHEST)
-                jacs.append(-sc * jnp.where(pen > 0, 1.0, 0.0)[:, None] * dgap)
+            pen, dpen = self._collision_terms(p, dp, prob)
+            parts.append(pen)
+            if dpen is not None:
+                jacs.append(dpen)
         r = jnp.concatenate(parts)
         return r, (jnp.concatenate(jacs, axis=0) if dp is not None else None)
+
+    def _collision_terms(
+        self, p: jax.Array, dp: jax.Array | None, prob: _ChainProblem
+    ) -> tuple[jax.Array, jax.Array | None]:
+        """The collision residuals ``sqrt(w_c) max(0, margin - gap)`` ``(n_pairs,)`` of a chain
+        at FK points ``p`` and, with ``dp``, their derivative ``(n_pairs, n)``."""
+        i, j = prob.collide[:, 0], prob.collide[:, 1]
+        ca, cb = prob.capsule_points[:, 0], prob.capsule_points[:, 1]
+        a1, b1, a2, b2 = p[ca[i]], p[cb[i]], p[ca[j]], p[cb[j]]
+        s1, s2 = _closest(a1, b1, a2, b2)
+        c1 = a1 + (b1 - a1) * s1[:, None]
+        c2 = a2 + (b2 - a2) * s2[:, None]
+        diff = c1 - c2
+        dist = jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
+        gap = dist - prob.radii[i] - prob.radii[j]
+        pen = jnp.maximum(np.float32(self.config.margin) - gap, 0.0)
+        sc = np.float32(math.sqrt(self.config.collision))
+        if dp is None:
+            return sc * pen, None
+        # envelope theorem: the closest points' parameters held fixed
+        dc1 = dp[ca[i]] * (1 - s1)[:, None, None] + dp[cb[i]] * s1[:, None, None]
+        dc2 = dp[ca[j]] * (1 - s2)[:, None, None] + dp[cb[j]] * s2[:, None, None]
+        normal = diff / dist[:, None]
+        dgap = jnp.einsum("ci,cik->ck", normal, dc1 - dc2, precision=_HIGHEST)
+        return sc * pen, -sc * jnp.where(pen > 0, 1.0, 0.0)[:, None] * dgap
 
     def _solve_chain(
         self, q_full: jax.Array, t: jax.Array, w: jax.Array, prob: _ChainProblem
     ) -> tuple[jax.Array, jax.Array, jax.Array]:
         """One pose, one chain: ``(x, objective, stationary)``."""
         lo, hi = jnp.asarray(prob.lo), jnp.asarray(prob.hi)
-        cfg = self.config
 
         def res_jac(x: jax.Array) -> tuple[jax.Array, jax.Array]:
             r, jac = self._residual(x, q_full, t, w, prob)
             assert jac is not None
             return r, jac
 
-        State = tuple[jax.Array, jax.Array, jax.Array, jax.Array, jax.Array]
-
-        def step(_: int, state: State) -> State:
-            # one residual and Jacobian per iteration, at the trial point (kept if it is better)
-            x, r, jac, f, mu = state
-            g = jnp.matmul(jac.T, r, precision=_HIGHEST)
-            a = jnp.matmul(jac.T, jac, precision=_HIGHEST)
-            held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
-            free = ~held
-            mask = free[:, None] & free[None, :]
-            diag = jnp.diagonal(a)
-            a_free = jnp.where(mask, a, 0.0) + jnp.diag(jnp.where(free, mu * (diag + 1e-6), 1.0))
-            delta = _spd_solve(a_free, -jnp.where(free, g, 0.0))
-            x_new = jnp.clip(x + delta, lo, hi)
-            r_new, jac_new = res_jac(x_new)
-            f_new = jnp.sum(r_new * r_new)
-            better = f_new < f
-            return (
-                jnp.where(better, x_new, x),
-                jnp.where(better, r_new, r),
-                jnp.where(better, jac_new, jac),
-                jnp.where(better, f_new, f),
-                jnp.where(better, mu * 0.3, mu * 4.0),
-            )
-
         def run(x0: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
-            r0, jac0 = res_jac(x0)
-            init = (x0, r0, jac0, jnp.sum(r0 * r0), jnp.float32(cfg.damping))
-            x, r, jac, f, _ = jax.lax.fori_loop(0, cfg.iterations, step, init)
-            return x, f, 2.0 * jnp.matmul(jac.T, r, precision=_HIGHEST)
+            x, r, jac = _levenberg_marquardt(
+                res_jac, x0, lo, hi, self.config.iterations, self.config.damping
+            )
+            return x, jnp.sum(r * r), 2.0 * jnp.matmul(jac.T, r, precision=_HIGHEST)
 
         xs, fs, gs = jax.vmap(run)(jnp.asarray(prob.starts))
         k = jnp.argmin(fs)
         x, f, g = xs[k], fs[k], gs[k]
         pg = jnp.max(jnp.abs(x - jnp.clip(x - g, lo, hi)))
-        return x, f, pg < cfg.gtol
+        return x, f, pg < self.config.gtol
 
     @full_precision
     def solve_info(
@@ -495,10 +504,123 @@ class GenericIK:
         n = len(self.problems)
         return q.reshape(*batch, -1), IKInfo(f.reshape(*batch, n), ok.reshape(*batch, n))
 
+    @full_precision
+    def separate(
+        self, q: jax.typing.ArrayLike, iterations: int = 8, stay: float = 1.0
+    ) -> jax.Array:
+        """Push a robot pose's collision pairs apart, moving its joints as little as it can.
+
+        Per chain, in chain order (later chains see earlier chains' answers), from the given
+        angles ``x_in``, ``iterations`` Levenberg-Marquardt steps on::
+
+            minimise   stay * |x - x_in|^2  +  collision(x)     x within the robot's limits
+
+        (``collision`` the IK's term: ``IKConfig.collision`` and ``margin``). A pose whose
+        pairs are all ``margin`` apart is returned unchanged; a chain without collision pairs
+        is not touched. For poses that did not come from this IK (a projection's answers),
+        which the IK's collision term never saw. Traceable.
+
+        Args:
+          q: ``(..., n_driven)`` angles, rad (``Robot.driven_joints`` order).
+          iterations: LM steps per chain.
+          stay: weight of the pull toward the given angles (rad^-2).
+
+        Returns:
+          ``(..., n_driven)`` float32 angles within the robot's limits.
+
+        Raises:
+          ConfigError: the IK has no collision term (``IKConfig.collision`` 0).
+        """
+        if not self.config.collision > 0:
+            raise ConfigError("separate needs an IK with a collision term (IKConfig.collision)")
+        q = jnp.asarray(q, jnp.float32)
+        n_driven = self.robot.n_driven
+        if q.shape[-1:] != (n_driven,):
+            raise ConfigError(f"separate: angles must be (..., {n_driven}), got {q.shape}")
+        batch = q.shape[:-1]
+        flat = q.reshape(-1, n_driven)
+        sq = np.float32(math.sqrt(stay))
+        lower, upper = self.robot.lower, self.robot.upper
+
+        def one(row: jax.Array) -> jax.Array:
+            q_full = jnp.asarray(self.robot.standing).at[self.robot.driven_index].set(row)
+            for prob in self.problems:
+                if not len(prob.collide):
+                    continue
+                lo = jnp.asarray(lower[prob.joints], jnp.float32)
+                hi = jnp.asarray(upper[prob.joints], jnp.float32)
+                x_in = jnp.clip(q_full[prob.joints], lo, hi)
+
+                def res_jac(
+                    x: jax.Array, q_full: jax.Array = q_full, x_in: jax.Array = x_in,
+                    prob: _ChainProblem = prob,
+                ) -> tuple[jax.Array, jax.Array]:  # fmt: skip
+                    qx = q_full.at[prob.joints].set(x)
+                    p, dp = prob.fk.jacobian(qx, tuple(int(j) for j in prob.joints))
+                    pen, dpen = self._collision_terms(p, dp, prob)
+                    assert dpen is not None
+                    eye = jnp.eye(len(prob.joints), dtype=jnp.float32)
+                    return (
+                        jnp.concatenate([sq * (x - x_in), pen]),
+                        jnp.concatenate([sq * eye, dpen], axis=0),
+                    )
+
+                x, _, _ = _levenberg_marquardt(
+                    res_jac, x_in, lo, hi, iterations, self.config.damping
+                )
+                q_full = q_full.at[prob.joints].set(x)
+            return q_full[self.robot.driven_index]
+
+        out = jax.vmap(one)(flat)
+        lo_d, hi_d = self.robot.lower_driven[None], self.robot.upper_driven[None]
+        out = jnp.where(jnp.isfinite(out), out, jnp.clip(flat, lo_d, hi_d))
+        return out.reshape(*batch, n_driven)
+
     def solve(self, d: jax.typing.ArrayLike, bones: str | tuple[str, ...] = "upper") -> jax.Array:
         """``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` float32 angles, rad, within
         limits, finite (``solve_info`` without the diagnostics). Traceable."""
         return self.solve_info(d, bones)[0]
+
+
+def _levenberg_marquardt(
+    res_jac: Callable[[jax.Array], tuple[jax.Array, jax.Array]],
+    x0: jax.Array,
+    lo: jax.Array,
+    hi: jax.Array,
+    iterations: int,
+    damping: float,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Box-constrained Levenberg-Marquardt (the module doc) from ``x0``: ``(x, r, jac)`` at the
+    best point found. One residual and Jacobian per iteration, at the trial point (kept only if
+    it lowers ``|r|^2``); a joint at a bound whose gradient points outward is held."""
+    State = tuple[jax.Array, jax.Array, jax.Array, jax.Array, jax.Array]
+
+    def step(_: int, state: State) -> State:
+        x, r, jac, f, mu = state
+        g = jnp.matmul(jac.T, r, precision=_HIGHEST)
+        a = jnp.matmul(jac.T, jac, precision=_HIGHEST)
+        held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
+        free = ~held
+        mask = free[:, None] & free[None, :]
+        diag = jnp.diagonal(a)
+        a_free = jnp.where(mask, a, 0.0) + jnp.diag(jnp.where(free, mu * (diag + 1e-6), 1.0))
+        delta = _spd_solve(a_free, -jnp.where(free, g, 0.0))
+        x_new = jnp.clip(x + delta, lo, hi)
+        r_new, jac_new = res_jac(x_new)
+        f_new = jnp.sum(r_new * r_new)
+        better = f_new < f
+        return (
+            jnp.where(better, x_new, x),
+            jnp.where(better, r_new, r),
+            jnp.where(better, jac_new, jac),
+            jnp.where(better, f_new, f),
+            jnp.where(better, mu * 0.3, mu * 4.0),
+        )
+
+    r0, jac0 = res_jac(x0)
+    init = (x0, r0, jac0, jnp.sum(r0 * r0), jnp.float32(damping))
+    x, r, jac, _, _ = jax.lax.fori_loop(0, iterations, step, init)
+    return x, r, jac
 
 
 def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -146,22 +146,43 @@ def test_collision_term_keeps_the_g1_forearm_out_of_its_torso() -> None:
                  np.float32)  # fmt: skip
     model = UNITREE_G1.load_model("fixed")
     data = mujoco.MjData(model)
-    gaps = {}
+
+    def worst_gap(q: np.ndarray) -> float:
+        worst = np.inf
+        for row in q:
+            data.qpos[:] = UNITREE_G1.driven_to_full(row)
+            mujoco.mj_forward(model, data)
+            worst = min([worst, *(c.dist for c in data.contact[: data.ncon])])
+        return worst
+
+    answers = {}
     for weight in (0.0, g1.IK_CONFIG.collision):
         cfg = IKConfig(collision=weight, starts=2, margin=g1.IK_CONFIG.margin)
         ik = GenericIK.build(
             UNITREE_G1, g1.CORRESPONDENCE, cfg, chains=(UNITREE_G1.chain("left_arm"),)
         )
-        q = np.asarray(jax.jit(lambda x, ik=ik: ik.solve(x, bones))(d))
-        worst = np.inf
-        for row in q:
-            data.qpos[:] = UNITREE_G1.driven_to_full(row)
-            mujoco.mj_forward(model, data)
-            dist = [c.dist for c in data.contact[: data.ncon]]
-            worst = min([worst, *dist])
-        gaps[weight] = worst
-    assert gaps[0.0] < -0.03  # m: the forearm inside the torso
-    assert gaps[g1.IK_CONFIG.collision] == np.inf  # no contact at all (MuJoCo's own detection)
+        answers[weight] = np.asarray(jax.jit(lambda x, ik=ik: ik.solve(x, bones))(d))
+    assert worst_gap(answers[0.0]) < -0.03  # m: the forearm inside the torso
+    assert worst_gap(answers[g1.IK_CONFIG.collision]) == np.inf  # no contact (MuJoCo's own)
+    # separate: the direction-only answers pushed out of the torso; a free pose is not moved
+    free = np.zeros((1, UNITREE_G1.n_driven), np.float32)  # the left arm held out sideways
+    free[0, UNITREE_G1.driven_joints.index("left_shoulder_roll_joint")] = 1.0
+    free[0, UNITREE_G1.driven_joints.index("left_elbow_joint")] = 1.5
+    q = np.concatenate([answers[0.0], free])
+    out = np.asarray(jax.jit(ik.separate)(q))
+    assert worst_gap(out) == np.inf
+    np.testing.assert_array_equal(out[-1], free[0])
+    assert np.all((out >= UNITREE_G1.lower_driven) & (out <= UNITREE_G1.upper_driven))
+
+
+def test_ranges_narrow_the_box_to_the_human_branch() -> None:
+    """A straight G1 arm stops at the straight elbow (+90 deg), not past it with the upper arm
+    twisted half a turn: ``Correspondence.ranges``."""
+    lo, hi = g1.CORRESPONDENCE.box(UNITREE_G1, ("left_elbow_joint", "left_knee_joint"))
+    np.testing.assert_allclose(hi[0], np.pi / 2, rtol=1e-6)
+    assert lo[1] == 0.0 and hi[1] == np.float32(
+        UNITREE_G1.upper[UNITREE_G1.index("left_knee_joint")]
+    )
 
 
 @pytest.mark.parametrize(
@@ -174,6 +195,13 @@ def test_collision_term_keeps_the_g1_forearm_out_of_its_torso() -> None:
         (lambda: BonePair("neck", "a", "b", rest=(0.0, 0.0, 0.0)), "rest"),
         (lambda: Correspondence("torso", ()), "at least one"),
         (lambda: IKConfig(starts=0), "starts"),
+        (lambda: Correspondence("torso", NAO_ARMS.pairs, ranges=(("HeadYaw", 1.0, 0.0),)), "lower"),
+        (
+            lambda: Correspondence("torso", NAO_ARMS.pairs, ranges=(("Tail", 0.0, 1.0),)).box(
+                NAO_H25, ("HeadYaw",)
+            ),
+            "no such joint",
+        ),
         (
             lambda: GenericIK.build(
                 NAO_H25,

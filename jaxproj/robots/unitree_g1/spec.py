@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 
 import jax
 import numpy as np
@@ -78,7 +79,7 @@ standing: the same medians (the Kinect foot point sits 15 deg above the ankle's 
 
 
 _ARM_GEOMS = ("forearm", "wrist", "hand")
-_SOLE = ("inner", "outer")
+_SOLE = ("inner", "mid", "outer")
 _BODY_GEOMS = ("torso_geom", "head_geom", "pelvis_geom", "left_hip_geom", "right_hip_geom",
                "left_thigh_geom", "right_thigh_geom")  # fmt: skip
 
@@ -100,11 +101,30 @@ COLLISION_PAIRS: tuple[tuple[str, str], ...] = (
     *(
         (f"{s}_{g}_geom", b)
         for s, o in (("left", "right"), ("right", "left"))
-        for g in ("shin_lower", "foot_inner", "foot_outer")
+        for g in ("shin_lower", *(f"foot_{a}" for a in _SOLE))
         for b in ("pelvis_geom", f"{o}_hip_geom", f"{o}_thigh_geom")
     ),
 )
 """Geom pairs the IK keeps apart (see the module doc)."""
+
+HUMAN_RANGES: tuple[tuple[str, float, float], ...] = (
+    *((f"{s}_elbow_joint", -math.inf, math.pi / 2) for s in ("left", "right")),
+    ("left_shoulder_roll_joint", -math.inf, math.pi / 2),
+    ("right_shoulder_roll_joint", -math.pi / 2, math.inf),
+    ("left_hip_roll_joint", -math.inf, math.pi / 2),
+    ("right_hip_roll_joint", -math.pi / 2, math.inf),
+    *((f"{s}_knee_joint", 0.0, math.inf) for s in ("left", "right")),
+)
+"""Where the IK's box is narrower than the G1's limits (``Correspondence.ranges``): the elbow
+stops at the straight arm (G1 elbow +90 deg; the robot over-extends 30 deg more, a person does
+not: AAOS elbow extension 0 deg) and the knee at the straight leg (the G1's goes 5 deg past it);
+shoulder and hip roll stop at the arm or leg held out sideways (90 deg; the G1's go to 129 and
+170 deg). Without these each bone direction near them has a second solution, the limb turned half
+a turn about itself (e.g. an over-extended elbow with the upper arm twisted by 180 deg), and the
+IK's answer jumps between the two on capture noise. The shoulder and hip pitch still reach every
+direction a person's limb can take. (Human ranges: American Academy of Orthopaedic Surgeons,
+*Joint Motion: Method of Measuring and Recording*, 1965; Greene & Heckman, *The Clinical
+Measurement of Joint Motion*, AAOS 1994.)"""
 
 CORRESPONDENCE = Correspondence(
     base="torso_link",
@@ -117,6 +137,7 @@ CORRESPONDENCE = Correspondence(
         *_side_pairs("right"),
     ),
     collision_pairs=COLLISION_PAIRS,
+    ranges=HUMAN_RANGES,
     source="the project's choice (jaxproj.robots.unitree_g1.spec module doc)",
 )
 """The G1's correspondence with the human skeleton (the table of the module doc)."""
