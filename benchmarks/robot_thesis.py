@@ -12,6 +12,8 @@ in training (every action) — it measures:
   the robot's directions by forward kinematics; median / p90), for each method;
 * self-collision: frames where MuJoCo's own collision detection finds two robot geoms
   touching (penetration > 1 mm), for each method;
+* the relaxed projection followed by ``GenericIK.separate`` (the G1: its collision pairs
+  pushed apart; ``relaxed_separated``), measured as the rest;
 * speed: public calls with host arrays (``robot.solve_ik``, ``jaxproj.project``), compile (the
   first call) apart, then the median of repeated calls, blocked until ready, on ``--poses``
   held-out MSR descriptors, on whatever device JAX runs (named in the output).
@@ -168,6 +170,11 @@ def main() -> None:
             "ik_generic_arms": generic_arms,
         }
     methods["relaxed"] = lambda x: np.asarray(jaxproj.project(model, x, "relaxed")[0])
+    if args.robot == "unitree_g1":
+        separate = jax.jit(spec.generic_ik().separate)
+        methods["relaxed_separated"] = lambda x: np.asarray(
+            separate(jaxproj.project(model, x, "relaxed")[0])
+        )
     for set_name, d in sets.items():
         res: dict = {"frames": len(d)}
         answers = {name: fn(d) for name, fn in methods.items()}

@@ -355,6 +355,9 @@ class Robot:
       coupled_limits: ranges of joints that depend on another joint's angle (``CoupledLimit``,
         e.g. the NAO's head anti-collision envelope), applied by ``clip`` / ``clip_driven``
         (``clip_coupled``); a follower is limited by one leader, never itself a leader.
+      separate: a traceable ``(..., n_driven) -> (..., n_driven)`` function that moves a pose
+        out of the robot's self-collisions, changing it as little as it can (the G1's:
+        ``GenericIK.separate``), applied by ``playable`` after the clip; ``None``: no such step.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -382,6 +385,7 @@ class Robot:
     elbow_pairs: tuple[tuple[str, str], ...] = ()
     ik_constants: Mapping[str, float] = field(default_factory=dict)
     coupled_limits: tuple[CoupledLimit, ...] = ()
+    separate: Callable[[jax.Array], jax.Array] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -635,6 +639,15 @@ class Robot:
         lo = jnp.broadcast_to(self.lower[self.driven_index], q.shape)
         q = jnp.clip(q, lo, jnp.broadcast_to(self.upper[self.driven_index], q.shape))
         return clip_coupled(self, q, driven=True)
+
+    def playable(self, angles: jax.Array) -> jax.Array:
+        """``(..., n_driven)`` driven angles -> what the robot can play: ``clip_driven``, then
+        ``separate`` (its self-collisions pushed apart) where the robot has it, then
+        ``clip_driven`` again; jnp, float32, traceable."""
+        q = self.clip_driven(angles)
+        if self.separate is None:
+            return q
+        return self.clip_driven(self.separate(q))
 
     def from_columns(self, names: Sequence[str], columns: np.ndarray) -> np.ndarray:
         """``(T, len(names))`` angle columns placed by joint name into ``(T, n_joints)`` float32

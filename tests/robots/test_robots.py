@@ -255,3 +255,22 @@ def test_toy_metrics(toy: Robot) -> None:
     assert hand == pytest.approx(ref, abs=1e-3)
     with pytest.raises(ConfigError, match=r"\(F, 8\) \(driven joints\) or \(F, 9\)"):
         metrics.joint_errors_deg(truth[:, :5], truth[:, :5], robot=toy)
+
+
+def test_playable_clips_then_separates_then_clips(toy: Robot) -> None:
+    """``Robot.playable``: the pipeline's last stage (``pipeline.clip_to_limits``) runs the
+    robot's ``separate`` between two clips; without one it is ``clip_driven``."""
+    from jaxproj.motion import pipeline
+
+    q = np.stack([toy.standing_driven, toy.upper_driven + 1.0]).astype(np.float32)
+    np.testing.assert_array_equal(pipeline.clip_to_limits(q, toy), toy.clip_driven(q))
+    seen = []
+
+    def separate(x: jax.Array) -> jax.Array:
+        seen.append(np.asarray(x))
+        return x - 0.05
+
+    moved = dataclasses.replace(toy, separate=separate)
+    out = np.asarray(pipeline.clip_to_limits(q, moved))
+    np.testing.assert_array_equal(seen[0], toy.clip_driven(q))  # separate sees clipped angles
+    np.testing.assert_array_equal(out, toy.clip_driven(toy.clip_driven(q) - 0.05))

@@ -217,6 +217,13 @@ def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "full") -> jax.Array:
     return generic_ik().solve(d, bones)
 
 
+def separate(q: jax.Array) -> jax.Array:
+    """``Robot.separate`` of the G1: ``(..., 21)`` driven angles -> the same with the
+    collision pairs of ``COLLISION_PAIRS`` pushed ``IK_CONFIG.margin`` apart
+    (``GenericIK.separate``, 8 steps per chain). Traceable."""
+    return generic_ik().separate(q)
+
+
 @functools.cache
 def _jitted(bones: str | tuple[str, ...]) -> jax.stages.Wrapped:
     return jit(lambda d: generic_ik().solve(d, bones))
@@ -261,5 +268,6 @@ UNITREE_G1 = Robot(
     velocity_limits=robot.VELOCITY_LIMITS,
     mjcf=MJCF,
     traced_ik=traced_ik,
+    separate=separate,
 )
 """The Unitree G1 (29 joints, 21 driven: waist, legs to the ankle pitch, arms to the elbow)."""
