@@ -185,6 +185,8 @@ def main() -> None:
                 m_max, m_avg = metrics.frame_errors(q, truth)
                 entry["vs_ik_M_avg_median"] = float(np.median(m_avg))
                 entry["vs_ik_M_max_p95"] = float(np.percentile(m_max, 95))
+                loose = metrics.m_max_without(q, truth, robot=robot)
+                entry["vs_ik_M_max_p95_without_loose_joints"] = float(np.percentile(loose, 95))
                 per_chain = {}
                 for chain in robot.chains:
                     cols = list(robot.chain_joints(chain))

@@ -168,7 +168,7 @@ def map_frames(
     if p is None:
         raise ConfigError(f"method {method!r} needs a projector")
     q, value = project_batch(p, d, objective=method, n_l=n_l, n_m=n_m, full=full)
-    return q, confidence(value)
+    return q, confidence(value, robot.deviation_scale)
 
 
 def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:

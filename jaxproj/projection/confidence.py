@@ -16,6 +16,11 @@ models that never saw them (leave one training subject out, the default model's 
 of a person the model did not see; on those training people the flagged tenth holds 68 % of the
 frames with M_max > 30 deg (17 % of it errs that much against 2.6 % of all frames).
 
+That scale is the NAO's default model's. A robot whose default model deviates on another scale
+(more chains and bones: the G1's five chains over 19 bones) gives its own
+(``Robot.deviation_scale``, measured the same way on training people its model did not see),
+which ``retarget``, ``evaluate`` and ``streaming`` pass as ``scale``.
+
 The full objective's value (``f(w*)``) is a weighted deviation of the same units and is read the
 same way; the analytic IK answers with confidence 1; an invalid frame (filled, not projected)
 has confidence 0.
@@ -27,6 +32,7 @@ import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 DEVIATION_SCALE = 0.174
 """Descriptor units: the leave-one-subject-out p90 of the relaxed deviation (training people,
@@ -36,9 +42,11 @@ LOW_CONFIDENCE = math.exp(-1.0)
 """Frames with a lower confidence are reported as low-confidence (``retarget``, ``evaluate``)."""
 
 
-def confidence(value: jax.Array) -> jax.Array:
+def confidence(value: jax.Array, scale: float | None = None) -> jax.Array:
     """``(...,)`` projection values (``project``'s second output) -> ``(...,)`` float32
-    confidence in ``[0, 1]`` (module doc); non-finite values give 0."""
+    confidence in ``[0, 1]`` (module doc); non-finite values give 0. ``scale``: the deviation
+    scale (``None``: ``DEVIATION_SCALE``, the NAO's default model's; another robot's default
+    model deviates on another scale: ``Robot.deviation_scale``)."""
     v = jnp.asarray(value, jnp.float32)
-    c = jnp.exp(-jnp.maximum(v, 0.0) / DEVIATION_SCALE)
+    c = jnp.exp(-jnp.maximum(v, 0.0) / np.float32(DEVIATION_SCALE if scale is None else scale))
     return jnp.where(jnp.isfinite(v), c, 0.0)

@@ -24,6 +24,7 @@ out when a second kind of limit comes.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -358,6 +359,9 @@ class Robot:
       separate: a traceable ``(..., n_driven) -> (..., n_driven)`` function that moves a pose
         out of the robot's self-collisions, changing it as little as it can (the G1's:
         ``GenericIK.separate``), applied by ``playable`` after the clip; ``None``: no such step.
+      deviation_scale: the ``projection.confidence`` scale of the robot's default model (the
+        p90 of its relaxed deviation on training people it did not see), or ``None``: the
+        NAO's ``DEVIATION_SCALE``.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -386,10 +390,15 @@ class Robot:
     ik_constants: Mapping[str, float] = field(default_factory=dict)
     coupled_limits: tuple[CoupledLimit, ...] = ()
     separate: Callable[[jax.Array], jax.Array] | None = field(default=None, compare=False)
+    deviation_scale: float | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
             raise ConfigError(f"robot name must be an identifier (registry key), got {self.name!r}")
+        if self.deviation_scale is not None and not (
+            math.isfinite(self.deviation_scale) and self.deviation_scale > 0
+        ):
+            raise ConfigError(f"deviation_scale must be finite and > 0, got {self.deviation_scale}")
         joints = _unique_names(self.joint_names, "joint_names")
         n = len(joints)
         index = {j: i for i, j in enumerate(joints)}

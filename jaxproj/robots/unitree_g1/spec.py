@@ -170,12 +170,41 @@ def _joints(*names: str) -> tuple[str, ...]:
     return tuple(f"{n}_joint" for n in names)
 
 
+BANDWIDTHS: dict[str, float] = {
+    "waist": 0.0179,
+    "left_arm": 0.0326,
+    "right_arm": 0.0486,
+    "left_leg": 0.0608,
+    "right_leg": 0.0588,
+}
+"""Mean-shift bandwidths of the chains (``Chain.bandwidth``): those that give about 4,000
+landmarks per chain on the default training set (16,005 valid frames; found by
+``BuildConfig(landmarks=4000)``'s search). 4,000 is the least of 1,000 / 2,000 / 4,000 / 8,000
+whose relaxed projection is within 1 deg (median M_avg) of the IK on training people a model
+of the others did not see (``benchmarks/experiments/g1_landmarks.py``: trained on MSR 1, 3, 5
+and UTKinect 3, 4, scored on MSR 7, 9 and UTKinect 6: 2.44 / 1.37 / 0.85 / 0.67 deg; one
+NVIDIA H200, ``benchmarks/results/g1_landmarks_h200.json``)."""
+
+DEVIATION_SCALE = 0.965
+"""``Robot.deviation_scale``: the p90 of the relaxed deviation of the 4,000-landmark model of
+that experiment on the people it did not see (0.9652; the NAO's default model: 0.174)."""
+
+LOOSE_JOINTS: tuple[str, ...] = tuple(
+    f"{s}_{j}_joint" for s in ("left", "right") for j in ("hip_yaw", "shoulder_yaw")
+)
+"""``Robot.loose_joints``: a straight leg's hip yaw and a straight arm's shoulder yaw turn the
+limb about its own axis, which no bone direction sees (the pull toward standing decides
+them), so near the straight limb a small change of the bones turns them far (as the NAO's
+ElbowYaw)."""
+
+
 def _leg(s: str) -> Chain:
     return Chain(
         f"{s}_leg",
         (f"thigh_{s}", f"shin_{s}", f"foot_{s}", *_WAIST_BONES),
         _joints(*(f"{s}_{j}" for j in ("hip_pitch", "hip_roll", "hip_yaw", "knee", "ankle_pitch"))),
         functools.partial(_chain_ik, name=f"{s}_leg"),
+        bandwidth=BANDWIDTHS[f"{s}_leg"],
     )
 
 
@@ -187,6 +216,7 @@ def _arm(s: str) -> Chain:
             *(f"{s}_{j}" for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow"))
         ),
         functools.partial(_chain_ik, name=f"{s}_arm"),
+        bandwidth=BANDWIDTHS[f"{s}_arm"],
     )
 
 
@@ -196,6 +226,7 @@ CHAINS: tuple[Chain, ...] = (
         _WAIST_BONES,
         _joints("waist_yaw", "waist_roll", "waist_pitch"),
         functools.partial(_chain_ik, name="waist"),
+        bandwidth=BANDWIDTHS["waist"],
     ),
     _arm("left"),
     _arm("right"),
@@ -269,5 +300,7 @@ UNITREE_G1 = Robot(
     mjcf=MJCF,
     traced_ik=traced_ik,
     separate=separate,
+    loose_joints=LOOSE_JOINTS,
+    deviation_scale=DEVIATION_SCALE,
 )
 """The Unitree G1 (29 joints, 21 driven: waist, legs to the ankle pitch, arms to the elbow)."""
