@@ -16,7 +16,9 @@ import jax
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.human.skeleton import N_JOINTS, descriptor
+from jaxproj.human import skeletons
+from jaxproj.human.skeleton import descriptor
+from jaxproj.human.skeletons import SkeletonLike
 
 
 def valid_descriptors(
@@ -24,14 +26,17 @@ def valid_descriptors(
     *,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
+    skeleton: SkeletonLike = skeletons.DEFAULT,
 ) -> np.ndarray:
     """Descriptors of the valid frames of some recordings (e.g. a training set).
 
     Args:
       sequences_or_points: an iterable of sequences (objects with ``positions (T, 20, 3)`` and
         ``valid (T,)``, e.g. ``msr_action3d()``), or a ``(T, 20, 3)`` position array, or an
-        ``(N, 3 * n_bones)`` array of descriptors (taken as they are, checked finite).
-      bones, mirror: descriptor options (``skeleton.descriptor``); ignored for descriptors.
+        ``(N, 3 * n_bones)`` array of descriptors (taken as they are, checked finite). Positions
+        are ``(T, n_joints, 3)`` in ``skeleton``'s order (20: Kinect v1, the default).
+      bones, mirror, skeleton: descriptor options (``skeleton.descriptor``); ignored for
+        descriptors.
 
     Returns:
       ``(N, 3 * n_bones)`` float32 descriptors of the frames that are valid both in the sequence
@@ -40,17 +45,19 @@ def valid_descriptors(
     Raises:
       ConfigError: no valid frame, or an array of the wrong shape or with non-finite values.
     """
+    n_joints = skeletons.get(skeleton).n_joints
     if isinstance(sequences_or_points, (np.ndarray, jax.Array)):
         a = np.asarray(sequences_or_points, dtype=np.float32)
         if a.ndim == 2:
             if len(a) == 0 or a.shape[1] == 0 or not np.isfinite(a).all():
                 raise ConfigError(f"descriptors must be finite (N >= 1, m >= 1), got {a.shape}")
             return a
-        if a.ndim == 3 and a.shape[1:] == (N_JOINTS, 3):
+        if a.ndim == 3 and a.shape[1:] == (n_joints, 3):
             positions, valid = a, np.ones(a.shape[0], bool)
         else:
             raise ConfigError(
-                f"expected (N, 3 * n_bones) descriptors or (T, 20, 3) positions, got {a.shape}"
+                f"expected (N, 3 * n_bones) descriptors or (T, {n_joints}, 3) positions, "
+                f"got {a.shape}"
             )
     else:
         seqs = list(sequences_or_points)
@@ -58,7 +65,7 @@ def valid_descriptors(
             raise ConfigError("no sequences given")
         positions = np.concatenate([np.asarray(s.positions, np.float32) for s in seqs])
         valid = np.concatenate([np.asarray(s.valid, bool) for s in seqs])
-    d, ok = descriptor(positions, bones=bones, mirror=mirror)
+    d, ok = descriptor(positions, bones=bones, mirror=mirror, skeleton=skeleton)
     keep = valid & np.asarray(ok)
     if not keep.any():
         raise ConfigError("no valid frame")

@@ -1,13 +1,21 @@
-"""Kinect v1 skeleton: joint order, bone tree and the body-frame bone-direction descriptor.
+"""The body-frame bone-direction descriptor of a skeleton, and Kinect v1's joint order.
 
-Joint order everywhere in jaxproj is the Kinect SDK v1 order (``JOINT_NAMES``). A pose is a
-``(20, 3)`` array of positions in metres in any right-handed camera frame; the descriptor does not
-depend on that frame (it is expressed in a body frame built from the skeleton itself).
+A pose is a ``(n_joints, 3)`` array of positions in metres in any right-handed camera frame, in
+the joint order of a skeleton format (``jaxproj.human.skeletons``: the spec, the canonical bones,
+the registry). Every function here takes ``skeleton=`` (a registered name or a ``Skeleton``;
+default ``"kinect_v1"``) and computes from that skeleton's joints into the same canonical bone
+layout; the descriptor does not depend on the camera frame (it is expressed in a body frame built
+from the skeleton itself).
+
+``JOINT_NAMES``, ``J``, ``N_JOINTS``, ``BONES`` are the Kinect v1 instance's values (the joint
+order of every reader and bundled dataset); ``BONE_NAMES``, ``UPPER_BODY``, ``FULL_BODY`` and
+``resolve_bones`` the canonical vocabulary's.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import jax
 import jax.numpy as jnp
@@ -17,90 +25,68 @@ from jax.typing import ArrayLike
 from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
+from jaxproj.human import skeletons
+from jaxproj.human.skeletons import (
+    BONE_NAMES,
+    BONE_SUBSETS,
+    FULL_BODY,
+    KINECT_V1,
+    MIRROR_BONE,
+    UPPER_BODY,
+    Skeleton,
+    SkeletonLike,
+    resolve_bones,
+)
 
-JOINT_NAMES: tuple[str, ...] = (
-    "HipCenter", "Spine", "ShoulderCenter", "Head",
-    "ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft",
-    "ShoulderRight", "ElbowRight", "WristRight", "HandRight",
-    "HipLeft", "KneeLeft", "AnkleLeft", "FootLeft",
-    "HipRight", "KneeRight", "AnkleRight", "FootRight",
-)  # fmt: skip
+__all__ = [
+    "BONES", "BONE_NAMES", "BONE_SUBSETS", "FULL_BODY", "JOINT_NAMES", "J", "MIN_BONE_LENGTH",
+    "NECK_TILT_REFERENCE", "N_JOINTS", "SkeletonLike", "UPPER_BODY", "body_frame", "descriptor",
+    "level_neck", "neck_tilt", "recording_neck_tilt", "resolve_bones",
+]  # fmt: skip
+
+JOINT_NAMES: tuple[str, ...] = KINECT_V1.joints
 """The 20 Kinect v1 joints in SDK order (the order of every ``(..., 20, 3)`` array)."""
 
-N_JOINTS = len(JOINT_NAMES)
-J = {name: i for i, name in enumerate(JOINT_NAMES)}
+N_JOINTS = KINECT_V1.n_joints
+J = dict(KINECT_V1.index)
 """Joint name -> index in ``JOINT_NAMES``."""
 
-BONES: tuple[tuple[str, str], ...] = (
-    ("HipCenter", "Spine"), ("Spine", "ShoulderCenter"), ("ShoulderCenter", "Head"),
-    ("ShoulderCenter", "ShoulderLeft"), ("ShoulderLeft", "ElbowLeft"),
-    ("ElbowLeft", "WristLeft"), ("WristLeft", "HandLeft"),
-    ("ShoulderCenter", "ShoulderRight"), ("ShoulderRight", "ElbowRight"),
-    ("ElbowRight", "WristRight"), ("WristRight", "HandRight"),
-    ("HipCenter", "HipLeft"), ("HipLeft", "KneeLeft"), ("KneeLeft", "AnkleLeft"),
-    ("AnkleLeft", "FootLeft"),
-    ("HipCenter", "HipRight"), ("HipRight", "KneeRight"), ("KneeRight", "AnkleRight"),
-    ("AnkleRight", "FootRight"),
-)  # fmt: skip
+BONES: tuple[tuple[str, str], ...] = tuple(KINECT_V1.bones[n] for n in BONE_NAMES)
 """The 19 bones (parent, child) of the Kinect v1 tree; bone ``i`` is named ``BONE_NAMES[i]``."""
-
-BONE_NAMES: tuple[str, ...] = (
-    "spine_lower", "spine_upper", "neck",
-    "clavicle_left", "upper_arm_left", "forearm_left", "hand_left",
-    "clavicle_right", "upper_arm_right", "forearm_right", "hand_right",
-    "pelvis_left", "thigh_left", "shin_left", "foot_left",
-    "pelvis_right", "thigh_right", "shin_right", "foot_right",
-)  # fmt: skip
-
-UPPER_BODY: tuple[str, ...] = (
-    "neck", "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right",
-)  # fmt: skip
-"""Default bone subset: what the NAO head and arms (up to the elbow) can follow. 15 numbers."""
-
-FULL_BODY: tuple[str, ...] = BONE_NAMES
-"""All 19 bones: 57 numbers."""
-
-BONE_SUBSETS: dict[str, tuple[str, ...]] = {"upper": UPPER_BODY, "full": FULL_BODY}
-
-_MIRROR_NAME = {n: n.replace("_left", "_TMP").replace("_right", "_left").replace("_TMP", "_right")
-                for n in BONE_NAMES}  # fmt: skip
 
 MIN_BONE_LENGTH = 1e-3
 """Metres. A bone (or body-frame axis) shorter than this makes the frame invalid."""
 
 
-def resolve_bones(bones: str | tuple[str, ...]) -> tuple[str, ...]:
-    """Turn a subset name (``"upper"``, ``"full"``) or a tuple of bone names into bone names."""
-    if isinstance(bones, str):
-        if bones not in BONE_SUBSETS:
-            raise ConfigError(f"unknown bone subset {bones!r}; use one of {sorted(BONE_SUBSETS)}")
-        return BONE_SUBSETS[bones]
-    bones = tuple(bones)
-    unknown = [b for b in bones if b not in BONE_NAMES]
-    if unknown or not bones:
-        raise ConfigError(f"unknown bone names {unknown}; valid names are {BONE_NAMES}")
-    return bones
-
-
-def body_frame(positions: jax.Array) -> tuple[jax.Array, jax.Array]:
+def body_frame(
+    positions: jax.Array, *, skeleton: SkeletonLike = skeletons.DEFAULT
+) -> tuple[jax.Array, jax.Array]:
     """Body frame of a skeleton, built from the skeleton itself (not the camera axes).
 
-    ``up`` points from HipCenter to ShoulderCenter; ``left`` from ShoulderRight to ShoulderLeft,
-    made orthogonal to ``up``; ``forward = left x up``. In a right-handed camera frame (Kinect)
-    ``forward`` points out of the person's chest. The axes match the NAO torso frame (x forward,
-    y left, z up), so a bone direction in this frame can be compared with the robot's directly.
+    ``up`` points along the skeleton's ``frame.up`` joints (Kinect v1: HipCenter ->
+    ShoulderCenter); ``left`` along ``frame.left`` (ShoulderRight -> ShoulderLeft), made orthogonal
+    to ``up``; ``forward = left x up``. In a right-handed camera frame (Kinect) ``forward`` points
+    out of the person's chest. The axes match the NAO torso frame (x forward, y left, z up), so a
+    bone direction in this frame can be compared with the robot's directly.
 
     Args:
-      positions: ``(..., 20, 3)`` joint positions (Kinect SDK order), any units.
+      positions: ``(..., n_joints, 3)`` joint positions in the skeleton's order, any units.
+      skeleton: a registered skeleton's name or a ``Skeleton`` (default Kinect v1).
 
     Returns:
       ``(rotation, ok)``: ``(..., 3, 3)`` matrix whose rows are forward, left, up (so
       ``rotation @ v`` expresses a camera-frame vector in the body frame), and ``(...,)`` bool,
       false where the frame is degenerate or non-finite (the rotation is then the identity).
+
+    Raises:
+      ConfigError: an unknown skeleton; ``positions`` not shaped ``(..., n_joints, 3)``.
     """
+    s = skeletons.get(skeleton)
     p = jnp.asarray(positions)
-    up_raw = p[..., J["ShoulderCenter"], :] - p[..., J["HipCenter"], :]
-    left_raw = p[..., J["ShoulderLeft"], :] - p[..., J["ShoulderRight"], :]
+    _check_shape(p.shape, s)
+    (up_from, up_to), (left_from, left_to) = ((s.index[a], s.index[b]) for a, b in s.frame)
+    up_raw = p[..., up_to, :] - p[..., up_from, :]
+    left_raw = p[..., left_to, :] - p[..., left_from, :]
     up, ok_up = _safe_unit(up_raw)
     left_orth = left_raw - jnp.sum(left_raw * up, axis=-1, keepdims=True) * up
     left, ok_left = _safe_unit(left_orth)
@@ -111,6 +97,13 @@ def body_frame(positions: jax.Array) -> tuple[jax.Array, jax.Array]:
         ok[..., None, None], rot, jnp.broadcast_to(jnp.eye(3, dtype=rot.dtype), rot.shape)
     )
     return rot, ok
+
+
+def _check_shape(shape: tuple[int, ...], s: Skeleton) -> None:
+    if len(shape) < 2 or tuple(shape[-2:]) != (s.n_joints, 3):
+        raise ConfigError(
+            f"positions must be (..., {s.n_joints}, 3) ({s.name} joints), got {tuple(shape)}"
+        )
 
 
 def _safe_unit(v: jax.Array, min_norm: float = MIN_BONE_LENGTH) -> tuple[jax.Array, jax.Array]:
@@ -125,19 +118,25 @@ def descriptor(
     positions: ArrayLike,
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
+    *,
+    skeleton: SkeletonLike = skeletons.DEFAULT,
 ) -> tuple[jax.Array, jax.Array]:
     """The paper's pose descriptor: bone unit vectors expressed in the body frame.
 
     Invariant to translation, to any rotation of the whole skeleton (the frame is built from the
-    skeleton) and to uniform scaling (unit vectors).
+    skeleton) and to uniform scaling (unit vectors). Every skeleton's descriptor has the same
+    layout: the chosen canonical bones in the order given, 3 numbers each.
 
     Args:
-      positions: ``(..., 20, 3)`` joint positions in Kinect SDK order.
+      positions: ``(..., n_joints, 3)`` joint positions in the skeleton's order (Kinect v1: SDK
+        order, ``(..., 20, 3)``).
       bones: subset name (``"upper"`` default: neck, upper arms, forearms; ``"full"``: all 19)
         or a tuple of names from ``BONE_NAMES``.
       mirror: if true, the human's left limbs drive the robot's right ones (mirror imitation):
         each left bone is swapped with its right twin and the lateral (y) component negated.
         Default false: direct imitation (human left arm -> robot left arm).
+      skeleton: a registered skeleton's name or a ``Skeleton`` (default ``"kinect_v1"``): whose
+        joints the bones and the body frame are read from.
 
     Returns:
       ``(d, valid)``: ``(..., 3 * n_bones)`` float32 descriptor, bone after bone, each a unit
@@ -145,39 +144,43 @@ def descriptor(
       frame is degenerate, a value is non-finite, or a chosen bone is shorter than
       ``MIN_BONE_LENGTH``; its descriptor is all zeros there (never NaN).
 
-    Compiled once per shape; host arrays (NumPy) are padded along their frames to a bucket
-    (``jaxproj._internal.buckets``), so recordings of most lengths share one compile. Inside
-    a caller's trace it is plain JAX code.
+    Compiled once per shape (and skeleton); host arrays (NumPy) are padded along their frames to
+    a bucket (``jaxproj._internal.buckets``), so recordings of most lengths share one compile.
+    Inside a caller's trace it is plain JAX code.
 
     Raises:
-      ConfigError: host ``positions`` not shaped ``(..., 20, 3)``.
+      ConfigError: an unknown bone, subset or skeleton; a bone the skeleton does not define
+        (named, with the skeleton); ``positions`` not shaped ``(..., n_joints, 3)``.
     """
-    names = resolve_bones(bones)
+    s = skeletons.get(skeleton)
+    names = s.require(bones)
     if mirror:
-        names = tuple(_MIRROR_NAME[n] for n in names)
+        names = tuple(MIRROR_BONE[n] for n in names)
     index = tuple(BONE_NAMES.index(n) for n in names)
     if isinstance(positions, jax.core.Tracer):  # inside a caller's trace: the plain core
-        return _descriptor(positions, index, mirror)
+        _check_shape(positions.shape, s)
+        return _descriptor(positions, index, mirror, s)
     if isinstance(positions, jax.Array):  # on a device already: one compile per shape
-        return _descriptor_jit(positions, index=index, mirror=mirror)
+        _check_shape(positions.shape, s)
+        return _descriptor_jit(positions, index=index, mirror=mirror, skeleton=s)
     # host data (a recording, a dataset): rows padded to a bucket, one compile per bucket
     p = np.asarray(positions, np.float32)
-    if p.ndim < 2 or p.shape[-2:] != (N_JOINTS, 3):
-        raise ConfigError(f"positions must be (..., {N_JOINTS}, 3), got {p.shape}")
-    return call_bucketed(lambda x: _descriptor_jit(x, index=index, mirror=mirror), p, 2)
+    _check_shape(p.shape, s)
+    return call_bucketed(lambda x: _descriptor_jit(x, index=index, mirror=mirror, skeleton=s), p, 2)
 
 
 def _descriptor(
-    positions: jax.Array, index: tuple[int, ...], mirror: bool
+    positions: jax.Array, index: tuple[int, ...], mirror: bool, skeleton: Skeleton = KINECT_V1
 ) -> tuple[jax.Array, jax.Array]:
     """``descriptor``'s traceable core for the bones ``BONE_NAMES[i]`` of ``index`` (already
-    swapped when ``mirror``)."""
-    parents = np.array([J[BONES[i][0]] for i in index])
-    children = np.array([J[BONES[i][1]] for i in index])
+    swapped when ``mirror``) of ``skeleton``."""
+    pairs = skeleton.bone_joints(tuple(BONE_NAMES[i] for i in index))
+    parents = np.array([a for a, _ in pairs])
+    children = np.array([b for _, b in pairs])
     p = jnp.asarray(positions, dtype=jnp.float32)
     finite = jnp.all(jnp.isfinite(p), axis=(-2, -1))
     p = jnp.where(finite[..., None, None], p, 0.0)
-    rot, ok_frame = body_frame(p)
+    rot, ok_frame = body_frame(p, skeleton=skeleton)
     vec = p[..., children, :] - p[..., parents, :]  # (..., B, 3)
     unit, ok_bone = _safe_unit(vec)
     local = jnp.einsum("...ij,...bj->...bi", rot, unit)
@@ -188,7 +191,7 @@ def _descriptor(
     return local.reshape(*local.shape[:-2], 3 * len(index)), valid
 
 
-_descriptor_jit = jit(_descriptor, static_argnames=("index", "mirror"))
+_descriptor_jit = jit(_descriptor, static_argnames=("index", "mirror", "skeleton"))
 
 
 NECK_TILT_REFERENCE = math.radians(-27.1)
@@ -198,23 +201,44 @@ the default projector's landmarks come from. ``level_neck`` brings each recordin
 tilt here (the NAO's IK reads this tilt as HeadPitch 0, ``ik.HEAD_PITCH_NEUTRAL``)."""
 
 
-def neck_tilt(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+def _neck_offset(bones: str | Iterable[str], skeleton: SkeletonLike) -> int:
+    """Index of the neck bone's first number in a descriptor of ``bones``."""
+    names = skeletons.get(skeleton).require(bones)
+    if "neck" not in names:
+        raise ConfigError(f"the descriptor's bones {names} hold no neck bone")
+    return 3 * names.index("neck")
+
+
+def neck_tilt(
+    d: jax.Array,
+    bones: str | tuple[str, ...] = "upper",
+    *,
+    skeleton: SkeletonLike = skeletons.DEFAULT,
+) -> jax.Array:
     """``(...,)`` forward tilt ``atan2(n_x, n_z)`` (rad) of the neck bone of ``(..., 3 * n_bones)``
-    descriptors (``bones`` must hold ``"neck"``)."""
-    i = 3 * resolve_bones(bones).index("neck")
+    descriptors of ``skeleton`` (``bones`` must hold ``"neck"``; ConfigError if not, or if the
+    skeleton lacks one of ``bones``)."""
+    i = _neck_offset(bones, skeleton)
     return jnp.arctan2(d[..., i], d[..., i + 2])
 
 
 def recording_neck_tilt(
-    d: ArrayLike, valid: ArrayLike, bones: str | tuple[str, ...] = "upper"
+    d: ArrayLike,
+    valid: ArrayLike,
+    bones: str | tuple[str, ...] = "upper",
+    *,
+    skeleton: SkeletonLike = skeletons.DEFAULT,
 ) -> jax.Array:
     """The neutral neck tilt of one recording: the median ``neck_tilt`` of its valid frames.
 
     Traceable (a sort, no host sync). Args: ``d`` ``(T, 3 * n_bones)`` descriptors, ``valid``
-    ``(T,)`` bool. Returns ``()`` float32 rad; ``NECK_TILT_REFERENCE`` if no frame is valid.
+    ``(T,)`` bool, ``bones`` / ``skeleton`` as for ``neck_tilt``. Returns ``()`` float32 rad;
+    ``NECK_TILT_REFERENCE`` if no frame is valid.
     """
     valid = jnp.asarray(valid, bool)
-    tilt = jnp.where(valid, neck_tilt(jnp.asarray(d, jnp.float32), bones), jnp.inf)
+    tilt = jnp.where(
+        valid, neck_tilt(jnp.asarray(d, jnp.float32), bones, skeleton=skeleton), jnp.inf
+    )
     ordered = jnp.sort(tilt)
     k = jnp.sum(valid.astype(jnp.int32))
     mid = 0.5 * (ordered[jnp.maximum(k - 1, 0) // 2] + ordered[k // 2])
@@ -226,6 +250,8 @@ def level_neck(
     neutral: ArrayLike,
     bones: str | tuple[str, ...] = "upper",
     reference: float = NECK_TILT_REFERENCE,
+    *,
+    skeleton: SkeletonLike = skeletons.DEFAULT,
 ) -> jax.Array:
     """Descriptors whose neck bone is turned about the body's left axis by ``reference -
     neutral``: a recording whose neutral tilt is ``neutral`` then has it at ``reference``.
@@ -241,8 +267,10 @@ def level_neck(
       neutral: the recording's neutral tilt, rad (scalar or broadcastable to ``d``'s batch).
       bones: the descriptor's bones.
       reference: the tilt the neutral is moved to, rad.
+      skeleton: the skeleton the descriptors were computed from (ConfigError if it lacks one of
+        ``bones``).
     """
-    names = resolve_bones(bones)
+    names = skeletons.get(skeleton).require(bones)
     d = jnp.asarray(d, jnp.float32)
     if "neck" not in names:
         return d
