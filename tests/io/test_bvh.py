@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from jaxproj.cli import main
 from jaxproj.errors import ConfigError, InputError
+from jaxproj.human import skeletons
 from jaxproj.human.skeleton import BONE_NAMES, JOINT_NAMES, descriptor
 from jaxproj.io import datasets
 from jaxproj.io.formats import bvh
@@ -354,7 +355,7 @@ def test_joint_maps_presets_files_and_errors(clips, tmp_path):
         read_skeleton(DATA / CLIPS[1], bvh_map={**table, "WristLeft": "no", "Head": "nope"})
     with pytest.raises(InputError, match="Head \\(not in the map\\)"):
         read_skeleton(DATA / CLIPS[1], bvh_map={k: v for k, v in table.items() if k != "Head"})
-    with pytest.raises(ConfigError, match="unknown Kinect joint"):
+    with pytest.raises(ConfigError, match="unknown Kinect joint.*20 joints of the kinect_v1"):
         read_skeleton(DATA / CLIPS[1], bvh_map={"Elbow": "LeftElbow"})
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(InputError, match="broken.json: not a joint map"):
@@ -365,6 +366,16 @@ def test_joint_maps_presets_files_and_errors(clips, tmp_path):
         read_skeleton(DATA / CLIPS[1], scale="furlong")
     half = read_skeleton(DATA / CLIPS[1], scale=bvh.CMU_SCALE / 2)
     np.testing.assert_allclose(half.positions, ref.positions / 2, rtol=1e-6, atol=1e-7)
+
+
+def test_joint_maps_map_onto_the_registered_kinect_v1_skeleton():
+    target = bvh.TARGET_SKELETON
+    assert target is skeletons.get("kinect_v1") and target.joints == JOINT_NAMES
+    # required and derived joints split the skeleton's joints; the presets name only its joints
+    assert set(bvh.REQUIRED_JOINTS) | set(bvh.DERIVED_JOINTS) == set(target.joints)
+    assert not set(bvh.REQUIRED_JOINTS) & set(bvh.DERIVED_JOINTS)
+    for table in bvh.JOINT_MAPS.values():
+        assert set(table) == set(target.joints)
 
 
 # --- bad files -----------------------------------------------------------------------------------

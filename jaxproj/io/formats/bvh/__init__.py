@@ -21,9 +21,9 @@ public:
    Z-X-Y); position channels replace the corresponding ``OFFSET`` component (the root's
    translation; LAFAN1-style files carry every joint's offset as position channels);
    ``p_joint = p_parent + R_parent @ offset``, ``R_joint = R_parent @ R_local``.
-3. A joint map (``JOINT_MAPS``, ``resolve_joint_map``) picks, for each of the 20 Kinect joints,
-   the BVH joint whose position it takes; ``kinect_positions`` applies it, the scale and the axis
-   change.
+3. A joint map (``JOINT_MAPS``, ``resolve_joint_map``) picks, for each of the 20 Kinect joints
+   (the joints of ``TARGET_SKELETON``, the registered ``"kinect_v1"`` skeleton), the BVH joint
+   whose position it takes; ``kinect_positions`` applies it, the scale and the axis change.
 
 Joint maps (``bvh_map=``, CLI ``--bvh-map``):
 
@@ -99,6 +99,7 @@ from jaxproj.io.formats.bvh.joint_maps import (
     HAND_EXTENSION,
     JOINT_MAPS,
     REQUIRED_JOINTS,
+    TARGET_SKELETON,
     detect_joint_map,
     load_joint_map,
     resolve_joint_map,
@@ -123,6 +124,7 @@ __all__ = [
     "JOINT_MAPS",
     "REFERENCE_HEIGHT_M",
     "REQUIRED_JOINTS",
+    "TARGET_SKELETON",
     "UNITS",
     "BvhClip",
     "auto_scale",

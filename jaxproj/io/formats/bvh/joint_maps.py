@@ -2,7 +2,9 @@
 
 Step 3 of ``jaxproj.io.formats.bvh`` (the package docstring lists the presets and the derived
 joints): the built-in maps ``JOINT_MAPS``, map files (JSON / TOML), dicts, and the check that a map
-fits a hierarchy (``resolve_joint_map``).
+fits a hierarchy (``resolve_joint_map``). A map's keys are joints of ``TARGET_SKELETON``, the
+registered Kinect v1 skeleton (``jaxproj.human.skeletons``), whose joint order the reader's
+positions come in.
 """
 
 from __future__ import annotations
@@ -14,9 +16,14 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from jaxproj.errors import ConfigError, InputError
-from jaxproj.human.skeleton import JOINT_NAMES
+from jaxproj.human import skeletons
 from jaxproj.io.formats.bvh.parser import BvhClip
 from jaxproj.io.text import decode, one_line, read_bytes
+
+TARGET_SKELETON: skeletons.Skeleton = skeletons.get("kinect_v1")
+"""The skeleton joint maps map onto: a map's keys are its joint names, and ``kinect_positions``
+gives ``(T, n_joints, 3)`` positions in its joint order. ``REQUIRED_JOINTS`` and
+``DERIVED_JOINTS`` split its joints (the rules that derive a joint are Kinect v1's)."""
 
 HAND_EXTENSION = 0.3
 """A derived Kinect hand lies this fraction of the forearm beyond the wrist (Kinect v1 data:
@@ -98,10 +105,12 @@ def _check_map(table: Mapping, error) -> dict[str, str]:
     bad_values = [k for k, v in table.items() if not isinstance(v, str)]
     if bad_values:
         raise error(f"joint map values must be BVH joint names (strings): {bad_values}")
-    unknown = [k for k in table if k not in JOINT_NAMES]
+    target = TARGET_SKELETON
+    unknown = [k for k in table if k not in target.index]
     if unknown:
-        raise error(f"unknown Kinect joint name(s) {unknown} in the joint map; the 20 Kinect "
-                    f"joints are {', '.join(JOINT_NAMES)}")  # fmt: skip
+        raise error(f"unknown Kinect joint name(s) {unknown} in the joint map; the "
+                    f"{target.n_joints} joints of the {target.name} skeleton are "
+                    f"{', '.join(target.joints)}")  # fmt: skip
     return {str(k): str(v) for k, v in table.items()}
 
 

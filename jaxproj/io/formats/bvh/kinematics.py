@@ -13,8 +13,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from jaxproj.errors import InputError
-from jaxproj.human.skeleton import JOINT_NAMES, N_JOINTS
-from jaxproj.io.formats.bvh.joint_maps import HAND_EXTENSION
+from jaxproj.io.formats.bvh.joint_maps import HAND_EXTENSION, TARGET_SKELETON
 from jaxproj.io.formats.bvh.parser import POSITION_AXES, ROTATION_AXES, BvhClip
 
 BVH_TO_KINECT = np.diag([-1.0, 1.0, -1.0])
@@ -75,7 +74,8 @@ def forward_kinematics(clip: BvhClip, scale: float = 1.0) -> np.ndarray:
 def kinect_positions(
     clip: BvhClip, table: Mapping[str, str], scale: float, points: np.ndarray | None = None
 ) -> np.ndarray:
-    """The 20 Kinect joints of every frame from a resolved joint map (missing joints derived).
+    """The 20 Kinect joints of every frame from a resolved joint map (missing joints derived), in
+    the joint order of ``TARGET_SKELETON`` (Kinect v1).
 
     Args:
       clip: the parsed file.
@@ -88,8 +88,8 @@ def kinect_positions(
       (``BVH_TO_KINECT``).
     """
     p = forward_kinematics(clip, scale) if points is None else points
-    out = np.zeros((p.shape[0], N_JOINTS, 3))
-    k = {n: i for i, n in enumerate(JOINT_NAMES)}
+    out = np.zeros((p.shape[0], TARGET_SKELETON.n_joints, 3))
+    k = TARGET_SKELETON.index
 
     def get(name: str) -> np.ndarray:
         return out[:, k[name]]
