@@ -194,6 +194,13 @@ class Skeleton:
         object.__setattr__(self, "bones", _check_bones(name, joints, self.bones))
         object.__setattr__(self, "frame", _check_frame(name, joints, self.frame))
 
+    def __hash__(self) -> int:  # computed once: the skeleton is a static argument of every call
+        return self._hash
+
+    @functools.cached_property
+    def _hash(self) -> int:
+        return hash((self.name, self.joints, self.parents, self.bones, self.frame))
+
     @property
     def n_joints(self) -> int:
         """``len(joints)``: positions are ``(..., n_joints, 3)``."""
