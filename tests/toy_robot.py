@@ -1,7 +1,8 @@
 """A toy robot that proves the robot seam: 9 joints (a waist held still, 2 head, 3 per arm).
 
 Everything a ``Robot`` needs, and nothing of the NAO: its own joint names, limits and posture,
-three chains (head, left arm, right arm) with their own closed-form IK from bone directions, and
+five chains unlike the NAO's (gaze; each shoulder; each elbow) with their own closed-form IK from
+bone directions, and
 a tiny MJCF (written to a folder the caller names) with the arm sites the task-space metrics read.
 
 Kinematics (torso frame: x forward, y left, z up; both arms alike, shoulders at ``y = +-0.1``):
@@ -115,12 +116,30 @@ def arm_ik(x: np.ndarray, side: Literal["l", "r"]) -> np.ndarray:
     return np.asarray(_arm(x, side))
 
 
+def shoulder_ik(x: np.ndarray, side: Literal["l", "r"]) -> np.ndarray:
+    """``(N, 3)`` upper arm directions -> ``(N, 2)`` (pitch, roll): they fix it alone."""
+    x = np.asarray(x, np.float32)
+    return np.asarray(_arm(np.concatenate([x, x], axis=-1), side))[:, :2]
+
+
+def elbow_ik(x: np.ndarray, side: Literal["l", "r"]) -> np.ndarray:
+    """``(N, 6)`` upper arm and forearm directions -> ``(N, 1)`` elbow."""
+    return np.asarray(_arm(x, side))[:, 2:]
+
+
 CHAINS = (
-    Chain("head", ("neck",), DRIVEN[:2], head_ik),
-    Chain("left_arm", ("upper_arm_left", "forearm_left"), DRIVEN[2:5], partial(arm_ik, side="l")),
-    Chain("right_arm", ("upper_arm_right", "forearm_right"), DRIVEN[5:], partial(arm_ik, side="r")),
-)
+    Chain("gaze", ("neck",), DRIVEN[:2], head_ik),
+    Chain("left_shoulder", ("upper_arm_left",), DRIVEN[2:4], partial(shoulder_ik, side="l")),
+    Chain("left_elbow", ("upper_arm_left", "forearm_left"), DRIVEN[4:5],
+          partial(elbow_ik, side="l")),
+    Chain("right_shoulder", ("upper_arm_right",), DRIVEN[5:7], partial(shoulder_ik, side="r")),
+    Chain("right_elbow", ("upper_arm_right", "forearm_right"), DRIVEN[7:],
+          partial(elbow_ik, side="r")),
+)  # fmt: skip
+"""Five chains, none called ``head`` and none an arm: a chain set unlike the NAO's (head, left
+arm, right arm), so that nothing in the seam leans on the NAO's chain names or count."""
 _CORES = (_head, partial(_arm, side="l"), partial(_arm, side="r"))
+_CORE_BONES = (("neck",), ("upper_arm_left", "forearm_left"), ("upper_arm_right", "forearm_right"))
 
 
 def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
@@ -131,8 +150,8 @@ def solve_driven(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Ar
     names = resolve_bones(bones)
     d = jnp.asarray(d, jnp.float32)
     parts = []
-    for chain, core in zip(CHAINS, _CORES, strict=True):
-        cols = [3 * names.index(b) + i for b in chain.bones for i in range(3)]
+    for bones, core in zip(_CORE_BONES, _CORES, strict=True):
+        cols = [3 * names.index(b) + i for b in bones for i in range(3)]
         parts.append(core(d[..., cols]))
     return jnp.concatenate(parts, axis=-1)
 

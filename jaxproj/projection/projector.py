@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxproj.errors import ConfigError
 from jaxproj.projection.elm import ELMBank, predict
 from jaxproj.projection.search import nearest, sq_norms
 from jaxproj.robots import Robot, get
@@ -108,6 +109,9 @@ class ChainLayout:
       landmarks: per chain, its landmark count ``K_c`` (before padding to the largest).
       hidden: per chain, hidden units of its forward and backward kernels.
       k: per chain, training neighbours of its kernels.
+      width: the whole descriptor's width (``3 * n_bones`` of the model's bones); chains may
+        share columns (the G1's legs read the waist's bones) and leave some unread, so it is
+        not the sum of their inputs. ``None``: that sum (chains that split the descriptor).
     """
 
     names: tuple[str, ...]
@@ -116,6 +120,11 @@ class ChainLayout:
     landmarks: tuple[int, ...]
     hidden: tuple[int, ...]
     k: tuple[int, ...]
+    width: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.width is not None and any(c >= self.width for cols in self.inputs for c in cols):
+            raise ConfigError(f"a chain reads a column beyond the descriptor's width {self.width}")
 
     @property
     def n_chains(self) -> int:
@@ -134,8 +143,8 @@ class ChainLayout:
 
     @property
     def m(self) -> int:
-        """Width of the whole descriptor."""
-        return sum(_widths(self.inputs))
+        """Width of the whole descriptor (``width``, else the sum of the chains' inputs)."""
+        return sum(_widths(self.inputs)) if self.width is None else self.width
 
     @property
     def n(self) -> int:

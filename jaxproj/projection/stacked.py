@@ -100,6 +100,7 @@ def layout_of(config: BuildConfig, projectors: Sequence[Projector]) -> ChainLayo
         landmarks=tuple(p.n_landmarks for p in projectors),
         hidden=tuple(p.forward.hidden for p in projectors),
         k=tuple(p.forward.k for p in projectors),
+        width=3 * len(resolve_bones(config.bones)),
     )
 
 

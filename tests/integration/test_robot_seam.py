@@ -34,7 +34,7 @@ def toy(tmp_path_factory: pytest.TempPathFactory):
 @pytest.fixture(scope="module")
 def model(toy: Robot) -> engine.Model:
     train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1, 3]))[::8]
-    config = engine.BuildConfig(robot=toy.name, landmarks=(24, 48, 48), k=12, hidden=24)
+    config = engine.BuildConfig(robot=toy.name, landmarks=(24, 32, 48, 32, 48), k=12, hidden=24)
     return engine.build(train, config)
 
 
@@ -53,7 +53,9 @@ def test_the_model_is_built_for_the_toy(toy: Robot, model: engine.Model) -> None
     lay = model.projector.layout
     assert lay.names == tuple(c.name for c in CHAINS) and lay.n == len(DRIVEN) == toy.n_driven
     assert lay.outputs == tuple(toy.chain_joints(c) for c in CHAINS)
-    got, want = model.landmarks, {"head": 24, "left_arm": 48, "right_arm": 48}
+    want = {"gaze": 24, "left_shoulder": 32, "left_elbow": 48, "right_shoulder": 32,
+            "right_elbow": 48}  # fmt: skip
+    got = model.landmarks
     assert got.keys() == want.keys()
     assert all(abs(got[c] - want[c]) <= 0.05 * want[c] for c in want), got  # the search's rel_tol
     for c, chain in enumerate(CHAINS):  # robot landmarks: the toy's chain IK of the human ones

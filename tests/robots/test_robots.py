@@ -185,7 +185,7 @@ def test_toy_helpers(toy: Robot) -> None:
     np.testing.assert_array_equal(cols, expect[None])
     with pytest.raises(ConfigError, match="joint names repeated"):
         toy.from_columns(["waist", "waist"], np.zeros((1, 2), np.float32))
-    assert toy.chain("left_arm").joints == DRIVEN[2:5]
+    assert toy.chain("left_elbow").joints == DRIVEN[4:5]
     with pytest.raises(ConfigError, match="no chain"):
         toy.chain("tail")
     with pytest.raises(ConfigError, match="no MJCF"):
@@ -199,12 +199,13 @@ def test_toy_ik_inverts_its_fk(toy: Robot) -> None:
     q[:, 3:] = rng.uniform(LOWER[3:] + 0.05, UPPER[3:] - 0.05, size=(64, 6))
     q[:, [5, 8]] = rng.uniform(0.2, 1.9, size=(64, 2))  # elbow away from straight
     pts = arm_fk(q)
-    for i, chain in enumerate(toy.chains[1:]):
+    for chain in toy.chains[1:]:  # each shoulder reads its upper arm, each elbow both bones
+        i = 0 if chain.name.startswith("left") else 1
         u = (pts[:, i, 1] - pts[:, i, 0]) / 0.1
         f = (pts[:, i, 2] - pts[:, i, 1]) / 0.1
-        got = chain.solve(np.concatenate([u, f], axis=1).astype(np.float32))
+        x = np.concatenate([u, f][: len(chain.bones)], axis=1).astype(np.float32)
         k = [toy.index(j) for j in chain.joints]
-        np.testing.assert_allclose(got, q[:, k], atol=2e-5)
+        np.testing.assert_allclose(chain.solve(x), q[:, k], atol=2e-5)
     # the whole-robot IK is the chains side by side
     d = np.concatenate([np.tile([0.0, 0.0, 1.0], (64, 1)),
                         (pts[:, 0, 1] - pts[:, 0, 0]) / 0.1, (pts[:, 0, 2] - pts[:, 0, 1]) / 0.1,
