@@ -32,8 +32,9 @@ too noisy to set the wrist's pitch and yaw; not measured yet), held at zero.
 
 Self-collision (``COLLISION_PAIRS``): the IK keeps the hands, wrists and forearms 1 cm
 (``IK_CONFIG.margin``) away from the torso, head, pelvis, hips and thighs and from the other
-arm (its upper arm too), the two legs (thighs, shins, the soles' capsules) apart, and each lower
-leg away from the pelvis and the other hip and thigh, with the capsules and spheres of
+arm (its upper arm too), the upper arms from the head, the two legs (thighs, shins, the soles'
+capsules) apart, each lower leg away from the pelvis and the other hip and thigh, the thighs
+from the torso and each foot from its own hip, with the capsules and spheres of
 ``unitree_g1.xml``.
 """
 
@@ -104,6 +105,16 @@ COLLISION_PAIRS: tuple[tuple[str, str], ...] = (
         for g in ("shin_lower", *(f"foot_{a}" for a in _SOLE))
         for b in ("pelvis_geom", f"{o}_hip_geom", f"{o}_thigh_geom")
     ),
+    # an upper arm across the face; a shin against the other foot and hip; a thigh raised into
+    # the torso; a foot folded up to its own hip
+    *((f"{s}_upper_arm_geom", "head_geom") for s in ("left", "right")),
+    *(
+        (f"{s}_shin_geom", b)
+        for s, o in (("left", "right"), ("right", "left"))
+        for b in (*(f"{o}_foot_{a}_geom" for a in _SOLE), f"{o}_hip_geom")
+    ),
+    *((f"{s}_thigh_geom", "torso_geom") for s in ("left", "right")),
+    *((f"{s}_foot_{a}_geom", f"{s}_hip_geom") for s in ("left", "right") for a in _SOLE),
 )
 """Geom pairs the IK keeps apart (see the module doc)."""
 
