@@ -24,6 +24,7 @@ from mujoco import mjx
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.robots import Robot
+from jaxproj.robots.base import mj_site_ids
 
 FK_BATCH = 4096
 """Frames per compiled forward-kinematics call (the last batch is padded)."""
@@ -99,13 +100,8 @@ def _fk_setup(robot: Robot) -> _FK:
             raise ConfigError("the arm model must have hinge joints only")
         src.append(robot.index(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or ""))
     order = np.argsort(model.jnt_qposadr)  # qpos entry k <- joint with the k-th address
-    sids = []
-    for names in robot.require_mjcf().arm_sites.values():
-        for name in names:
-            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-            if sid < 0:
-                raise ConfigError(f"the MJCF has no site named {name!r}")
-            sids.append(sid)
+    arm_sites = robot.require_mjcf().arm_sites.values()
+    sids = mj_site_ids(model, [n for names in arm_sites for n in names])
     mx = mjx.put_model(model, impl="jax")
     return _FK(
         mx=mx,

@@ -317,6 +317,17 @@ def mj_joint_ids(model: mujoco.MjModel, joint_names: Sequence[str]) -> np.ndarra
     return ids
 
 
+def mj_site_ids(model: mujoco.MjModel, site_names: Sequence[str]) -> list[int]:
+    """MuJoCo site id of each name, in order; ConfigError if one is missing."""
+    ids = []
+    for name in site_names:
+        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+        if sid < 0:
+            raise ConfigError(f"model has no site named {name!r}")
+        ids.append(int(sid))
+    return ids
+
+
 def joint_qpos_index(model: mujoco.MjModel, joint_names: Sequence[str]) -> np.ndarray:
     """``(len(joint_names),)`` int64: address in ``qpos`` of each named joint of ``model``."""
     return np.asarray(model.jnt_qposadr[mj_joint_ids(model, joint_names)], dtype=np.int64)

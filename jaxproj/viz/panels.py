@@ -15,7 +15,7 @@ import numpy as np
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONES, J
 from jaxproj.robots import Robot
-from jaxproj.robots.base import joint_qpos_index
+from jaxproj.robots.base import joint_qpos_index, mj_site_ids
 
 LEFT_COLOR = (0.95, 0.6, 0.2)
 RIGHT_COLOR = (0.2, 0.6, 0.95)
@@ -86,12 +86,7 @@ def kinematics(robot: Robot, model: Any, angles: np.ndarray, sites: Sequence[str
     """
     import mujoco
 
-    sids = []
-    for name in sites:
-        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-        if sid < 0:
-            raise ConfigError(f"model has no site named {name!r}")
-        sids.append(sid)
+    sids = mj_site_ids(model, sites)
     data = mujoco.MjData(model)
     data.qpos[:] = robot_qpos(robot, model, angles)
     mujoco.mj_kinematics(model, data)

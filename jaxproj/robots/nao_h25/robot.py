@@ -25,7 +25,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.robots import mjcf as _mjcf
-from jaxproj.robots.base import RATED_FRACTION, CoupledLimit, mj_joint_ids
+from jaxproj.robots.base import RATED_FRACTION, CoupledLimit, mj_joint_ids, mj_site_ids
 from jaxproj.robots.base import joint_qpos_index as _qpos_index
 
 NAME = "NAO H25 V5"
@@ -339,12 +339,7 @@ def site_positions(model: mujoco.MjModel, angles: np.ndarray, sites: Sequence[st
     q = np.asarray(angles, dtype=np.float64)
     if q.ndim not in (1, 2) or q.shape[-1] != N_JOINTS:
         raise ConfigError(f"angles must have shape (26,) or (T, 26), got {q.shape}")
-    sids = []
-    for name in sites:
-        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-        if sid < 0:
-            raise ConfigError(f"model has no site named {name!r}")
-        sids.append(sid)
+    sids = mj_site_ids(model, sites)
     torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, _TORSO_BODY)
     data = mujoco.MjData(model)
     frames = q.reshape(-1, N_JOINTS)
