@@ -162,6 +162,7 @@ def run(args: argparse.Namespace) -> int:
             feasible=feasible.FeasibleConfig(speeds=args.speeds) if args.feasible else None,
             full=FULL_READINGS[args.full_reading],
             robot=None if model is not None else robot,
+            skeleton=rec.skeleton,
         )
     except NoValidFrameError as e:  # name the file (and the option that most often causes it)
         hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""
@@ -181,6 +182,7 @@ def run(args: argparse.Namespace) -> int:
         "time_source": rec.time_source,
         "fps": round(rec.fps, 6),
         "format": rec.format,
+        "skeleton": rec.skeleton,
     }
     if args.method == "full":
         meta["full_reading"] = args.full_reading

@@ -26,6 +26,8 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from jaxproj.errors import ConfigError
 
 BONE_NAMES: tuple[str, ...] = (
@@ -168,6 +170,10 @@ class Skeleton:
         twin (mirroring swaps them). The two joints need not be parent and child.
       frame: the joints of the body frame (``BodyFrame``).
       description: one line for people (where the format comes from).
+      derived: joints the format does not record but the bones need (MediaPipe Pose has no
+        spine or head centre): ``((name, (joint, joint, ...)), ...)``, each the mean of earlier
+        joints. They are the last ``len(derived)`` names of ``joints``, in this order; a reader
+        computes them with ``complete`` from the format's own ``sensor_joints``.
     """
 
     name: str
@@ -176,6 +182,7 @@ class Skeleton:
     bones: Mapping[str, tuple[str, str]]
     frame: BodyFrame
     description: str = field(default="", compare=False)
+    derived: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     def __post_init__(self) -> None:
         name = self.name
@@ -193,18 +200,56 @@ class Skeleton:
         object.__setattr__(self, "parents", _check_parents(name, joints, self.parents))
         object.__setattr__(self, "bones", _check_bones(name, joints, self.bones))
         object.__setattr__(self, "frame", _check_frame(name, joints, self.frame))
+        object.__setattr__(self, "derived", _check_derived(name, joints, self.derived))
 
     def __hash__(self) -> int:  # computed once: the skeleton is a static argument of every call
         return self._hash
 
     @functools.cached_property
     def _hash(self) -> int:
-        return hash((self.name, self.joints, self.parents, self.bones, self.frame))
+        return hash((self.name, self.joints, self.parents, self.bones, self.frame, self.derived))
 
     @property
     def n_joints(self) -> int:
         """``len(joints)``: positions are ``(..., n_joints, 3)``."""
         return len(self.joints)
+
+    @property
+    def sensor_joints(self) -> tuple[str, ...]:
+        """The joints a file of this format records: ``joints`` without the ``derived`` ones."""
+        return self.joints[: len(self.joints) - len(self.derived)]
+
+    def complete(self, positions: np.ndarray) -> np.ndarray:
+        """The format's recorded joints ``(..., len(sensor_joints), 3)`` -> ``(..., n_joints, 3)``
+        with the ``derived`` joints appended (each the mean of its joints); float32."""
+        pos = np.asarray(positions, np.float32)
+        n = len(self.sensor_joints)
+        if pos.ndim < 2 or pos.shape[-2:] != (n, 3):
+            raise ConfigError(
+                f"skeleton {self.name!r} records {n} joints: positions must be (..., {n}, 3), "
+                f"got {pos.shape}"
+            )
+        out = [pos]
+        for _, parts in self.derived:
+            idx = [self.index[j] for j in parts]
+            full = np.concatenate(out, axis=-2)
+            out.append(full[..., idx, :].mean(axis=-2, keepdims=True))
+        return np.concatenate(out, axis=-2)
+
+    @functools.cached_property
+    def kinect_v1_sources(self) -> tuple[int, ...]:
+        """Per Kinect v1 joint (``KINECT_V1.joints`` order), the index of this skeleton's joint
+        at the same place of the canonical bones, or -1 where this skeleton lacks the bone that
+        ends there (``to_kinect_v1`` fills those). Computed from ``bones``: the Kinect v1 bone
+        ``b`` runs ``(a, c)``, this skeleton's ``(a', c')``, so ``a -> a'`` and ``c -> c'``.
+
+        Raises:
+          ConfigError: the bones put two of this skeleton's joints at one Kinect joint (e.g. the
+            neck starting elsewhere than the clavicles), the body frame is not spanned by the
+            same joints as Kinect v1's (pelvis centre -> spine top, right -> left shoulder), or
+            a bone other than a hand or a foot is missing.
+        """
+        return _kinect_v1_sources(self)
 
     @functools.cached_property
     def index(self) -> dict[str, int]:
@@ -311,6 +356,100 @@ def _check_frame(name: str, joints: tuple[str, ...], frame: Any) -> BodyFrame:
     )
 
 
+def _check_derived(name: str, joints: tuple[str, ...], derived: Any) -> tuple:
+    try:
+        items = tuple((str(d), tuple(str(j) for j in parts)) for d, parts in derived)
+    except (TypeError, ValueError):
+        raise ConfigError(f"skeleton {name!r}: derived must be (name, (joints...)) pairs") from None
+    first = len(joints) - len(items)
+    for k, (d, parts) in enumerate(items):
+        if first < 0 or joints[first + k] != d:
+            raise ConfigError(
+                f"skeleton {name!r}: derived joint {d!r} must be joint {first + k} of joints "
+                "(the derived joints come last, in order)"
+            )
+        bad = [j for j in parts if j not in joints[: first + k]]
+        if not parts or bad:
+            raise ConfigError(
+                f"skeleton {name!r}: derived joint {d!r} must average earlier joints, got {parts}"
+            )
+    return items
+
+
+_FILLABLE = ("hand_left", "hand_right", "foot_left", "foot_right")
+"""The bones a skeleton may lack and still be laid out as Kinect v1 (``to_kinect_v1``)."""
+FILL_FRACTION = 0.3
+"""``to_kinect_v1``: a missing hand (foot) continues the forearm (shin) by this fraction."""
+
+
+def _kinect_v1_sources(s: Skeleton) -> tuple[int, ...]:
+    k = KINECT_V1
+    src = [-1] * k.n_joints
+    for b in BONE_NAMES:
+        if b not in s.bones:
+            if b not in _FILLABLE:
+                raise ConfigError(
+                    f"skeleton {s.name!r} cannot be laid out as Kinect v1: it lacks bone {b!r} "
+                    "(only hands and feet may be missing)"
+                )
+            continue
+        for kj, sj in zip(k.bones[b], s.bones[b], strict=True):
+            i, j = k.index[kj], s.index[sj]
+            if src[i] not in (-1, j):
+                raise ConfigError(
+                    f"skeleton {s.name!r}: its bones put joints {s.joints[src[i]]!r} and {sj!r} "
+                    f"where Kinect v1 has one joint, {kj!r}; make the bones meet there"
+                )
+            src[i] = j
+    for axis in ("up", "left"):
+        want = tuple(s.joints[src[k.index[j]]] for j in getattr(k.frame, axis))
+        if getattr(s.frame, axis) != want:
+            raise ConfigError(
+                f"skeleton {s.name!r}: its body frame's {axis} axis {getattr(s.frame, axis)} is "
+                f"not where its bones put Kinect v1's {getattr(k.frame, axis)} ({want})"
+            )
+    return tuple(src)
+
+
+def to_kinect_v1(positions: np.ndarray, skeleton: SkeletonLike) -> np.ndarray:
+    """One skeleton's positions laid out as Kinect v1's 20 joints, through the canonical bones.
+
+    Each Kinect v1 joint takes the position of the joint at the same place of this skeleton's
+    canonical bones (``Skeleton.kinect_v1_sources``), so ``descriptor(to_kinect_v1(p, s))``
+    equals ``descriptor(p, skeleton=s)`` on every bone ``s`` defines. A skeleton without hands
+    (SMPL-X's 22 body joints) or feet gets a hand (foot) that continues the forearm (shin) by
+    ``FILL_FRACTION`` of its length, so every frame stays a valid Kinect v1 skeleton. Those
+    made-up bones are not for reading: ``retarget`` refuses a recording whose skeleton lacks a
+    bone the model or the robot's correspondence reads (``Skeleton.require``).
+
+    Args:
+      positions: ``(..., n_joints, 3)`` in the skeleton's order (``complete`` adds derived
+        joints first), any units.
+      skeleton: a registered skeleton's name or a ``Skeleton``.
+
+    Returns:
+      ``(..., 20, 3)`` float32 positions in Kinect SDK order, the same units.
+    """
+    s = get(skeleton)
+    pos = np.asarray(positions, np.float32)
+    if pos.ndim < 2 or pos.shape[-2:] != (s.n_joints, 3):
+        raise ConfigError(
+            f"skeleton {s.name!r} has {s.n_joints} joints: positions must be "
+            f"(..., {s.n_joints}, 3), got {pos.shape}"
+        )
+    src = np.asarray(s.kinect_v1_sources)
+    out = pos[..., np.maximum(src, 0), :].copy()
+    k = KINECT_V1
+    for b in BONE_NAMES:  # parents come first in BONE_NAMES: a filled end reads filled starts
+        a, c = (k.index[j] for j in k.bones[b])
+        if src[c] >= 0:
+            continue
+        parent = next(p for p in BONE_NAMES if k.bones[p][1] == k.bones[b][0])
+        pa = k.index[k.bones[parent][0]]
+        out[..., c, :] = out[..., a, :] + FILL_FRACTION * (out[..., a, :] - out[..., pa, :])
+    return out
+
+
 KINECT_V1 = Skeleton(
     name="kinect_v1",
     joints=(
@@ -386,3 +525,8 @@ def names() -> tuple[str, ...]:
 
 
 register(KINECT_V1)
+
+# the skeletons people record today (Kinect v2, Azure Kinect, SMPL, SMPL-X, MediaPipe Pose)
+from jaxproj.human import layouts as _layouts  # noqa: E402  (registers; needs the names above)
+
+del _layouts

@@ -72,6 +72,11 @@ class Recording:
       time_source: how ``times`` were obtained, in words (e.g. ``"assumed 15 fps"``).
       nominal_fps: the rate a one-frame recording reports as ``fps`` (``None``: the format's
         assumed rate; a BVH's ``1 / Frame Time``).
+      skeleton: the registered skeleton the file recorded (``jaxproj.human.skeletons``;
+        ``"kinect_v1"`` for the Kinect v1 formats and BVH). ``positions`` are always Kinect v1's
+        20 joints, made from that skeleton's through the canonical bones
+        (``skeletons.to_kinect_v1``); the bones it lacks (``Skeleton.bones``) were filled and
+        must not be read (``retarget`` refuses a model or robot that reads them).
     """
 
     positions: np.ndarray
@@ -81,6 +86,7 @@ class Recording:
     times: np.ndarray
     time_source: str
     nominal_fps: float | None = None
+    skeleton: str = "kinect_v1"
 
     @property
     def fps(self) -> float:
@@ -107,7 +113,11 @@ def check_fps(fps: float) -> None:
 
 
 def make_recording(
-    positions: np.ndarray, valid: np.ndarray | None, source: str, format: str
+    positions: np.ndarray,
+    valid: np.ndarray | None,
+    source: str,
+    format: str,
+    skeleton: str = "kinect_v1",
 ) -> Recording:
     """Cast to float32, mark all-zero / non-finite (/ file-invalid) frames and zero them.
 
@@ -116,6 +126,7 @@ def make_recording(
       valid: ``(T,)`` bool mask from the file, or ``None``.
       source: the file.
       format: the format's name.
+      skeleton: the skeleton the file recorded (``Recording.skeleton``).
 
     Returns:
       ``Recording`` with ``times`` the frame indices (``time_source`` ``"frame index"``); the
@@ -128,7 +139,7 @@ def make_recording(
         ok &= valid
     pos[~ok] = 0.0
     times = np.arange(len(pos), dtype=np.float64)
-    return Recording(pos, ok, source, format, times, "frame index")
+    return Recording(pos, ok, source, format, times, "frame index", skeleton=skeleton)
 
 
 def timed_recording(
@@ -140,6 +151,7 @@ def timed_recording(
     source: str,
     fps: float | None,
     assumed_fps: float,
+    skeleton: str = "kinect_v1",
 ) -> Recording:
     """The ``Recording`` of a format without its own resampling (every one but BVH).
 
@@ -152,6 +164,8 @@ def timed_recording(
       source: where ``times`` come from, in words.
       fps: the caller's rate (``read_skeleton(fps=)``, checked): replaces ``times``.
       assumed_fps: the format's rate when neither the file nor the caller gives one.
+      skeleton: the skeleton the file recorded (``Recording.skeleton``); ``positions`` are
+        already laid out as Kinect v1 (``skeletons.to_kinect_v1``).
 
     Raises:
       InputError: a time axis longer than ``MAX_DURATION_S``.
@@ -168,7 +182,7 @@ def timed_recording(
             f"the time axis spans {times[-1] - times[0]:g} s (more than {MAX_DURATION_S:g} s): "
             "corrupt frame numbers or times",
         )
-    rec = make_recording(positions, valid, str(path), format)
+    rec = make_recording(positions, valid, str(path), format, skeleton)
     return dataclasses.replace(rec, times=times, time_source=source)
 
 

@@ -55,7 +55,9 @@ import numpy as np
 
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError, NoValidFrameError
+from jaxproj.human import skeletons
 from jaxproj.human.skeleton import MIN_BONE_LENGTH, NECK_TILT_REFERENCE
+from jaxproj.human.skeletons import SkeletonLike
 from jaxproj.io.readers import MAX_DURATION_S, MIN_STEP_S
 from jaxproj.motion import pipeline
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
@@ -160,6 +162,7 @@ def retarget(
     feasible: FeasibleConfig | None = None,
     robot: Robot | str | None = None,
     neck_neutral: float | Literal["recording"] | None = "recording",
+    skeleton: SkeletonLike = "kinect_v1",
 ) -> RetargetResult:
     """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
     then, with ``feasible``, ``feasible.make_feasible``).
@@ -185,6 +188,9 @@ def retarget(
         frames; a number, that tilt in rad (e.g. measured on a calibration pose of the same
         set-up); ``None``, no levelling (``skeleton.NECK_TILT_REFERENCE``, MSR Action3D's
         median, for every recording). See ``pipeline.level`` and ``skeleton.level_neck``.
+      skeleton: the skeleton the positions were recorded in (``Recording.skeleton``; they are
+        laid out as Kinect v1 whatever it is): every bone the robot's correspondence reads
+        (``Robot.ik_bones``) must be one it defines, checked before anything is traced.
 
     Returns:
       ``RetargetResult`` with ``(T, n_joints)`` angles, ``(T,)`` validity, ``(T,)`` times and
@@ -192,7 +198,8 @@ def retarget(
 
     Raises:
       ConfigError: bad shapes, a learned method without a model, a ``robot`` other than the
-        model's, an unknown robot, bad ``L`` / ``M``, times not
+        model's, an unknown robot, a skeleton without a bone the robot reads (named), bad
+        ``L`` / ``M``, times not
         increasing by at least ``readers.MIN_STEP_S`` per frame or spanning more than
         ``readers.MAX_DURATION_S``.
       NoValidFrameError: no frame is valid (``valid`` false, non-finite values or a
@@ -215,6 +222,7 @@ def retarget(
             raise ConfigError(f"robot {spec.name!r} differs from the model's robot "
                               f"{model.robot.name!r}: leave robot=None with a model")  # fmt: skip
         spec = model.robot
+    check_skeleton(skeleton, spec)
     p = None
     if method != "ik":
         if model is None:
@@ -290,6 +298,22 @@ def retarget(
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
     conf_t = np.asarray(conf, np.float32)[:t]
     return RetargetResult(angles, ok_t, stamps, unfiltered, conf_t)
+
+
+def check_skeleton(skeleton: SkeletonLike, robot: Robot) -> None:
+    """``ConfigError`` unless ``skeleton`` defines every bone ``robot``'s correspondence reads.
+
+    A recording's ``positions`` are Kinect v1's 20 joints whatever it recorded; the bones its
+    skeleton lacks were filled (``skeletons.to_kinect_v1``) and must not drive a joint.
+    """
+    s = skeletons.get(skeleton)
+    lacking = s.missing(robot.ik_bones)
+    if lacking:
+        raise ConfigError(
+            f"the recording's skeleton {s.name!r} has no {', '.join(lacking)} bone(s), which "
+            f"robot {robot.name!r} reads ({', '.join(robot.ik_bones)}): record a skeleton "
+            "that has them, or use a robot that does not read them"
+        )
 
 
 def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
