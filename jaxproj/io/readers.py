@@ -17,6 +17,16 @@ dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one modu
 - ``"bvh"``: BVH motion capture (CMU, LAFAN1, Xsens exports...): the hierarchy's forward
   kinematics, mapped to the 20 Kinect joints by a joint map, in metres (``formats.bvh``;
   ``read_skeleton(..., bvh_map=, scale=)``).
+- ``"ntu"``: NTU RGB+D ``.skeleton`` text (Kinect v2, 25 joints, camera space metres): the
+  frame count, then per frame the body count and per body a body line, the joint count and 25
+  joint lines; one body (``read_skeleton(..., body=)``) laid out as Kinect v1, a frame invalid
+  where it lacks the body or a joint Kinect v1 reads is not tracked; detected by ``.skeleton``
+  or its first lines (``formats.ntu``).
+- ``"azure_kinect"``: Azure Kinect Body Tracking JSON (the SDK samples' ``offline_processor``:
+  ``frames`` of ``bodies`` with 32 ``joint_positions`` in millimetres): one body (``body=``) in
+  metres and Kinect axes, laid out as Kinect v1, a frame invalid where it lacks the body or a
+  joint Kinect v1 reads has confidence 0 (``confidence_levels``, when present); detected by
+  content only (``formats.azure_kinect``).
 - ``"auto"`` (default): detected (``jaxproj.io.formats.detect``): by the file name's suffix
   (``.npz`` / ``.csv`` / ``.bvh``) and the content (a zip signature; a first non-blank line of 4
   (MSR Action3D) or 61 (UTKinect) numbers, of 60 comma-separated fields, or ``HIERARCHY``). A
@@ -25,6 +35,8 @@ dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one modu
 Time axis (``Recording.times``, ``time_source``) and its bounds: ``jaxproj.io.recording``
 (UTKinect: frame numbers at ``UTK_FPS``; MSR: assumed ``MSR_FPS`` = 15 fps; CSV and NPZ without
 timing: assumed 30 fps; BVH: its ``Frame Time``; ``fps=`` overrides, or resamples a BVH).
+NTU RGB+D files carry no timing (assumed 30 fps, the Kinect v2's rate); Azure Kinect times
+come from ``timestamp_usec``.
 
 Every problem with the file raises ``jaxproj.errors.InputError`` with a one-line message naming
 the file, the problem and, where local, the 1-based line (text) or 0-based frame (npz).
@@ -46,6 +58,7 @@ from pathlib import Path
 from jaxproj.errors import InputError
 from jaxproj.io.formats import describe_formats, detect, format_names, get_format
 from jaxproj.io.formats import recording_format as recording_format
+from jaxproj.io.formats.bodies import BodyChoice, body_index
 from jaxproj.io.formats.msr import MSR_TO_SDK as MSR_TO_SDK
 from jaxproj.io.recording import FPS_RANGE as FPS_RANGE
 from jaxproj.io.recording import KINECT_FPS as KINECT_FPS
@@ -66,6 +79,7 @@ def read_skeleton(
     *,
     bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
     scale: float | str = "auto",
+    body: BodyChoice = "first",
 ) -> Recording:
     """Read a skeleton file into a ``Recording`` (``(T, 20, 3)`` float32 positions, SDK order).
 
@@ -81,6 +95,9 @@ def read_skeleton(
         a JSON / TOML file or a dict of Kinect joint -> BVH joint (``jaxproj.io.formats.bvh``).
       scale: BVH only: metres per file unit, a unit name (``jaxproj.io.formats.bvh.UNITS``) or
         ``"auto"``.
+      body: NTU RGB+D and Azure Kinect only (files of several bodies per frame): ``"first"`` or
+        a 0-based index into each frame's bodies; a frame without it is invalid
+        (``jaxproj.io.formats.bodies``).
 
     Returns:
       ``Recording`` with ``positions`` ``(T, 20, 3)`` float32 and ``valid`` ``(T,)`` bool.
@@ -88,7 +105,7 @@ def read_skeleton(
     Raises:
       InputError: missing / empty / malformed file, unknown format, or a file of no known format;
         the message names the file and the problem.
-      ConfigError: ``fps`` out of range, a bad BVH ``scale`` or map dict.
+      ConfigError: ``fps`` out of range, a bad BVH ``scale`` or map dict, a bad ``body``.
     """
     names = format_names()
     if format != "auto" and format not in names:
@@ -96,10 +113,11 @@ def read_skeleton(
         raise InputError(path, f"unknown format {format!r}; expected one of {expected}")
     if fps is not None:
         check_fps(fps)
+    body_index(body)
     data = read_bytes(path)
     if format == "auto":
         format = _detect_file(path, data)
-    return get_format(format).read(path, data, fps, bvh_map=bvh_map, scale=scale)
+    return get_format(format).read(path, data, fps, bvh_map=bvh_map, scale=scale, body=body)
 
 
 def _detect_file(path: str | os.PathLike[str], data: bytes) -> str:

@@ -5,7 +5,10 @@ One module per format, each defining its ``Format`` record (``jaxproj.io.formats
 - ``msr``: MSR Action3D text (``x y z confidence``, 20 rows per frame, MSR joint order);
 - ``utkinect``: UTKinect-Action3D text (frame number + 60 values per line);
 - ``table``: ``npz`` and ``csv``, plain tables of ``(T, 20, 3)`` positions (our own formats);
-- ``bvh``: BVH motion capture (a package: parser, forward kinematics, joint maps, reader).
+- ``bvh``: BVH motion capture (a package: parser, forward kinematics, joint maps, reader);
+- ``ntu``: NTU RGB+D ``.skeleton`` text (Kinect v2, 25 joints, several bodies per frame);
+- ``azure_kinect``: Azure Kinect Body Tracking JSON (the SDK samples' ``offline_processor``: 32
+  joints in millimetres, several bodies per frame); the two share ``bodies`` (``body=``).
 
 Text helpers all of them share are in ``jaxproj.io.text``; the ``Recording`` they return and its
 time-axis rules in ``jaxproj.io.recording``. Adding a format is one module and one line in
@@ -19,6 +22,11 @@ of 4 (MSR Action3D) or 61 (UTKinect) whitespace-separated numbers, of 60 comma-s
 (or a header line of names, then such a line), or ``HIERARCHY``). When none recognises it, a file
 named on its own is still read as the format its suffix names (that reader says what is wrong);
 otherwise it is no recording, and the reason says why.
+
+The two multi-body formats: NTU RGB+D by its suffix ``.skeleton`` or by a first line of one
+integer (the frame count), then integer body counts and a body line of 10 numbers; Azure Kinect
+JSON by content only (``.json`` names other formats too): an object whose start holds
+``"frames"`` and ``"joint_positions"``, ``"num_bodies"``, ``"bone_list"`` or ``k4abt``.
 """
 
 from __future__ import annotations
@@ -26,12 +34,20 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from jaxproj.io.formats import msr, table, utkinect
+from jaxproj.io.formats import azure_kinect, msr, ntu, table, utkinect
 from jaxproj.io.formats.base import Format
 from jaxproj.io.formats.bvh.reader import FORMAT as BVH
 from jaxproj.io.text import SNIFF_BYTES, Head, one_line
 
-FORMATS: tuple[Format, ...] = (msr.FORMAT, utkinect.FORMAT, table.NPZ, table.CSV, BVH)
+FORMATS: tuple[Format, ...] = (
+    msr.FORMAT,
+    utkinect.FORMAT,
+    table.NPZ,
+    table.CSV,
+    BVH,
+    ntu.FORMAT,
+    azure_kinect.FORMAT,
+)
 """Every input format, in the order listed to users (``format_names``)."""
 
 

@@ -21,8 +21,8 @@ class ReadFn(Protocol):
     """``read(path, data, fps, **options) -> Recording``.
 
     ``data`` is the whole file, ``fps`` the caller's rate (already checked, or ``None``);
-    ``options`` are the keyword options of ``read_skeleton`` (``bvh_map``, ``scale``), each
-    format using its own and ignoring the others. Raises ``InputError`` for a bad file.
+    ``options`` are the keyword options of ``read_skeleton`` (``bvh_map``, ``scale``, ``body``),
+    each format using its own and ignoring the others. Raises ``InputError`` for a bad file.
     """
 
     def __call__(
