@@ -1,6 +1,6 @@
 """Read a recorded skeleton file -> ``Recording`` with ``(T, 20, 3)`` positions in SDK joint order.
 
-``read_skeleton(path, format="auto", fps=None, *, bvh_map=, scale=)`` (``jaxproj.read``)
+``read_skeleton(path, format="auto", fps=None, *, bvh_map=, scale=, up=)`` (``jaxproj.read``)
 dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one module per format):
 
 - ``"msr"``: MSR Action3D real-world text (``aXX_sYY_eZZ_skeleton3D.txt``): 4 whitespace-separated
@@ -9,9 +9,13 @@ dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one modu
 - ``"utkinect"``: UTKinect-Action3D ``joints_sXX_eYY.txt``: one line per frame, the frame number
   then 60 values (20 joints x ``x y z``, SDK order); a repeated frame number keeps its first line;
   frames are ordered by frame number (``formats.utkinect``).
-- ``"npz"``: a NumPy archive with key ``positions`` ``(T, 20, 3)`` (metres, SDK order), an
-  optional ``valid`` ``(T,)`` bool mask, which is honoured, and optional timing: ``times``
-  ``(T,)`` seconds (strictly increasing) or ``fps`` (a scalar) (``formats.table``).
+- ``"npz"``: a NumPy archive with key ``positions`` (or ``joints``) ``(T, J, 3)`` (metres) of any
+  registered skeleton, named by an optional ``skeleton`` key or by ``J`` (20 Kinect v1, 22
+  SMPL-X body, 24 SMPL, 25 Kinect v2, 32 Azure Kinect, 33 MediaPipe Pose, the ``smplx``
+  package's longer arrays), laid out as Kinect v1; ``read_skeleton(..., up="z")`` turns z-up
+  data (AMASS) into y up. An optional ``valid`` ``(T,)`` bool mask (and MediaPipe
+  ``visibility``) is honoured, and optional timing: ``times`` ``(T,)`` seconds (strictly
+  increasing) or ``fps`` (a scalar) (``formats.table``).
 - ``"csv"``: comma-separated, 60 numeric columns per row (``x, y, z`` per joint, SDK order); one
   header line of non-numeric column names is allowed and skipped (``formats.table``).
 - ``"bvh"``: BVH motion capture (CMU, LAFAN1, Xsens exports...): the hierarchy's forward
@@ -27,14 +31,20 @@ dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one modu
   metres and Kinect axes, laid out as Kinect v1, a frame invalid where it lacks the body or a
   joint Kinect v1 reads has confidence 0 (``confidence_levels``, when present); detected by
   content only (``formats.azure_kinect``).
+- ``"mediapipe"``: MediaPipe Pose world landmarks as JSON (frames of 33 ``{x, y, z,
+  visibility}`` objects) or CSV (a ``nose_x,nose_y,nose_z,...`` header), turned from MediaPipe's
+  y-down axes into Kinect's, completed and laid out as Kinect v1; a checked landmark's
+  visibility below 0.5 makes its frame invalid (``formats.mediapipe``).
 - ``"auto"`` (default): detected (``jaxproj.io.formats.detect``): by the file name's suffix
   (``.npz`` / ``.csv`` / ``.bvh``) and the content (a zip signature; a first non-blank line of 4
-  (MSR Action3D) or 61 (UTKinect) numbers, of 60 comma-separated fields, or ``HIERARCHY``). A
-  file that is none of these is an ``InputError`` that says so and lists the formats.
+  (MSR Action3D) or 61 (UTKinect) numbers, of 60 comma-separated fields, or ``HIERARCHY``; a
+  MediaPipe JSON landmark object with ``x``, ``y``, ``z`` or a ``nose_x,...`` header). A file
+  that is none of these is an ``InputError`` that says so and lists the formats.
 
 Time axis (``Recording.times``, ``time_source``) and its bounds: ``jaxproj.io.recording``
 (UTKinect: frame numbers at ``UTK_FPS``; MSR: assumed ``MSR_FPS`` = 15 fps; CSV and NPZ without
-timing: assumed 30 fps; BVH: its ``Frame Time``; ``fps=`` overrides, or resamples a BVH).
+timing: assumed 30 fps; BVH: its ``Frame Time``; MediaPipe: a JSON's ``fps``, a CSV's ``frame``
+column at 30 fps, else assumed 30 fps; ``fps=`` overrides, or resamples a BVH).
 NTU RGB+D files carry no timing (assumed 30 fps, the Kinect v2's rate); Azure Kinect times
 come from ``timestamp_usec``.
 
@@ -60,6 +70,7 @@ from jaxproj.io.formats import describe_formats, detect, format_names, get_forma
 from jaxproj.io.formats import recording_format as recording_format
 from jaxproj.io.formats.bodies import BodyChoice, body_index
 from jaxproj.io.formats.msr import MSR_TO_SDK as MSR_TO_SDK
+from jaxproj.io.formats.table import check_up
 from jaxproj.io.recording import FPS_RANGE as FPS_RANGE
 from jaxproj.io.recording import KINECT_FPS as KINECT_FPS
 from jaxproj.io.recording import MAX_DURATION_S as MAX_DURATION_S
@@ -79,6 +90,7 @@ def read_skeleton(
     *,
     bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
     scale: float | str = "auto",
+    up: str = "y",
     body: BodyChoice = "first",
 ) -> Recording:
     """Read a skeleton file into a ``Recording`` (``(T, 20, 3)`` float32 positions, SDK order).
@@ -95,6 +107,11 @@ def read_skeleton(
         a JSON / TOML file or a dict of Kinect joint -> BVH joint (``jaxproj.io.formats.bvh``).
       scale: BVH only: metres per file unit, a unit name (``jaxproj.io.formats.bvh.UNITS``) or
         ``"auto"``.
+      up: NPZ only: the axis that points up in the file, ``"y"`` (SMPL's own frame, the Kinect
+        camera's; kept as it is) or ``"z"`` (AMASS, most mocap: turned -90 degrees about x,
+        ``(x, y, z) -> (x, z, -y)``). The descriptor is the same either way (it is read in the
+        body's own frame); positions and videos differ. MediaPipe landmarks have their own axes
+        (``"z"`` is refused for an NPZ of them; the JSON / CSV reader ignores ``up``).
       body: NTU RGB+D and Azure Kinect only (files of several bodies per frame): ``"first"`` or
         a 0-based index into each frame's bodies; a frame without it is invalid
         (``jaxproj.io.formats.bodies``).
@@ -105,7 +122,8 @@ def read_skeleton(
     Raises:
       InputError: missing / empty / malformed file, unknown format, or a file of no known format;
         the message names the file and the problem.
-      ConfigError: ``fps`` out of range, a bad BVH ``scale`` or map dict, a bad ``body``.
+      ConfigError: ``fps`` out of range, a bad BVH ``scale`` or map dict, a bad ``body``, ``up``
+        neither ``"y"`` nor ``"z"`` (or ``"z"`` for an NPZ of MediaPipe landmarks).
     """
     names = format_names()
     if format != "auto" and format not in names:
@@ -114,10 +132,11 @@ def read_skeleton(
     if fps is not None:
         check_fps(fps)
     body_index(body)
+    check_up(up)
     data = read_bytes(path)
     if format == "auto":
         format = _detect_file(path, data)
-    return get_format(format).read(path, data, fps, bvh_map=bvh_map, scale=scale, body=body)
+    return get_format(format).read(path, data, fps, bvh_map=bvh_map, scale=scale, body=body, up=up)
 
 
 def _detect_file(path: str | os.PathLike[str], data: bytes) -> str:

@@ -13,6 +13,8 @@ first frame and ``time_source``, which says where they came from:
 - CSV: no timing in the format; frames are assumed ``KINECT_FPS`` = 30 frames/s apart (the
   Kinect v1 sensor's rate, ``"assumed 30 fps"``);
 - BVH: the file's ``Frame Time`` (``"BVH Frame Time ..."``);
+- MediaPipe JSON / CSV: a JSON's ``fps``, a CSV's ``frame`` column at ``KINECT_FPS``, otherwise
+  frames ``1 / KINECT_FPS`` apart (``jaxproj.io.formats.mediapipe``);
 - ``read_skeleton(..., fps=F)`` (the CLI's ``--fps``) overrides all of these with ``t / F``,
   except for BVH, which states its own rate: there ``fps=F`` resamples the clip to ``F`` frames
   per second (``resample``: linear interpolation of the joint positions).

@@ -213,7 +213,7 @@ BAD_FILES: list[tuple[str, str, bytes | str | None, list[str]]] = [
     ("binary", "bin.txt", b"\x00\xff\xfe\x81 garbage", ["not a text file"]),
     ("corrupt-npz", "corrupt.npz", b"PK\x03\x04" + bytes(200), ["corrupt"]),
     ("truncated-npz", "t.npz", _truncated_npz(), ["corrupt"]),
-    ("npz-no-positions", "k.npz", _npz(joints=_GOOD), ["missing key 'positions'", "joints"]),
+    ("npz-no-positions", "k.npz", _npz(xyz=_GOOD), ["missing key 'positions'", "xyz"]),
     ("npz-joints", "j.npz", npz_file(np.zeros((2, 15, 3))), ["15 joints"]),
     ("csv-joints", "j.csv", "\n".join(["0.5," * 44 + "0.5"] * 2), ["found 45 columns"]),
     (

@@ -273,7 +273,7 @@ BAD_INPUTS = [
     ("npz-shape", "s.npz", npz_bytes(positions=np.zeros((4, 60))), "npz", ["shape (4, 60)"]),
     ("npz-frames", "f.npz", npz_bytes(positions=np.zeros((0, 20, 3))), "npz", ["no frames"]),
     ("npz-dtype", "d.npz", npz_bytes(positions=np.full((1, 20, 3), "a")), "npz", ["dtype"]),
-    ("npz-key", "k.npz", npz_bytes(joints=np.zeros((4, 20, 3))), "npz", ["missing key", "joints"]),
+    ("npz-key", "k.npz", npz_bytes(xyz=np.zeros((4, 20, 3))), "npz", ["missing key", ": xyz"]),
     (
         "npz-valid",
         "v.npz",

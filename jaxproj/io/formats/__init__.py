@@ -4,11 +4,14 @@ One module per format, each defining its ``Format`` record (``jaxproj.io.formats
 
 - ``msr``: MSR Action3D text (``x y z confidence``, 20 rows per frame, MSR joint order);
 - ``utkinect``: UTKinect-Action3D text (frame number + 60 values per line);
-- ``table``: ``npz`` and ``csv``, plain tables of ``(T, 20, 3)`` positions (our own formats);
+- ``table``: ``npz`` and ``csv``, plain tables of positions (our own formats): CSV of
+  ``(T, 20, 3)`` Kinect v1 positions, NPZ of ``(T, J, 3)`` joints of any registered skeleton
+  (the ``skeleton`` key or ``J`` says which; ``up=`` for z-up data);
 - ``bvh``: BVH motion capture (a package: parser, forward kinematics, joint maps, reader);
 - ``ntu``: NTU RGB+D ``.skeleton`` text (Kinect v2, 25 joints, several bodies per frame);
 - ``azure_kinect``: Azure Kinect Body Tracking JSON (the SDK samples' ``offline_processor``: 32
-  joints in millimetres, several bodies per frame); the two share ``bodies`` (``body=``).
+  joints in millimetres, several bodies per frame); the two share ``bodies`` (``body=``);
+- ``mediapipe``: MediaPipe Pose world landmarks as JSON or CSV (33 landmarks, visibility).
 
 Text helpers all of them share are in ``jaxproj.io.text``; the ``Recording`` they return and its
 time-axis rules in ``jaxproj.io.recording``. Adding a format is one module and one line in
@@ -17,11 +20,13 @@ time-axis rules in ``jaxproj.io.recording``. Adding a format is one module and o
 Detection (``detect``), for a file named on its own (``read_skeleton(format="auto")``) and for
 each file of a folder (``recording_format``) alike: the first format whose ``sniff`` recognises
 the file, trying those whose suffix the file name has first (``.npz`` / ``.csv`` / ``.bvh``),
-then the others by content (a zip signature with a ``positions`` member; a first non-blank line
-of 4 (MSR Action3D) or 61 (UTKinect) whitespace-separated numbers, of 60 comma-separated fields
-(or a header line of names, then such a line), or ``HIERARCHY``). When none recognises it, a file
-named on its own is still read as the format its suffix names (that reader says what is wrong);
-otherwise it is no recording, and the reason says why.
+then the others by content (a zip signature with a ``positions`` or ``joints`` member; a first
+non-blank line of 4 (MSR Action3D) or 61 (UTKinect) whitespace-separated numbers, of 60
+comma-separated fields (or a header line of names, then such a line), or ``HIERARCHY``; a JSON
+whose first flat object has ``x``, ``y``, ``z`` keys, or a header with ``nose_x``, ``nose_y``,
+``nose_z``: MediaPipe). When none recognises it, a file named on its own is still read as the
+format its suffix names (that reader says what is wrong); otherwise it is no recording, and the
+reason says why.
 
 The two multi-body formats: NTU RGB+D by its suffix ``.skeleton`` or by a first line of one
 integer (the frame count), then integer body counts and a body line of 10 numbers; Azure Kinect
@@ -34,7 +39,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from jaxproj.io.formats import azure_kinect, msr, ntu, table, utkinect
+from jaxproj.io.formats import azure_kinect, mediapipe, msr, ntu, table, utkinect
 from jaxproj.io.formats.base import Format
 from jaxproj.io.formats.bvh.reader import FORMAT as BVH
 from jaxproj.io.text import SNIFF_BYTES, Head, one_line
@@ -47,6 +52,7 @@ FORMATS: tuple[Format, ...] = (
     BVH,
     ntu.FORMAT,
     azure_kinect.FORMAT,
+    mediapipe.FORMAT,
 )
 """Every input format, in the order listed to users (``format_names``)."""
 
