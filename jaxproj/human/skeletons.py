@@ -16,7 +16,12 @@ without hands leaves ``hand_left`` / ``hand_right`` out) and asking it for one i
 Adding a skeleton: build a ``Skeleton`` with the format's joint names in its array order, pick for
 each canonical bone the two joints whose meaning ``BONE_MEANINGS`` gives, name the body frame's
 joints (up: pelvis centre -> spine top; left: right shoulder -> left shoulder), and ``register``
-it. Construction checks the data and raises ``ConfigError`` on anything inconsistent.
+it. Construction checks the data and raises ``ConfigError`` on anything inconsistent. The
+skeletons of today's capture formats (Kinect v2, Azure Kinect, SMPL, SMPL-X, MediaPipe Pose) are
+in ``jaxproj.human.layouts``, registered when ``jaxproj.human`` is imported.
+
+Size: the spec, its checks, the registry and the Kinect v1 layout of any skeleton
+(``to_kinect_v1``) are one vocabulary read together; the checks are most of it.
 """
 
 from __future__ import annotations
@@ -525,8 +530,3 @@ def names() -> tuple[str, ...]:
 
 
 register(KINECT_V1)
-
-# the skeletons people record today (Kinect v2, Azure Kinect, SMPL, SMPL-X, MediaPipe Pose)
-from jaxproj.human import layouts as _layouts  # noqa: E402  (registers; needs the names above)
-
-del _layouts
