@@ -422,9 +422,13 @@ def test_per_chain_settings_are_validated():
 
 def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
     """``engine.project_batch``'s relaxed path (all candidates' robot searches in one
-    ``nearest_rows`` call) gives the per-query projection's answers bit for bit on the CPU, and
-    the same answers with the CUDA path's fused Pallas search (``impl="pallas"`` for the
-    searches, run in Pallas' interpreter here; XLA's back-projection)."""
+    ``nearest_rows`` call, chain after chain at each chain's own size) gives the per-query
+    projection's answers of each chain alone bit for bit on the CPU (deviations to the last
+    bit); the stacked form
+    (``split=False``: every chain padded to the largest) gives the stacked per-query answers bit
+    for bit, and the same answers with the CUDA path's fused Pallas search (``impl="pallas"``
+    for the searches, run in Pallas' interpreter here; XLA's back-projection). The two forms sum
+    in other orders (``test_stacked_chains_equal_each_chain_alone`` bounds that)."""
     import jax
     import jax.numpy as jnp
 
@@ -433,19 +437,41 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
     from jaxproj.projection.stacked import project_stacked_one
 
     sp = chain_model.projector
+    lay = sp.layout
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
 
     r, v = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="xla"))(sp, h)
-    one = jit(
-        lambda p, x: jax.vmap(lambda q: project_stacked_one(p, q, "relaxed", 5, 5, FullConfig()))(x)
-    )
-    r1, v1 = one(sp, h)
+
+    @jit
+    def alone(p, x):
+        out = jnp.zeros((x.shape[0], lay.n), x.dtype)
+        sq = jnp.zeros((x.shape[0],), x.dtype)
+        for c, cols in enumerate(lay.inputs):
+            pc = relaxed.chain_slice(p, c)
+            rc, vc = jax.vmap(lambda q, pc=pc: relaxed.project_relaxed_one(pc, q, 5, 5))(
+                x[:, list(cols)]
+            )
+            out = out.at[:, list(lay.outputs[c])].set(rc)
+            sq = sq + vc * vc
+        return out, jnp.sqrt(sq)
+
+    r1, v1 = alone(sp, h)
     np.testing.assert_array_equal(np.asarray(r), np.asarray(r1))
-    np.testing.assert_array_equal(np.asarray(v), np.asarray(v1))
+    # deviations: the rows' sums are vectorised otherwise than one query's (last bit)
+    np.testing.assert_allclose(np.asarray(v), np.asarray(v1), rtol=1e-6, atol=0)
     # "auto" on the CPU is XLA: the same program
     r0, v0 = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
     np.testing.assert_array_equal(np.asarray(r0), np.asarray(r))
     np.testing.assert_array_equal(np.asarray(v0), np.asarray(v))
+
+    stacked = jit(lambda p, x: relaxed.project_relaxed_rows(p, x, 5, 5, impl="xla", split=False))
+    rs, vs = stacked(sp, h)
+    one = jit(
+        lambda p, x: jax.vmap(lambda q: project_stacked_one(p, q, "relaxed", 5, 5, FullConfig()))(x)
+    )
+    rs1, vs1 = one(sp, h)
+    np.testing.assert_array_equal(np.asarray(rs), np.asarray(rs1))
+    np.testing.assert_array_equal(np.asarray(vs), np.asarray(vs1))
 
     @jit
     def fused_search(p, x):
@@ -456,8 +482,8 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
         return relaxed.pick_rows(p, cand, best)
 
     r2, v2 = fused_search(sp, h)
-    np.testing.assert_allclose(np.asarray(r2), np.asarray(r), rtol=0, atol=1e-6)
-    np.testing.assert_allclose(np.asarray(v2), np.asarray(v), rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(r2), np.asarray(rs), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(v2), np.asarray(vs), rtol=1e-5)
 
 
 def test_two_level_relaxed_batches_give_the_same_answers(chain_model, monkeypatch):
