@@ -494,9 +494,10 @@ CONTROL = "kinect_v1_jitter_1mm"
 def frame_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(T, 20, 3)`` Kinect v1 positions twice, the same axes -> ``(T,)`` deg, the rotation
     between their body frames (``body_frame``)."""
-    ra, rb = (np.asarray(body_frame(np.asarray(x, np.float64))[0], np.float64) for x in (a, b))
-    tr = np.einsum("tij,tij->t", ra, rb)
-    return np.degrees(np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0)))
+    ra, rb = (np.asarray(body_frame(np.asarray(x, np.float32))[0], np.float64) for x in (a, b))
+    # |Ra - Rb|_F = 2 sqrt(2) sin(angle / 2): exact near 0, where arccos of the trace is not
+    chord = np.linalg.norm(ra - rb, axis=(-2, -1)) / (2.0 * np.sqrt(2.0))
+    return np.degrees(2.0 * np.arcsin(np.clip(chord, 0.0, 1.0)))
 
 
 def _read(folder: Path) -> dict[str, list]:
