@@ -11,6 +11,10 @@ unless ``--nao`` / ``--g1`` name model files), on ``--poses`` held-out MSR descr
 * ``stacked_own_sub``: padded, sub-batches sized for the path's own memory (``impl``'s);
 * ``split_own_sub``: both (today's ``project_batch``).
 
+With ``--knn-ab``, a fifth: today's program with the fused k-NN search computing every tile of
+its power-of-two padding (``knn_pallas.SKIP_EMPTY_TILES = False``, the search before
+2026-11-26).
+
 Compile apart (the first call), then the median of repeated calls, blocked until ready,
 variants interleaved round by round. Correctness first: each variant's answers on the first
 ``--check`` poses judged against the float64 reference under the near-tie rule
@@ -36,7 +40,7 @@ import jaxproj
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
-from jaxproj.projection.ops import resolve_impl
+from jaxproj.projection.ops import knn_pallas, resolve_impl
 from jaxproj.testing import StackedReference
 
 L = M = 10
@@ -77,15 +81,19 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
         "stacked_own_sub": (False, True),
         "split_own_sub": (True, True),
     }
+    if args.knn_ab:
+        variants["split_own_sub_all_tiles"] = (True, True)
     ref = StackedReference(p)
     out: dict = {"landmarks": list(p.layout.landmarks), "chains": list(p.layout.names)}
     fns = {}
     for name, (split, own) in variants.items():
         fn, sub = core(p, args.poses, split, own)
+        knn_pallas.SKIP_EMPTY_TILES = not name.endswith("_all_tiles")  # read while tracing
         t0 = time.perf_counter()
         with jax.default_matmul_precision("float32"):
             r, _ = jax.block_until_ready(fn(p, h))
         compile_s = time.perf_counter() - t0
+        knn_pallas.SKIP_EMPTY_TILES = True
         r = np.asarray(r)
         verdicts = [ref.judge(h_host[i], r[i], L, M, 1e-4) for i in range(args.check)]
         out[name] = {
@@ -126,6 +134,12 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--robots", default="nao_h25,unitree_g1")
     ap.add_argument("--landmarks", type=int, help="smoke runs: this many landmarks a chain")
+    ap.add_argument(
+        "--knn-ab",
+        action="store_true",
+        help="also today's program with the fused search computing every padding tile "
+        "(knn_pallas.SKIP_EMPTY_TILES = False): the variant split_own_sub_all_tiles",
+    )
     ap.add_argument("--json")
     args = ap.parse_args()
     result: dict = {

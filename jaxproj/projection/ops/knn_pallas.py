@@ -7,7 +7,9 @@ kernel does, per program (``ROWS`` query rows of one landmark set):
 1. distances ``|x - p|^2`` (computed directly, coordinate by coordinate) to every landmark, a
    tile of ``TILE_BLOCKS * BLOCK`` landmarks at a time, reduced at once to the minimum of each
    block of ``BLOCK`` landmarks (written to a scratch output: the ``(rows, K)`` distance matrix is
-   never stored);
+   never stored); the block count is padded to a power of two (Triton's shapes), but only the
+   tiles that hold a landmark are computed, the rest get ``EMPTY`` (a set of 10,618 landmarks
+   pads to 16,384: 83 of 128 tiles computed);
 2. the ``n`` blocks with the smallest minima, by ``n`` rounds of (minimum, mask);
 3. the distances to the ``n * BLOCK`` landmarks of those blocks, recomputed with the same
    arithmetic, and their ``n`` smallest, nearest first, by ``n`` more rounds.
@@ -47,10 +49,21 @@ SLOTS = 16
 
 WARPS = 4
 
+SKIP_EMPTY_TILES = True
+"""Compute only the distance tiles that hold a landmark (``False``: every tile of the
+power-of-two padding, as before 2026-11-26; read when a search is traced, for A/B runs:
+``benchmarks/experiments/split_ab.py --knn-ab``)."""
+
 FAR = 1e18
 """Coordinate of padding landmarks (and of the blocks padding ``K`` up to a power of two): far
 but finite, so their squared distances (~1e36) stay below the ``+inf`` that marks a landmark or
 block already chosen, and a chosen one is never chosen again."""
+
+
+EMPTY = 1e38
+"""Block minimum written for the tiles that hold padding only (``nt`` onwards): above every
+padding landmark's distance (at most ``d * FAR**2`` = 1.8e37 for ``d <= 18``), below ``+inf``;
+such a block is chosen only after every block holding a landmark."""
 
 
 def _pow2(v: int) -> int:
@@ -60,7 +73,9 @@ def _pow2(v: int) -> int:
     return p
 
 
-def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, sync: bool):
+def _kernel(
+    x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, nt: int, sync: bool
+):
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
 
     def tile(t: jax.Array, carry: int) -> int:
@@ -72,7 +87,14 @@ def _kernel(x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb:
         bm_ref[:, pl.ds(s, TILE_BLOCKS)] = jnp.min(d2, axis=2)
         return carry
 
-    jax.lax.fori_loop(0, nb // TILE_BLOCKS, tile, 0)
+    def empty(t: jax.Array, carry: int) -> int:  # tiles of padding only: no distances
+        s = pl.multiple_of(t * TILE_BLOCKS, TILE_BLOCKS)
+        bm_ref[:, pl.ds(s, TILE_BLOCKS)] = jnp.full((ROWS, TILE_BLOCKS), EMPTY, jnp.float32)
+        return carry
+
+    jax.lax.fori_loop(0, nt, tile, 0)
+    if nt < nb // TILE_BLOCKS:
+        jax.lax.fori_loop(nt, nb // TILE_BLOCKS, empty, 0)
     if sync:  # the block minima were written by other threads of this program
         from jax.experimental.pallas import triton as plgpu
 
@@ -145,7 +167,8 @@ def knn(
     pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
     pt = jnp.full((c, d, kp), FAR, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
     xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
-    kern = functools.partial(_kernel, n=n, d=d, nb=nb, sync=not interpret)
+    nt = -(-k // (TILE_BLOCKS * BLOCK)) if SKIP_EMPTY_TILES else nb // TILE_BLOCKS
+    kern = functools.partial(_kernel, n=n, d=d, nb=nb, nt=nt, sync=not interpret)
     params: dict[str, Any] = {}
     if not interpret:
         from jax.experimental.pallas import triton as plgpu
