@@ -44,7 +44,11 @@ def test_sharded_projection_equals_one_device(sharded: dict) -> None:
     assert len(sharded["devices"]) == 4
     for objective in ("relaxed", "full"):
         assert sharded[objective]["shape"] == [203, 10]  # the last batch's padding cut off
-    assert sharded["relaxed"]["bit_identical"]
+    # relaxed: the same picks; the deviations are summed per chain over each device's quarter
+    # of the batch, which XLA vectorises otherwise than the whole (last bit, as the two-level
+    # batches in test_projection.py)
+    assert sharded["relaxed"]["angles_identical"]
+    assert sharded["relaxed"]["value_max_rel_diff"] <= 1e-6
     # full (3 fixed Adam steps, sharding_check.py): each device vmaps a quarter of the batch,
     # so XLA fuses differently (float32 ulps)
     assert sharded["full"]["max_abs_diff"] < 1e-4

@@ -54,6 +54,8 @@ def main() -> None:
             "shape": list(r4.shape),
             "max_abs_diff": float(np.abs(r1 - r4).max()),
             "bit_identical": bool(np.array_equal(r1, r4) and np.array_equal(v1, v4)),
+            "angles_identical": bool(np.array_equal(r1, r4)),
+            "value_max_rel_diff": float(np.max(np.abs(v1 - v4) / np.maximum(np.abs(v1), 1e-30))),
         }
         # the compiled programs of one 64-query batch: one device vs split over four
         p = model.projector
