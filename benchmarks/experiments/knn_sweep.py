@@ -43,13 +43,24 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--sets", default=",".join(SETS))
+    ap.add_argument("--rows", default="16,32")
+    ap.add_argument("--blocks", default="16,32")
+    ap.add_argument("--tiles", default="4,8,16")
+    ap.add_argument("--warps", default="4,8")
     args = ap.parse_args()
     rng = np.random.default_rng(0)
-    grid = list(itertools.product((16, 32), (16, 32), (4, 8, 16), (4, 8)))
+
+    def ints(text: str) -> tuple[int, ...]:
+        return tuple(int(v) for v in text.split(","))
+
+    grid = list(itertools.product(*(ints(a) for a in (args.rows, args.blocks, args.tiles,
+                                                       args.warps))))  # fmt: skip
     base = (knn_pallas.ROWS, knn_pallas.BLOCK, knn_pallas.TILE_BLOCKS, knn_pallas.WARPS)
     out: dict = {"device": jax.devices()[0].device_kind, "rows": ROWS, "n": N, "base": base,
                  "sets": {}}  # fmt: skip
-    for name, (k, d) in SETS.items():
+    for name in args.sets.split(","):
+        k, d = SETS[name]
         pts = jnp.asarray(rng.uniform(-2, 2, size=(1, k, d)).astype(np.float32))
         x = jnp.asarray(rng.uniform(-2, 2, size=(1, ROWS, d)).astype(np.float32))
         valid = jnp.ones((1, k), bool)
@@ -78,6 +89,9 @@ def main() -> None:
                          "compile_s": round(compile_s, 2),
                          "wrong_clear_rows": int((~same & clear).sum())})  # fmt: skip
             print(name, rows[-1], flush=True)
+            if args.json:  # what is done so far survives a time limit
+                with open(args.json, "w") as fh:
+                    json.dump({**out, "partial": {name: rows}}, fh)
         knn_pallas.ROWS, knn_pallas.BLOCK, knn_pallas.TILE_BLOCKS, knn_pallas.WARPS = base
         ok = [x for x in rows if "ns_per_pose" in x and x["wrong_clear_rows"] == 0]
         best = min(ok, key=lambda x: x["ns_per_pose"])

@@ -11,9 +11,10 @@ unless ``--nao`` / ``--g1`` name model files), on ``--poses`` held-out MSR descr
 * ``stacked_own_sub``: padded, sub-batches sized for the path's own memory (``impl``'s);
 * ``split_own_sub``: both (today's ``project_batch``).
 
-With ``--knn-ab``, a fifth: today's program with the fused k-NN search computing every tile of
-its power-of-two padding (``knn_pallas.SKIP_EMPTY_TILES = False``, the search before
-2026-11-26).
+With ``--knn-ab``, two more: today's program with the fused k-NN search computing every tile
+of its power-of-two padding (``knn_pallas.SKIP_EMPTY_TILES = False``), and with blocks of 16
+landmarks however large the set (``knn_pallas.MAX_BLOCKS`` unbounded): the search before
+2026-11-26 in each respect.
 
 Compile apart (the first call), then the median of repeated calls, blocked until ready,
 variants interleaved round by round. Correctness first: each variant's answers on the first
@@ -83,17 +84,20 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
     }
     if args.knn_ab:
         variants["split_own_sub_all_tiles"] = (True, True)
+        variants["split_own_sub_blocks_of_16"] = (True, True)
     ref = StackedReference(p)
+    max_blocks = knn_pallas.MAX_BLOCKS
     out: dict = {"landmarks": list(p.layout.landmarks), "chains": list(p.layout.names)}
     fns = {}
     for name, (split, own) in variants.items():
         fn, sub = core(p, args.poses, split, own)
         knn_pallas.SKIP_EMPTY_TILES = not name.endswith("_all_tiles")  # read while tracing
+        knn_pallas.MAX_BLOCKS = 1 << 30 if name.endswith("_blocks_of_16") else max_blocks
         t0 = time.perf_counter()
         with jax.default_matmul_precision("float32"):
             r, _ = jax.block_until_ready(fn(p, h))
         compile_s = time.perf_counter() - t0
-        knn_pallas.SKIP_EMPTY_TILES = True
+        knn_pallas.SKIP_EMPTY_TILES, knn_pallas.MAX_BLOCKS = True, max_blocks
         r = np.asarray(r)
         verdicts = [ref.judge(h_host[i], r[i], L, M, 1e-4) for i in range(args.check)]
         out[name] = {

@@ -50,6 +50,7 @@ def _check_exact(pts, valid, x, idx, d2, n):
         (1725, 4, 16, 10, (799, 1656, 1725)),  # the per-chain model's sizes
         (200, 6, 20, 16, (200, 200, 200)),  # the widest selection, a 6-D human search
         (64, 2, 5, 1, (64, 64, 64)),  # one neighbour, fewer landmarks than one tile
+        (9000, 3, 16, 10, (9000, 8300, 20)),  # over MAX_BLOCKS blocks of 16: blocks of 32
     ],
 )
 def test_fused_kernel_is_exact(k, d, r, n, valid_k):

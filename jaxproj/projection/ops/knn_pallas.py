@@ -39,7 +39,16 @@ ROWS = 16
 """Query rows per program (swept on an H100: 16 rows, 8-block tiles, 4 warps was fastest)."""
 
 BLOCK = 16
-"""Landmarks per block of the two-stage selection."""
+"""Landmarks per block of the two-stage selection (doubled, with ``TILE_BLOCKS``, for a set
+of more than ``MAX_BLOCKS * BLOCK`` landmarks)."""
+
+MAX_BLOCKS = 512
+"""Most blocks the selection scans: a larger set gets larger blocks. Swept on one H100
+(2026-11-26, ``benchmarks/experiments/knn_sweep.py``, 655,360 rows, n = 10, ns per pose): the
+NAO's right arm (10,617 landmarks: 1,024 blocks of 16) 351 with blocks of 16 in tiles of 8,
+294 with blocks of 32 in tiles of 16; sets of up to 8,192 landmarks (the NAO's head and left
+arm, a G1 leg) were fastest with blocks of 16 in tiles of 8 (41.8 / 192.6 / 163.3 against
+98.6 / 212.1 / 187.5 with 32 / 16)."""
 
 TILE_BLOCKS = 8
 """Blocks per tile of the distance pass."""
@@ -74,27 +83,28 @@ def _pow2(v: int) -> int:
 
 
 def _kernel(
-    x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, nt: int, sync: bool
-):
+    x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, nt: int,
+    block: int, tb: int, sync: bool,
+):  # fmt: skip
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
 
     def tile(t: jax.Array, carry: int) -> int:
-        s = pl.multiple_of(t * TILE_BLOCKS, TILE_BLOCKS)
-        d2 = jnp.zeros((ROWS, TILE_BLOCKS, BLOCK), jnp.float32)
+        s = pl.multiple_of(t * tb, tb)
+        d2 = jnp.zeros((ROWS, tb, block), jnp.float32)
         for j in range(d):
-            diff = xs[j][:, None, None] - p_ref[j, pl.ds(s, TILE_BLOCKS), :][None]
+            diff = xs[j][:, None, None] - p_ref[j, pl.ds(s, tb), :][None]
             d2 = d2 + diff * diff
-        bm_ref[:, pl.ds(s, TILE_BLOCKS)] = jnp.min(d2, axis=2)
+        bm_ref[:, pl.ds(s, tb)] = jnp.min(d2, axis=2)
         return carry
 
     def empty(t: jax.Array, carry: int) -> int:  # tiles of padding only: no distances
-        s = pl.multiple_of(t * TILE_BLOCKS, TILE_BLOCKS)
-        bm_ref[:, pl.ds(s, TILE_BLOCKS)] = jnp.full((ROWS, TILE_BLOCKS), EMPTY, jnp.float32)
+        s = pl.multiple_of(t * tb, tb)
+        bm_ref[:, pl.ds(s, tb)] = jnp.full((ROWS, tb), EMPTY, jnp.float32)
         return carry
 
     jax.lax.fori_loop(0, nt, tile, 0)
-    if nt < nb // TILE_BLOCKS:
-        jax.lax.fori_loop(nt, nb // TILE_BLOCKS, empty, 0)
+    if nt < nb // tb:
+        jax.lax.fori_loop(nt, nb // tb, empty, 0)
     if sync:  # the block minima were written by other threads of this program
         from jax.experimental.pallas import triton as plgpu
 
@@ -109,14 +119,14 @@ def _kernel(
         pos = jnp.minimum(pos, nb - 1)  # a NaN row matches no column: keep its loads in bounds
         blk = jnp.where(slots == r, pos[:, None], blk)
         bm = jnp.where(cols == pos[:, None], jnp.inf, bm)
-    member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 2)
-    slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, BLOCK), 1)
-    pidx = blk[:, :, None] * BLOCK + member  # (ROWS, SLOTS, BLOCK) landmark indices
-    d2 = jnp.zeros((ROWS, SLOTS, BLOCK), jnp.float32)
+    member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, block), 2)
+    slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, block), 1)
+    pidx = blk[:, :, None] * block + member  # (ROWS, SLOTS, block) landmark indices
+    d2 = jnp.zeros((ROWS, SLOTS, block), jnp.float32)
     for j in range(d):
         diff = xs[j][:, None, None] - pf_ref[j, pidx]
         d2 = d2 + diff * diff
-    width = SLOTS * BLOCK
+    width = SLOTS * block
     d2 = jnp.where(slot3 < n, d2, jnp.inf).reshape(ROWS, width)
     pidx = pidx.reshape(ROWS, width)
     c2 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, width), 1)
@@ -161,14 +171,19 @@ def knn(
         raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
     c, k, d = points.shape
     r = x.shape[1]
-    nb = max(_pow2(-(-k // BLOCK)), TILE_BLOCKS, _pow2(n))  # at least n blocks to choose from
-    kp = nb * BLOCK
+    block, tb = BLOCK, TILE_BLOCKS
+    while _pow2(-(-k // block)) > MAX_BLOCKS:  # the selection scans every block n times
+        block, tb = 2 * block, 2 * tb
+    nb = max(_pow2(-(-k // block)), tb, _pow2(n))  # at least n blocks to choose from
+    kp = nb * block
     rp = -(-r // ROWS) * ROWS
     pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
     pt = jnp.full((c, d, kp), FAR, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
     xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
-    nt = -(-k // (TILE_BLOCKS * BLOCK)) if SKIP_EMPTY_TILES else nb // TILE_BLOCKS
-    kern = functools.partial(_kernel, n=n, d=d, nb=nb, nt=nt, sync=not interpret)
+    nt = -(-k // (tb * block)) if SKIP_EMPTY_TILES else nb // tb
+    kern = functools.partial(
+        _kernel, n=n, d=d, nb=nb, nt=nt, block=block, tb=tb, sync=not interpret
+    )
     params: dict[str, Any] = {}
     if not interpret:
         from jax.experimental.pallas import triton as plgpu
@@ -179,7 +194,7 @@ def knn(
         grid=(c, rp // ROWS),
         in_specs=[
             pl.BlockSpec((None, ROWS, d), lambda ci, b: (ci, b, 0)),
-            pl.BlockSpec((None, d, nb, BLOCK), lambda ci, b: (ci, 0, 0, 0)),
+            pl.BlockSpec((None, d, nb, block), lambda ci, b: (ci, 0, 0, 0)),
             pl.BlockSpec((None, d, kp), lambda ci, b: (ci, 0, 0)),
         ],
         out_specs=[
@@ -194,5 +209,5 @@ def knn(
         ],
         interpret=interpret,
         **params,
-    )(xp, pt.reshape(c, d, nb, BLOCK), pt)
+    )(xp, pt.reshape(c, d, nb, block), pt)
     return idx[:, :r, :n], d2[:, :r, :n]
