@@ -168,7 +168,7 @@ def project_batch(
     n_m: int = 10,
     full: FullConfig = FullConfig(),  # noqa: B008 - frozen, hashable
     impl: ImplLike = Impl.AUTO,
-    split: bool = True,
+    split: bool | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """The traceable core of ``project`` for one batch (call it inside a jitted function).
 
@@ -180,8 +180,9 @@ def project_batch(
     ``stacked.project_stacked_one``) vmapped. ``impl`` (static): the backend of the relaxed
     projection's searches and back-projection (``ops.Impl``; ``"auto"``: resolved here for the
     default backend); the full objective runs XLA only. ``split`` (static, relaxed only): a
-    stacked projector's chains one after another at their own sizes (default) or all at once
-    padded to the largest (``relaxed.project_relaxed_rows``).
+    stacked projector's chains one after another at their own sizes or all at once padded to
+    the largest; ``None`` (default): split with the Pallas kernels, not with XLA
+    (``relaxed.project_relaxed_rows``).
     """
     impl = resolve_impl(impl)
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0], impl)

@@ -430,13 +430,13 @@ def test_per_chain_settings_are_validated():
 
 def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
     """``engine.project_batch``'s relaxed path (all candidates' robot searches in one
-    ``nearest_rows`` call, chain after chain at each chain's own size) gives the per-query
-    projection's answers of each chain alone bit for bit on the CPU (deviations to the last
-    bit); the stacked form
-    (``split=False``: every chain padded to the largest) gives the stacked per-query answers bit
-    for bit, and the same answers with the CUDA path's fused Pallas search (``impl="pallas"``
-    for the searches, run in Pallas' interpreter here; XLA's back-projection). The two forms sum
-    in other orders (``test_stacked_chains_equal_each_chain_alone`` bounds that)."""
+    ``nearest_rows`` call): split (chain after chain at each chain's own size, the default with
+    the Pallas kernels) it gives the per-query projection's answers of each chain alone bit for
+    bit on the CPU (deviations to the last bit); stacked (``split=False``, every chain padded
+    to the largest, the default with XLA) the stacked per-query answers bit for bit, and the
+    same answers with the CUDA path's fused Pallas search (``impl="pallas"`` for the searches,
+    run in Pallas' interpreter here; XLA's back-projection). The two forms sum in other orders
+    (``test_stacked_chains_equal_each_chain_alone`` bounds that)."""
     import jax
     import jax.numpy as jnp
 
@@ -448,7 +448,8 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
     lay = sp.layout
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:48])
 
-    r, v = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="xla"))(sp, h)
+    split = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="xla", split=True))
+    r, v = split(sp, h)
 
     @jit
     def alone(p, x):
@@ -467,13 +468,12 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
     np.testing.assert_array_equal(np.asarray(r), np.asarray(r1))
     # deviations: the rows' sums are vectorised otherwise than one query's (last bit)
     np.testing.assert_allclose(np.asarray(v), np.asarray(v1), rtol=1e-6, atol=0)
-    # "auto" on the CPU is XLA: the same program
-    r0, v0 = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
-    np.testing.assert_array_equal(np.asarray(r0), np.asarray(r))
-    np.testing.assert_array_equal(np.asarray(v0), np.asarray(v))
-
     stacked = jit(lambda p, x: relaxed.project_relaxed_rows(p, x, 5, 5, impl="xla", split=False))
     rs, vs = stacked(sp, h)
+    # the default on the CPU ("auto": XLA, which does not split): the same program
+    r0, v0 = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5))(sp, h)
+    np.testing.assert_array_equal(np.asarray(r0), np.asarray(rs))
+    np.testing.assert_array_equal(np.asarray(v0), np.asarray(vs))
     one = jit(
         lambda p, x: jax.vmap(lambda q: project_stacked_one(p, q, "relaxed", 5, 5, FullConfig()))(x)
     )
