@@ -63,11 +63,11 @@ from jaxproj.io.formats.bvh import (
     BVH_TO_KINECT,
     CMU_SCALE,
     JOINT_MAPS,
-    forward_kinematics,
     kinect_positions,
     parse_bvh,
 )
-from jaxproj.io.formats.bvh.parser import POSITION_AXES, ROTATION_AXES, BvhClip
+from jaxproj.io.formats.bvh.kinematics import joint_transforms
+from jaxproj.io.formats.bvh.parser import BvhClip
 from jaxproj.io.readers import read_skeleton
 from jaxproj.motion.retarget import retarget
 
@@ -91,47 +91,10 @@ CAMERA_DISTANCE_M = 3.0
 # --- Part A: forward kinematics with rotations ---------------------------------------------------
 
 
-def _axis_rotation(angles: np.ndarray, axis: int) -> np.ndarray:
-    """``(T,)`` rad about axis 0 / 1 / 2 -> ``(T, 3, 3)``."""
-    c, s = np.cos(angles), np.sin(angles)
-    r = np.zeros((*angles.shape, 3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    r[:, axis, axis] = 1.0
-    r[:, i, i] = c
-    r[:, j, j] = c
-    r[:, i, j] = -s
-    r[:, j, i] = s
-    return r
-
-
 def cmu_pose(clip: BvhClip) -> tuple[np.ndarray, np.ndarray]:
-    """``(T, J, 3)`` metres (BVH axes) and ``(T, J, 3, 3)`` global rotations of every joint.
-
-    The conventions of ``jaxproj.io.formats.bvh.forward_kinematics`` (rotation channels multiplied
-    in file order, ``R_joint = R_parent @ R_local``, ``p = p_parent + R_parent @ offset``); its
-    positions are checked to be the package's.
-    """
-    t, n = clip.n_frames, len(clip.names)
-    pos, rot = np.zeros((t, n, 3)), np.zeros((t, n, 3, 3))
-    col = 0
-    for j in range(n):
-        local_t = np.broadcast_to(clip.offsets[j] * CMU_SCALE, (t, 3)).copy()
-        local_r = np.broadcast_to(np.eye(3), (t, 3, 3))
-        for name in clip.channels[j]:
-            values = clip.motion[:, col]
-            col += 1
-            if name in POSITION_AXES:
-                local_t[:, POSITION_AXES[name]] = values * CMU_SCALE
-            else:
-                local_r = local_r @ _axis_rotation(np.radians(values), ROTATION_AXES[name])
-        p = int(clip.parents[j])
-        if p < 0:
-            pos[:, j], rot[:, j] = local_t, local_r
-        else:
-            pos[:, j] = pos[:, p] + np.einsum("tij,tj->ti", rot[:, p], local_t)
-            rot[:, j] = rot[:, p] @ local_r
-    np.testing.assert_allclose(pos, forward_kinematics(clip, CMU_SCALE), atol=1e-9)
-    return pos, rot
+    """``(T, J, 3)`` metres (BVH axes) and ``(T, J, 3, 3)`` global rotations of every joint
+    (``jaxproj.io.formats.bvh.kinematics.joint_transforms``)."""
+    return joint_transforms(clip, CMU_SCALE)
 
 
 class Cmu(NamedTuple):

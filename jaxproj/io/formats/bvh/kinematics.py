@@ -44,6 +44,18 @@ def forward_kinematics(clip: BvhClip, scale: float = 1.0) -> np.ndarray:
       ``(T, J, 3)`` float64 positions in the file's axes (``clip.names`` order); frames with
       non-finite channel values give non-finite positions.
     """
+    return joint_transforms(clip, scale)[0]
+
+
+def joint_transforms(clip: BvhClip, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and global rotations of every joint in every frame (``forward_kinematics``
+    with the rotations too: rotation channels multiplied in file order, ``R_joint = R_parent @
+    R_local``, ``p = p_parent + R_parent @ offset``).
+
+    Returns:
+      ``(T, J, 3)`` float64 positions (file axes, ``scale`` applied) and ``(T, J, 3, 3)``
+      global rotations (a joint without rotation channels keeps its parent's).
+    """
     t = clip.n_frames
     n = len(clip.names)
     pos = np.zeros((t, n, 3))
@@ -68,7 +80,7 @@ def forward_kinematics(clip: BvhClip, scale: float = 1.0) -> np.ndarray:
             else:
                 pos[:, j] = pos[:, p] + np.einsum("tij,tj->ti", rot[:, p], local_t)
                 rot[:, j] = rot[:, p] if local_r is None else rot[:, p] @ local_r
-    return pos
+    return pos, rot
 
 
 def kinect_positions(
