@@ -201,14 +201,30 @@ class StackedProjector:
         return min(self.layout.landmarks)
 
     def chain(self, c: int) -> Projector:
-        """Chain ``c``'s own projector, unpadded (host-side; for baselines, tests, reports)."""
+        """Chain ``c``'s own projector, unpadded (host-side; for baselines, tests, reports):
+        ``chain_slice`` made anew by ``make_projector``."""
+        s = self.chain_slice(c)
+        return make_projector(s.human, s.robot, s.forward, s.backward, s.lower, s.upper)
+
+    def chain_slice(self, c: int) -> Projector:
+        """Chain ``c`` at its own size: the stack's arrays sliced to the chain's landmarks,
+        columns and hidden units (static slices; traceable, nothing recomputed: what
+        ``relaxed.project_relaxed_rows(split=True)`` runs)."""
         lay = self.layout
         k, m, n = lay.landmarks[c], len(lay.inputs[c]), len(lay.outputs[c])
         h, kk = lay.hidden[c], lay.k[c]
         s = jax.tree.map(lambda a: a[c], self.stack)
-        fwd = _slice_bank(s.forward, k, m, n, h, kk)
-        bwd = _slice_bank(s.backward, k, n, m, h, kk)
-        return make_projector(s.human[:k, :m], s.robot[:k, :n], fwd, bwd, s.lower[:n], s.upper[:n])
+        return Projector(
+            human=s.human[:k, :m],
+            robot=s.robot[:k, :n],
+            human_sq=s.human_sq[:k],
+            robot_sq=s.robot_sq[:k],
+            forward=_slice_bank(s.forward, k, m, n, h, kk),
+            backward=_slice_bank(s.backward, k, n, m, h, kk),
+            lower=s.lower[:n],
+            upper=s.upper[:n],
+            n_landmarks=k,
+        )
 
 
 def _slice_bank(bank: ELMBank, k: int, d_in: int, d_out: int, hidden: int, kk: int) -> ELMBank:

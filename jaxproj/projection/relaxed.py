@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.projection.elm import ELMBank, predict
+from jaxproj.projection.elm import predict
 from jaxproj.projection.ops import Impl, ImplLike, pallas_interpret, resolve_impl
 from jaxproj.projection.ops.backproj_pallas import back_min
 from jaxproj.projection.projector import (
@@ -232,43 +232,6 @@ def search_chains(
     return jnp.concatenate(parts, axis=0)
 
 
-def chain_slice(sp: StackedProjector, c: int) -> Projector:
-    """Chain ``c`` of a stacked projector at its own size: the stack's arrays sliced to the
-    chain's landmarks, columns and hidden units (static slices; traceable, nothing recomputed,
-    unlike the host-side ``StackedProjector.chain``)."""
-    lay = sp.layout
-    k, m, n = lay.landmarks[c], len(lay.inputs[c]), len(lay.outputs[c])
-    hidden, kk = lay.hidden[c], lay.k[c]
-
-    def bank(b: ELMBank, d_in: int, d_out: int) -> ELMBank:
-        return ELMBank(
-            w=b.w[c, :hidden, :d_in],
-            inv_scale=b.inv_scale[c, :k],
-            bias=b.bias[c, :k, :hidden],
-            out=b.out[c, :k, :d_out, :hidden],
-            offset=b.offset[c, :k, :d_out],
-            neighbours=b.neighbours[c, :k, :kk],
-            n_kernels=k,
-            hidden=hidden,
-            d_in=d_in,
-            d_out=d_out,
-            k=kk,
-        )
-
-    s = sp.stack
-    return Projector(
-        human=s.human[c, :k, :m],
-        robot=s.robot[c, :k, :n],
-        human_sq=s.human_sq[c, :k],
-        robot_sq=s.robot_sq[c, :k],
-        forward=bank(s.forward, m, n),
-        backward=bank(s.backward, n, m),
-        lower=s.lower[c, :n],
-        upper=s.upper[c, :n],
-        n_landmarks=k,
-    )
-
-
 def _chains(p: Projector | StackedProjector) -> tuple[Projector, ChainLayout | None]:
     """``p``'s projectors stacked on a leading chain axis, and the layout (``None`` for a plain
     projector: one chain reading the whole descriptor)."""
@@ -305,8 +268,8 @@ def project_relaxed_rows(
       impl: the backend of the searches and the back-projection (``ops.Impl``; static),
         resolved once here (``"auto"``: for the default backend).
       split: a stacked projector's chains one after another, each at its own size
-        (``chain_slice``: its landmarks, columns and hidden units without the stack's padding),
-        instead of all chains at once padded to the largest (static). ``None`` (default): split
+        (``StackedProjector.chain_slice``: its landmarks, columns and hidden units without the
+        stack's padding), instead of all chains at once padded to the largest (static). ``None`` (default): split
         with the fused Pallas kernels (``impl="pallas"``, CUDA GPUs), not with XLA (CPUs): one
         program per chain compiles about 1.8x as long on a CPU (0.9 -> 1.8 s, a three-chain
         model of 200 landmarks a chain, 64 queries, 2-core VM) for no measurable gain there
@@ -326,7 +289,7 @@ def project_relaxed_rows(
         split = impl is Impl.PALLAS
     if split and isinstance(p, StackedProjector) and not p.layout.identity:
         parts = [
-            project_relaxed_rows(chain_slice(p, c), h[:, list(cols)], n_l, n_m, chunk, impl)
+            project_relaxed_rows(p.chain_slice(c), h[:, list(cols)], n_l, n_m, chunk, impl)
             for c, cols in enumerate(p.layout.inputs)
         ]
         r = jnp.concatenate([a for a, _ in parts], axis=1)  # chain after chain

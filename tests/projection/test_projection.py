@@ -456,7 +456,7 @@ def test_batched_relaxed_equals_per_query_and_the_fused_search(chain_model):
         out = jnp.zeros((x.shape[0], lay.n), x.dtype)
         sq = jnp.zeros((x.shape[0],), x.dtype)
         for c, cols in enumerate(lay.inputs):
-            pc = relaxed.chain_slice(p, c)
+            pc = p.chain_slice(c)
             rc, vc = jax.vmap(lambda q, pc=pc: relaxed.project_relaxed_one(pc, q, 5, 5))(
                 x[:, list(cols)]
             )
