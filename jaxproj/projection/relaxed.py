@@ -269,16 +269,15 @@ def project_relaxed_rows(
         resolved once here (``"auto"``: for the default backend).
       split: a stacked projector's chains one after another, each at its own size
         (``StackedProjector.chain_slice``: its landmarks, columns and hidden units without the
-        stack's padding), instead of all chains at once padded to the largest (static). ``None`` (default): split
-        with the fused Pallas kernels (``impl="pallas"``, CUDA GPUs), not with XLA (CPUs): one
-        program per chain compiles about 1.8x as long on a CPU (0.9 -> 1.8 s, a three-chain
-        model of 200 landmarks a chain, 64 queries, 2-core VM) for no measurable gain there
-        (12 against 12-14 ms a call). The
-        same answers within the near-tie rule (the padding never wins a search nor enters a
-        kernel), for the work of the chains' own sizes: the stacked form searches every chain
-        at the largest chain's landmark count (the NAO's head, 1,010 landmarks, at its right
-        arm's 10,617; ``benchmarks/experiments/g1_time_split.py`` measured the G1's five chains
-        at 2.05 us per pose one by one against 5.35 stacked, one H200).
+        stack's padding), instead of all chains at once padded to the largest (static). ``None``
+        (default): split with the fused Pallas kernels (``impl="pallas"``, CUDA GPUs), not with XLA
+        (CPUs): one program per chain compiles about 1.8x as long on a CPU (0.9 -> 1.8 s, a
+        three-chain model of 200 landmarks a chain, 64 queries, 2-core VM) for no measurable gain
+        there (12 against 12-14 ms a call). The same answers within the near-tie rule (the padding
+        never wins a search nor enters a kernel), for the work of the chains' own sizes: the stacked
+        form searches every chain at the largest chain's landmark count (the NAO's head, 1,010
+        landmarks, at its right arm's 10,617; ``benchmarks/experiments/g1_time_split.py`` measured
+        the G1's five chains at 2.05 us per pose one by one against 5.35 stacked, one H200).
 
     Returns:
       ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the
