@@ -10,8 +10,16 @@ the best of ``--repeat`` further calls (``block_until_ready``), and reports
 ``batch * frames * substeps / run time``; the CPU MuJoCo ``mj_step`` loop on motion 0 is the
 same-run baseline (one core, one motion).
 
+``--backend warp`` (MJX's Warp implementation, a CUDA GPU and the ``warp`` extra) first checks
+``--check-backend`` benchmark motions against C MuJoCo (``backend="mujoco"``, float64): max
+|dq| and |d max_speed| over the motions without self-contact (exit status 1 above 1e-4 rad /
+1e-2 rad/s, the MJX-JAX tolerances of tests/eval/test_rollout.py) and over those with it, the
+same for MJX-JAX on the same motions, and how many motions' line search hit its cap; then
+it times each batch size on Warp and, in the same run, on MJX-JAX (``backend="mjx"``, the
+same ``RolloutConfig``: the split model by default).
+
     python -m benchmarks.bench_rollout [--batch 1,64,1024] [--frames 30] [--device cpu|gpu]
-                                       [--repeat 3] [--json OUT]
+                                       [--backend mjx|mujoco|warp] [--repeat 3] [--json OUT]
 
 ``--device`` sets ``JAX_PLATFORMS`` before JAX is imported (MJX puts the model on
 ``jax.devices()[0]``), so ``gpu`` needs a CUDA build of jaxlib.
@@ -38,9 +46,16 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--device", choices=sorted(PLATFORMS), default="cpu")
     ap.add_argument(
         "--backend",
-        choices=("mjx", "mujoco"),
+        choices=("mjx", "mujoco", "warp"),
         default="mjx",
-        help="rollout.simulate's backend: MJX (default) or CPU MuJoCo (threads = cores)",
+        help="rollout.simulate's backend: MJX (default), CPU MuJoCo (threads = cores) or MJX's "
+        "Warp implementation (CUDA; MJX-JAX timed beside it)",
+    )
+    ap.add_argument(
+        "--check-backend",
+        type=int,
+        default=256,
+        help="--backend warp: benchmark motions checked against C MuJoCo before timing",
     )
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per batch size (best kept)")
     ap.add_argument("--seed", type=int, default=0)
@@ -95,7 +110,8 @@ import jax  # noqa: E402  (after JAX_PLATFORMS)
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from jaxproj.eval import rollout  # noqa: E402
+from jaxproj.eval import rollout, rollout_warp  # noqa: E402
+from jaxproj.robots import NAO_H25  # noqa: E402
 from jaxproj.robots.nao_h25 import robot  # noqa: E402
 
 
@@ -204,6 +220,44 @@ def solver_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int)
     return out
 
 
+def backend_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int) -> dict:
+    """MJX's Warp implementation (and MJX-JAX) against C MuJoCo on the first ``batch``
+    benchmark motions (random, many with self-contact), split by whether C MuJoCo or Warp found
+    self-contact in a motion: max / median / p95 of each motion's max |qpos difference| (rad),
+    max |max_speed difference| (rad/s), contact frames, and line-search cap hits (Warp)."""
+    q = motions(batch, frames, seed)
+    n = np.full(batch, frames, dtype=np.int32)
+    ref = rollout.simulate(q, n, cfg, backend="mujoco")
+    warp, ls_capped = rollout_warp.simulate_warp(q, n, cfg, NAO_H25, with_overflow=True)
+    mjx_jax = rollout.simulate(q, n, cfg, backend="mjx")
+    ref_frames = np.asarray(ref.contact_frames).sum(axis=1)
+    touched = (ref_frames > 0) | (np.asarray(warp.contact_frames).sum(axis=1) > 0)
+
+    def errors(r: rollout.RolloutResult) -> dict:
+        dq = np.abs(np.asarray(r.qpos) - np.asarray(ref.qpos)).max(axis=(1, 2))
+        dv = np.abs(np.asarray(r.max_speed) - np.asarray(ref.max_speed)).max(axis=1)
+        dframes = np.abs(np.asarray(r.contact_frames) - np.asarray(ref.contact_frames)).max(axis=1)
+        out = {}
+        for name, rows in (("contact_free", ~touched), ("contact", touched)):
+            out[name] = {
+                "motions": int(rows.sum()),
+                "max_dq_rad": float(dq[rows].max()) if rows.any() else None,
+                "median_dq_rad": float(np.median(dq[rows])) if rows.any() else None,
+                "p95_dq_rad": float(np.percentile(dq[rows], 95)) if rows.any() else None,
+                "max_dspeed_rad_s": float(dv[rows].max()) if rows.any() else None,
+                "max_dcontact_frames": int(dframes[rows].max()) if rows.any() else None,
+            }
+        return out
+
+    return {
+        "motions": batch,
+        "warp_vs_mujoco": errors(warp),
+        "mjx_vs_mujoco": errors(mjx_jax),
+        "warp_ls_capped_motions": int(np.asarray(ls_capped).sum()),
+        "ls_iterations_warp": max(cfg.ls_iterations, rollout_warp.WARP_LS_ITERATIONS),
+    }
+
+
 def bench(
     batch: int,
     frames: int,
@@ -254,6 +308,28 @@ def main(args: argparse.Namespace) -> int:
           f"{cfg.solver_iterations} iterations / {cfg.ls_iterations} line-search | contact "
           f"friction {cfg.contact_friction} | split_legs {cfg.split_legs}")  # fmt: skip
     check = None
+    if args.backend == "warp":
+        args.check_solver = 0  # an MJX-JAX check; the Warp run checks against C MuJoCo below
+        args.whole_baseline = False
+    backend_ok, warp_check = True, None
+    if args.backend == "warp" and args.check_backend:
+        t0 = time.perf_counter()
+        warp_check = backend_check(cfg, args.check_backend, args.frames, args.seed)
+        warp_check["seconds"] = time.perf_counter() - t0
+        for name in ("warp_vs_mujoco", "mjx_vs_mujoco"):
+            for part, e in warp_check[name].items():
+                print(f"{name} ({part}, {e['motions']} motions): max |dq| {e['max_dq_rad']} rad, "
+                      f"median {e['median_dq_rad']}, p95 {e['p95_dq_rad']}, max |d max_speed| "
+                      f"{e['max_dspeed_rad_s']} rad/s, max |d contact frames| "
+                      f"{e['max_dcontact_frames']}")  # fmt: skip
+        print(f"warp: line search at its cap ({warp_check['ls_iterations_warp']}) in the last "
+              f"step of {warp_check['warp_ls_capped_motions']} motions")  # fmt: skip
+        free = warp_check["warp_vs_mujoco"]["contact_free"]
+        backend_ok = free["motions"] == 0 or (
+            free["max_dq_rad"] <= 1e-4 and free["max_dspeed_rad_s"] <= 1e-2
+        )
+        if not backend_ok:
+            print("warp vs C MuJoCo on contact-free motions: CHECK FAILED")
     if args.check_solver:
         check = solver_check(cfg, args.check_solver, args.frames, args.seed)
         print(f"solver caps vs MuJoCo's 100 / 50 on {args.check_solver} motions: max |dq| "
@@ -280,6 +356,7 @@ def main(args: argparse.Namespace) -> int:
     rows, ok = [], True
     for b in args.batch:
         r = bench(b, args.frames, args.seed, args.repeat, substeps, cfg, backend=args.backend)
+        r["qpos0_"] = r["qpos0"]
         dq = float(np.abs(r.pop("qpos0") - cpu_q).max())
         r["mjx_vs_cpu_max_dq_rad"] = dq
         r["speedup_vs_cpu_mj_step"] = r["steps_per_s"] * cpu_s / cpu_steps
@@ -298,6 +375,15 @@ def main(args: argparse.Namespace) -> int:
             print(f"              whole model (split_legs=False): compile {w['compile_s']:6.1f} s "
                   f"| run {w['run_s']:8.3f} s | {w['steps_per_s']:12,.0f} steps/s | split "
                   f"x{r['speedup_vs_whole']:.2f}")  # fmt: skip
+        if args.backend == "warp":
+            j = bench(b, args.frames, args.seed, args.repeat, substeps, cfg, backend="mjx")
+            r["mjx_jax_vs_warp_max_dq_rad"] = float(np.abs(j.pop("qpos0") - r["qpos0_"]).max())
+            r["mjx_jax"] = j
+            r["speedup_vs_mjx_jax"] = r["steps_per_s"] / j["steps_per_s"]
+            print(f"              MJX-JAX (same config): compile {j['compile_s']:6.1f} s | run "
+                  f"{j['run_s']:8.3f} s | {j['steps_per_s']:12,.0f} steps/s | warp "
+                  f"x{r['speedup_vs_mjx_jax']:.2f}")  # fmt: skip
+        r.pop("qpos0_", None)
         rows.append(r)
     if cpu_ncon > 0:
         print("note: motion 0 touched itself on CPU MuJoCo; the MJX/CPU comparison is not exact")
@@ -313,15 +399,17 @@ def main(args: argparse.Namespace) -> int:
         "ls_iterations": cfg.ls_iterations,
         "contact_friction": cfg.contact_friction,
         "split_legs": cfg.split_legs,
+        "backend": args.backend,
         "solver_check": check,
+        "backend_check": warp_check,
         "cpu_mj_step": {"steps": cpu_steps, "run_s": cpu_s, "steps_per_s": cpu_steps / cpu_s},
         "mjx": rows,
-        "correct": bool(ok),
+        "correct": bool(ok and backend_ok),
     }
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
         print(f"wrote {args.json}")
-    return 0 if ok else 1
+    return 0 if ok and backend_ok else 1
 
 
 if __name__ == "__main__":

@@ -1,13 +1,15 @@
 """Physics check of retargeted motions: batched MuJoCo rollouts of a robot.
 
-Two backends behind ``simulate(backend=)``: MuJoCo MJX (jitted, vmapped, on any JAX device;
-the default on accelerators) and CPU MuJoCo (the C library, a host thread per motion; the
+Three backends behind ``simulate(backend=)``: MuJoCo MJX (jitted, vmapped, on any JAX device;
+the default on accelerators), CPU MuJoCo (the C library, a host thread per motion; the
 default on a CPU-only machine, where MJX would spend tens of seconds compiling each batch
-shape). Four modules: this one (``simulate``, ``hand_error_cm``, ``summarize``: the public entry
-points), ``rollout_model`` (``RolloutConfig``, ``RolloutResult``, the per-part models and index
-tables), ``rollout_physics`` (the MJX step and the jitted batched rollouts) and ``rollout_cpu``
-(the CPU MuJoCo backend). Every entry point takes ``robot=``: a ``Robot`` (``jaxproj.robots``;
-its ``mjcf``) or a registered name, ``None`` the default robot (``robots.get()``; the NAO H25).
+shape) and MJX's Warp implementation (``backend="warp"``: MuJoCo Warp's kernels on one CUDA
+GPU, the optional ``warp`` extra). Five modules: this one (``simulate``, ``hand_error_cm``,
+``summarize``: the public entry points), ``rollout_model`` (``RolloutConfig``, ``RolloutResult``,
+the per-part models and index tables), ``rollout_physics`` (the MJX step and the jitted batched
+rollouts), ``rollout_cpu`` (the CPU MuJoCo backend) and ``rollout_warp`` (the Warp backend).
+Every entry point takes ``robot=``: a ``Robot`` (``jaxproj.robots``; its ``mjcf``) or a
+registered name, ``None`` the default robot (``robots.get()``; the NAO H25).
 
 A retargeted motion is a ``(T, n_joints)`` joint-angle trajectory (rad, ``robot.joint_names``
 order) sampled at the Kinect rate. ``simulate`` plays a padded batch of them on the robot's MJCF
@@ -57,8 +59,9 @@ vector) and mixes float32 with bool (``support.py``), ``mjx.implicit`` mixes flo
 ``"standard"`` dtype / ``"allow"`` rank promotion); ``mjx.kinematics`` is strict-clean and runs
 in the caller's mode, and so does all of this module's own code.
 
-Importing ``mujoco.mjx`` logs "Failed to import warp": harmless, the JAX implementation of MJX is
-used explicitly (``impl="jax"``, on CPU and GPU alike).
+Importing ``mujoco.mjx`` logs "Failed to import warp" where warp-lang is absent: harmless, the
+JAX implementation of MJX is used explicitly (``impl="jax"``, on CPU and GPU alike) unless
+``backend="warp"`` is asked for.
 """
 
 from __future__ import annotations
@@ -91,6 +94,7 @@ from jaxproj.eval.rollout_model import (
     _head_ball as _head_ball,
 )
 from jaxproj.eval.rollout_physics import _legs_jit, _merge_jit, _simulate_jit
+from jaxproj.eval.rollout_warp import simulate_warp
 from jaxproj.robots import Robot
 from jaxproj.robots import get as get_robot
 from jaxproj.robots.base import joint_qpos_index
@@ -160,16 +164,19 @@ def simulate(
       backend: ``"mjx"`` (MuJoCo MJX: jitted, vmapped, on JAX devices), ``"mujoco"`` (CPU
         MuJoCo, the C library in float64, one host thread per motion, ``rollout_cpu``; no
         compile; ``devices`` must be None) or ``"auto"`` (default): ``"mujoco"`` when no
-        ``devices`` are given and JAX's default backend is the CPU, ``"mjx"`` otherwise. Both
+        ``devices`` are given and JAX's default backend is the CPU, ``"mjx"`` otherwise; or
+        ``"warp"``: MJX's Warp implementation (MuJoCo Warp kernels; CUDA GPUs only, needs the
+        ``warp`` extra: ``pip install "jaxproj[warp]"``; one device; ``rollout_warp``). All
         follow the same protocol; contact-free motions agree to float32 round-off, in
-        self-contact the two constraint solvers part (up to ~0.06 rad measured).
+        self-contact the constraint solvers part (up to ~0.06 rad measured for MJX).
       threads: ``"mujoco"`` only: motions stepped at a time (default: the CPU count).
 
     Returns:
       ``RolloutResult`` of device arrays (see its docstring for shapes).
 
     Raises:
-      ConfigError: bad shapes, lengths out of range, non-finite valid frames, bad config.
+      ConfigError: bad shapes, lengths out of range, non-finite valid frames, bad config;
+        ``backend="warp"`` without warp-lang or a CUDA GPU.
     """
     _check_config(config)
     robot = get_robot(robot)
@@ -177,10 +184,13 @@ def simulate(
     devices = None if devices is None else list(devices)
     if devices and len(set(devices)) != len(devices):
         raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
-    if resolve_backend(backend, devices) == "mujoco":
+    chosen = resolve_backend(backend, devices)
+    if chosen == "mujoco":
         if devices is not None:
             raise ConfigError("backend='mujoco' runs on the host's threads: devices must be None")
         return simulate_mujoco(q, n, config, robot, threads)
+    if chosen == "warp":
+        return simulate_warp(q, n, config, robot, devices)
     if config.split_legs and robot.require_mjcf().split:
         result = _simulate_split(q, n, config, devices, robot)
         if result is not None:
@@ -189,12 +199,13 @@ def simulate(
     return _run_shares(setup, q, n, substeps, devices)
 
 
-BACKENDS: tuple[str, ...] = ("auto", "mjx", "mujoco")
+BACKENDS: tuple[str, ...] = ("auto", "mjx", "mujoco", "warp")
 """``simulate``'s backends (see its docstring)."""
 
 
 def resolve_backend(backend: str, devices: Sequence[jax.Device] | None = None) -> str:
-    """``"mjx"`` or ``"mujoco"``: the backend ``simulate(backend=..., devices=...)`` runs.
+    """``"mjx"``, ``"mujoco"`` or ``"warp"``: the backend ``simulate(backend=..., devices=...)``
+    runs (``"auto"`` never picks ``"warp"``: see ``simulate``).
 
     Raises:
       ConfigError: an unknown backend.

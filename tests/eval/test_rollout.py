@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from jaxproj.errors import ConfigError
-from jaxproj.eval import rollout, rollout_model
+from jaxproj.eval import rollout, rollout_model, rollout_warp
 from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
 
@@ -273,6 +273,7 @@ def test_backend_choice(monkeypatch) -> None:
     assert rollout.resolve_backend("auto") == "mujoco"  # the tests run on a CPU
     assert rollout.resolve_backend("auto", jax.devices("cpu")) == "mjx"  # devices: MJX shards
     assert rollout.resolve_backend("mjx") == "mjx"
+    assert rollout.resolve_backend("warp") == "warp"
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
     assert rollout.resolve_backend("auto") == "mjx"
     with pytest.raises(ConfigError, match="unknown rollout backend 'physx'"):
@@ -280,6 +281,93 @@ def test_backend_choice(monkeypatch) -> None:
     q = np.tile(STAND, (1, 2, 1)).astype(np.float32)
     with pytest.raises(ConfigError, match="devices must be None"):
         rollout.simulate(q, backend="mujoco", devices=jax.devices("cpu"))
+
+
+# --- the Warp backend (MJX's Warp implementation; CUDA GPUs with warp-lang only) -----------------
+
+
+def _warp_skip_reason() -> str | None:
+    """Why the Warp backend cannot run here (None: it can); cheap, nothing compiled."""
+    if not rollout_warp._warp_installed():
+        return 'warp-lang is not installed (the optional extra: pip install "jaxproj[warp]")'
+    try:
+        jax.devices("cuda")
+    except RuntimeError:
+        return "no CUDA GPU: MJX's Warp implementation runs on CUDA GPUs only (CPU CI)"
+    return None
+
+
+@pytest.fixture(scope="module")
+def warp_batch() -> rollout.RolloutResult:
+    reason = _warp_skip_reason()
+    if reason is not None:
+        pytest.skip(reason)
+    targets, lengths = _motions()
+    with jax.numpy_dtype_promotion("strict"), jax.numpy_rank_promotion("raise"):
+        result = rollout.simulate(targets, lengths, backend="warp")
+    return rollout.RolloutResult(*(np.asarray(x) for x in result))
+
+
+@pytest.mark.parametrize("row", [STANDING, STEP])
+def test_warp_matches_cpu_mujoco(warp_batch, fixed: mujoco.MjModel, row: int) -> None:
+    # contact-free, STEP saturating the shoulder servo: MuJoCo Warp leaves the kv of clamped
+    # servos out of the implicit damping as C MuJoCo does; the MJX-JAX tolerances hold
+    targets, _ = _motions()
+    cpu = _cpu_rollout(fixed, targets[row])
+    np.testing.assert_allclose(warp_batch.qpos[row], cpu["qpos"], atol=1e-4)
+    np.testing.assert_allclose(warp_batch.max_speed[row], cpu["max_speed"], atol=1e-2)
+    assert not warp_batch.contact[row].any() and not cpu["contact"].any()
+
+
+def test_warp_padding_matches_cpu_mujoco(warp_batch, fixed: mujoco.MjModel) -> None:
+    targets, lengths = _motions()
+    r = warp_batch
+    cpu = _cpu_rollout(fixed, targets[JUMP, :PAD_LEN])
+    for row in (PAD_NAN, PAD_WILD):
+        np.testing.assert_allclose(r.qpos[row, :PAD_LEN], cpu["qpos"], atol=1e-4)
+        np.testing.assert_allclose(r.max_speed[row], cpu["max_speed"], atol=1e-2)
+        assert r.contact_frames[row].sum() == 0 and np.all(np.isfinite(r.qpos[row]))
+
+
+def test_warp_contact_matches_cpu_mujoco(warp_batch, fixed: mujoco.MjModel) -> None:
+    # in self-contact the constraint solvers part (MuJoCo Warp's float32 Newton solver with
+    # its own line search against C MuJoCo's, both capped at 8 iterations): COLLIDE and JUMP
+    # within WARP_CONTACT_ATOL rad; contact found in as many frames, give or take one
+    targets, _ = _motions()
+    r = warp_batch
+    for row in (COLLIDE, JUMP):
+        cpu = _cpu_rollout(fixed, targets[row])
+        assert np.abs(r.qpos[row] - cpu["qpos"]).max() < WARP_CONTACT_ATOL
+        cpu_frames = int(cpu["contact"][:, ARM_TORSO].sum())
+        assert cpu_frames > 0 and abs(r.contact_frames[row, ARM_TORSO] - cpu_frames) <= 1
+    assert r.penetration[COLLIDE].max() > 0.0 and r.contact_frames[COLLIDE].tolist()[1:] == [0, 0]
+
+
+WARP_CONTACT_ATOL = 0.1
+"""rad: Warp against C MuJoCo in self-contact (MJX-JAX: up to 0.058 rad measured)."""
+
+
+def test_warp_backend_needs_the_extra(monkeypatch) -> None:
+    # CPU CI: without warp-lang the backend names the extra to install, before any work
+    q = np.tile(STAND, (1, 2, 1)).astype(np.float32)
+    monkeypatch.setattr(rollout_warp, "_warp_installed", lambda: False)
+    with pytest.raises(ConfigError, match=r'pip install "jaxproj\[warp\]"'):
+        rollout.simulate(q, backend="warp")
+    with pytest.raises(ConfigError, match="unknown rollout backend"):
+        rollout.simulate(q, backend="warp-jax")
+
+
+def test_warp_backend_needs_a_cuda_gpu(monkeypatch) -> None:
+    from mujoco.mjx import warp as mjx_warp
+
+    def no_cuda(backend: str | None = None) -> list:
+        raise RuntimeError("no cuda backend")
+
+    monkeypatch.setattr(rollout_warp, "_warp_installed", lambda: True)
+    monkeypatch.setattr(mjx_warp, "WARP_INSTALLED", True)
+    monkeypatch.setattr(jax, "devices", no_cuda)
+    with pytest.raises(ConfigError, match="needs a CUDA GPU"):
+        rollout_warp.check_warp(None)
 
 
 # --- split_legs: head-and-arms and legs as two models --------------------------------------------
