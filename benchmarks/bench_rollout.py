@@ -228,7 +228,8 @@ def backend_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int
     q = motions(batch, frames, seed)
     n = np.full(batch, frames, dtype=np.int32)
     ref = rollout.simulate(q, n, cfg, backend="mujoco")
-    warp, ls_capped = rollout_warp.simulate_warp(q, n, cfg, NAO_H25, with_overflow=True)
+    warp, overflow = rollout_warp.simulate_warp(q, n, cfg, NAO_H25, with_overflow=True)
+    overflow = np.asarray(overflow)
     mjx_jax = rollout.simulate(q, n, cfg, backend="mjx")
     ref_frames = np.asarray(ref.contact_frames).sum(axis=1)
     touched = (ref_frames > 0) | (np.asarray(warp.contact_frames).sum(axis=1) > 0)
@@ -253,8 +254,12 @@ def backend_check(cfg: rollout.RolloutConfig, batch: int, frames: int, seed: int
         "motions": batch,
         "warp_vs_mujoco": errors(warp),
         "mjx_vs_mujoco": errors(mjx_jax),
-        "warp_ls_capped_motions": int(np.asarray(ls_capped).sum()),
-        "ls_iterations_warp": max(cfg.ls_iterations, rollout_warp.WARP_LS_ITERATIONS),
+        "warp_ls_capped_motions": int(np.sum((overflow & rollout_warp.OVERFLOW_LS_ITERATIONS) > 0)),
+        "warp_solver_capped_motions": int(
+            np.sum((overflow & rollout_warp.OVERFLOW_ITERATIONS) > 0)
+        ),
+        "solver_iterations": cfg.solver_iterations,
+        "ls_iterations": cfg.ls_iterations,
     }
 
 
@@ -322,8 +327,11 @@ def main(args: argparse.Namespace) -> int:
                       f"median {e['median_dq_rad']}, p95 {e['p95_dq_rad']}, max |d max_speed| "
                       f"{e['max_dspeed_rad_s']} rad/s, max |d contact frames| "
                       f"{e['max_dcontact_frames']}")  # fmt: skip
-        print(f"warp: line search at its cap ({warp_check['ls_iterations_warp']}) in the last "
-              f"step of {warp_check['warp_ls_capped_motions']} motions")  # fmt: skip
+        print(
+            f"warp: line search at its cap ({warp_check['ls_iterations']}) in some step of "
+            f"{warp_check['warp_ls_capped_motions']} motions, solver at its cap "
+            f"({warp_check['solver_iterations']}) in {warp_check['warp_solver_capped_motions']}"
+        )
         free = warp_check["warp_vs_mujoco"]["contact_free"]
         backend_ok = free["motions"] == 0 or (
             free["max_dq_rad"] <= 1e-4 and free["max_dspeed_rad_s"] <= 1e-2

@@ -1,13 +1,14 @@
 """Physics check of retargeted motions: batched MuJoCo rollouts of a robot.
 
 Three backends behind ``simulate(backend=)``: MuJoCo MJX (jitted, vmapped, on any JAX device;
-the default on accelerators), CPU MuJoCo (the C library, a host thread per motion; the
-default on a CPU-only machine, where MJX would spend tens of seconds compiling each batch
-shape) and MJX's Warp implementation (``backend="warp"``: MuJoCo Warp's kernels on one CUDA
-GPU, the optional ``warp`` extra). Five modules: this one (``simulate``, ``hand_error_cm``,
-``summarize``: the public entry points), ``rollout_model`` (``RolloutConfig``, ``RolloutResult``,
-the per-part models and index tables), ``rollout_physics`` (the MJX step and the jitted batched
-rollouts), ``rollout_cpu`` (the CPU MuJoCo backend) and ``rollout_warp`` (the Warp backend).
+the default on accelerators other than a CUDA GPU with warp-lang), CPU MuJoCo (the C library,
+a host thread per motion; the default on a CPU-only machine, where MJX would spend tens of
+seconds compiling each batch shape) and MJX's Warp implementation (``backend="warp"``: MuJoCo
+Warp's kernels on one CUDA GPU, the optional ``warp`` extra; the default there). Five modules:
+this one (``simulate``, ``hand_error_cm``, ``summarize``: the public entry points),
+``rollout_model`` (``RolloutConfig``, ``RolloutResult``, the per-part models and index tables),
+``rollout_physics`` (the MJX step and the jitted batched rollouts), ``rollout_cpu`` (the CPU
+MuJoCo backend) and ``rollout_warp`` (the Warp backend).
 Every entry point takes ``robot=``: a ``Robot`` (``jaxproj.robots``; its ``mjcf``) or a
 registered name, ``None`` the default robot (``robots.get()``; the NAO H25).
 
@@ -94,7 +95,7 @@ from jaxproj.eval.rollout_model import (
     _head_ball as _head_ball,
 )
 from jaxproj.eval.rollout_physics import _legs_jit, _merge_jit, _simulate_jit
-from jaxproj.eval.rollout_warp import simulate_warp
+from jaxproj.eval.rollout_warp import simulate_warp, warp_usable
 from jaxproj.robots import Robot
 from jaxproj.robots import get as get_robot
 from jaxproj.robots.base import joint_qpos_index
@@ -163,12 +164,15 @@ def simulate(
         needs an MJCF (and ``mjcf.split`` for ``split_legs``; without it the whole model runs).
       backend: ``"mjx"`` (MuJoCo MJX: jitted, vmapped, on JAX devices), ``"mujoco"`` (CPU
         MuJoCo, the C library in float64, one host thread per motion, ``rollout_cpu``; no
-        compile; ``devices`` must be None) or ``"auto"`` (default): ``"mujoco"`` when no
-        ``devices`` are given and JAX's default backend is the CPU, ``"mjx"`` otherwise; or
-        ``"warp"``: MJX's Warp implementation (MuJoCo Warp kernels; CUDA GPUs only, needs the
-        ``warp`` extra: ``pip install "jaxproj[warp]"``; one device; ``rollout_warp``). All
-        follow the same protocol; contact-free motions agree to float32 round-off, in
-        self-contact the constraint solvers part (up to ~0.06 rad measured for MJX).
+        compile; ``devices`` must be None), ``"warp"`` (MJX's Warp implementation: MuJoCo
+        Warp's kernels on one CUDA GPU, ``rollout_warp``; needs the ``warp`` extra, ``pip
+        install "jaxproj[warp]"``) or ``"auto"`` (default): ``"mujoco"`` when no ``devices``
+        are given and JAX's default backend is the CPU; else ``"warp"`` where it can run (the
+        default device or the one device given is a CUDA GPU and warp-lang imports); else
+        ``"mjx"``. All follow the same protocol. Contact-free motions agree with C MuJoCo to
+        float32 round-off on every backend; in self-contact Warp stayed within 6.4e-5 rad of
+        C MuJoCo over 206 random motions, where MJX-JAX's own constraint solver parted from
+        it by up to 0.14 rad (``docs/results.md``).
       threads: ``"mujoco"`` only: motions stepped at a time (default: the CPU count).
 
     Returns:
@@ -205,7 +209,7 @@ BACKENDS: tuple[str, ...] = ("auto", "mjx", "mujoco", "warp")
 
 def resolve_backend(backend: str, devices: Sequence[jax.Device] | None = None) -> str:
     """``"mjx"``, ``"mujoco"`` or ``"warp"``: the backend ``simulate(backend=..., devices=...)``
-    runs (``"auto"`` never picks ``"warp"``: see ``simulate``).
+    runs (``"auto"``: see ``simulate``).
 
     Raises:
       ConfigError: an unknown backend.
@@ -214,7 +218,9 @@ def resolve_backend(backend: str, devices: Sequence[jax.Device] | None = None) -
         raise ConfigError(f"unknown rollout backend {backend!r}; use one of {BACKENDS}")
     if backend != "auto":
         return backend
-    return "mujoco" if not devices and jax.default_backend() == "cpu" else "mjx"
+    if not devices and jax.default_backend() == "cpu":
+        return "mujoco"
+    return "warp" if warp_usable(devices) else "mjx"
 
 
 def _run_shares(

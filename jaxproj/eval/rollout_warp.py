@@ -16,24 +16,27 @@ head-and-arms and legs (``RolloutConfig.split_legs``) are the MJX backend's; wha
   scans run over the whole batch, the step is called on batched ``Data`` (MJX's Warp call takes
   a leading world axis as it is) and each step's self-contacts are scattered to their motions.
   The pool holds as many slots per motion as MJX-JAX's fixed contact list (one per candidate
-  contact point: the NAO's head-and-arms 27, the whole robot 53), and each world as many
-  constraint rows (122 / 239), so neither can overflow.
-* **The line-search cap**: MuJoCo Warp's line search is not C MuJoCo's, and it hits the
-  rollout's default cap of 4 iterations on this model (MJX-JAX converges within it); the Warp
-  backend runs with at least ``WARP_LS_ITERATIONS`` line-search iterations (its printed
-  overflow warnings are off; ``Data.overflow`` still records them).
+  contact point: the NAO's head-and-arms 27, the whole robot 53) and each world as many
+  constraint rows (122 / 239), far more than the arms can touch at once; should MuJoCo Warp
+  still drop a contact or constraint (its ``Data.overflow`` bits), ``simulate`` raises.
+* **The solver caps** are the config's (``RolloutConfig.solver_iterations`` /
+  ``ls_iterations``, 8 / 4), as for the other backends. MuJoCo Warp's line search is its own,
+  and a plain ``mjx.step`` probe of the NAO once warned that it hit 4 iterations; in the
+  rollout protocol no motion did (256 random motions, every step: MuJoCo Warp records it in
+  ``Data.overflow``, whose printed warnings are turned off here), and caps of 8 and 16 gave
+  the same largest errors at the same speed (``docs/results.md``).
 * One device: ``devices`` is ``None`` or a single CUDA device.
 
-Validated against C MuJoCo in ``tests/eval/test_rollout_warp.py`` (run where a CUDA GPU and
+Validated against C MuJoCo in ``tests/eval/test_rollout.py`` (run where a CUDA GPU and
 warp-lang are present; CPU CI skips it) and ``benchmarks/bench_rollout.py --backend warp``;
 the numbers are on the results page (``docs/results.md``).
 """
 
 from __future__ import annotations
 
-import copy
 import functools
 import importlib.util
+from collections.abc import Sequence
 from typing import Any
 
 import jax
@@ -42,7 +45,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxproj._internal.jit import jit
-from jaxproj.errors import ConfigError
+from jaxproj.errors import ConfigError, JaxprojError
 from jaxproj.eval.rollout_model import (
     CONTACT_GROUPS,
     RolloutConfig,
@@ -63,16 +66,35 @@ from jaxproj.robots import Robot
 WARP_EXTRA = 'pip install "jaxproj[warp]"'
 """How to install what the Warp backend needs (warp-lang, the version mujoco-mjx pins)."""
 
-WARP_LS_ITERATIONS = 16
-"""The least line-search iterations per solver iteration the Warp backend runs with (the
-config's ``ls_iterations`` when larger); see the module docstring."""
-
-_LS_OVERFLOW = 8  # MuJoCo Warp's OverflowType.LS_ITERATIONS bit in Data.overflow
+# MuJoCo Warp's OverflowType bits in Data.overflow: a capacity overflow drops constraints or
+# contacts (nefc > njmax, njmax_nnz, broadphase, narrowphase); the solver's iteration caps
+# being reached (ITERATIONS, LS_ITERATIONS) is the capped solver working as configured
+OVERFLOW_CAPACITY = (1 << 0) | (1 << 1) | (1 << 2) | (1 << 3)
+OVERFLOW_ITERATIONS = 1 << 9
+OVERFLOW_LS_ITERATIONS = 1 << 10
 
 
 def _warp_installed() -> bool:
     """warp-lang importable (checked without importing it: cheap where it is absent)."""
     return importlib.util.find_spec("warp") is not None
+
+
+def warp_usable(devices: Sequence[jax.Device] | None = None) -> bool:
+    """Whether ``backend="warp"`` can run on ``devices`` (None: JAX's default device): warp-lang
+    imports and the device is a CUDA GPU (one device). Cheap: nothing is compiled or put."""
+    if not _warp_installed():
+        return False
+    from mujoco.mjx import warp as mjx_warp  # noqa: PLC0415  (imported with mujoco.mjx)
+
+    if not mjx_warp.WARP_INSTALLED:
+        return False
+    try:
+        cuda = jax.devices("cuda")
+    except RuntimeError:
+        return False
+    if devices:
+        return len(devices) == 1 and devices[0] in cuda
+    return jax.default_backend() == "gpu" and jax.devices()[0] in cuda
 
 
 def check_warp(devices: list | None) -> jax.Device:
@@ -117,13 +139,6 @@ def _batched(d0: mjx.Data, n_b: int) -> mjx.Data:
     )
 
 
-def _model(config: RolloutConfig, part: str, robot: Robot) -> Any:
-    """The part's MjModel for Warp: the C backend's, with the line-search floor."""
-    model = copy.deepcopy(_tables(config, part, robot).model)
-    model.opt.ls_iterations = max(int(model.opt.ls_iterations), WARP_LS_ITERATIONS)
-    return model
-
-
 @functools.lru_cache(maxsize=8)
 def _setup_warp(
     config: RolloutConfig, part: str, robot: Robot, n_b: int, device: jax.Device
@@ -135,7 +150,7 @@ def _setup_warp(
     # slot per candidate contact point): an upper bound on what any state of the model needs
     slots = int(jax_setup.d0._impl.contact.dist.shape[0])
     rows = int(jax_setup.d0._impl.efc_J.shape[0])
-    model = _model(config, part, robot)
+    model = _tables(config, part, robot).model  # not modified: put_model copies it
     mx = mjx.put_model(model, device=device, impl="warp")
     opt_impl = mx.opt._impl.replace(warn_overflow=0)  # counted in Data.overflow instead
     mx = mx.replace(opt=mx.opt.replace(_impl=opt_impl))
@@ -181,7 +196,8 @@ def _rollout_batch(
 ) -> tuple[tuple[jax.Array, ...], jax.Array]:
     """The batch of one part: held targets (B, T, n_joints), valid (B, T) -> the per-frame
     records of ``rollout_physics._rollout_one`` with a leading batch axis, and (B,) int32
-    ``Data.overflow`` bits of the last step (``_LS_OVERFLOW``: the line search hit its cap)."""
+    ``Data.overflow`` bits (MuJoCo Warp ORs them in at every step and never clears them;
+    ``OVERFLOW_*``)."""
     n_b = held.shape[0]
     lo, hi = s.ctrl_lo[None, :], s.ctrl_hi[None, :]
     d = _batched(s.d0, n_b)
@@ -263,11 +279,13 @@ def simulate_warp(
 ) -> Any:
     """The rollout of a checked batch (``rollout._as_batch``) on MJX's Warp implementation:
     q (B, T, n_joints) float32, n (B,) int32 -> ``RolloutResult`` (device arrays); with
-    ``with_overflow`` also (B,) bool: the line search hit its cap in some motion's last step
-    (diagnostics of ``benchmarks/bench_rollout.py``).
+    ``with_overflow`` also (B,) int32: each motion's MuJoCo Warp overflow bits over all its
+    steps (``OVERFLOW_*``; diagnostics of ``benchmarks/bench_rollout.py``).
 
     Raises:
       ConfigError: warp-lang or a CUDA GPU is missing, or ``devices`` names other devices.
+      JaxprojError: MuJoCo Warp dropped contacts or constraints of some motion (its contact
+        pool or constraint rows overflowed; waits for the rollout to check).
     """
     from jaxproj.eval.rollout import _leg_motions  # noqa: PLC0415  (rollout imports us)
 
@@ -294,6 +312,12 @@ def simulate_warp(
         whole, substeps = _setup_warp(config, "whole", robot, n_b, device)
         result, overflow = _simulate_jit(whole, jax.device_put(q, device),
                                          jax.device_put(n, device), substeps)  # fmt: skip
+    dropped = np.asarray(overflow) & OVERFLOW_CAPACITY
+    if np.any(dropped):
+        bits = int(np.bitwise_or.reduce(dropped))
+        raise JaxprojError(f"MuJoCo Warp dropped contacts or constraints in "
+                           f"{int(np.sum(dropped > 0))} of {n_b} motions (overflow bits {bits}); "
+                           "use backend='mjx'")  # fmt: skip
     if with_overflow:
-        return result, (overflow & _LS_OVERFLOW) != 0
+        return result, overflow
     return result

@@ -12,10 +12,11 @@ on the upper-body segments of the UTKinect-Action3D people the model did not tra
 2. evaluate every method on the held-out arm actions with and without smoothing, and both
    models side by side on them and on UTKinect (cross-dataset; the whole-body model without the
    full objective, whose converged solver is the evaluation's slowest method);
-3. roll out held-out arm motions in MuJoCo (MJX on accelerators, CPU MuJoCo on a CPU-only
-   machine: ``rollout.simulate``'s default backend): what ``jaxproj retarget`` writes for a
-   robot with ``--method relaxed`` and with ``--method ik`` (smoothed, then
-   ``jaxproj.motion.feasible``), beside the raw per-frame IK and the smoothed relaxed projection;
+3. roll out held-out arm motions in MuJoCo (MJX on accelerators, its Warp implementation on a
+   CUDA GPU with warp-lang, CPU MuJoCo on a CPU-only machine: ``rollout.simulate``'s default
+   backend): what ``jaxproj retarget`` writes for a robot with ``--method relaxed`` and with
+   ``--method ik`` (smoothed, then ``jaxproj.motion.feasible``), beside the raw per-frame IK
+   and the smoothed relaxed projection;
 4. the paper's experiments: eight basic poses and motions, landmark-set sizes (1644, 961, 86
    per arm, and the default model), L = M sweep;
 5. write ``report.json``, ``report.md`` (``jaxproj.paper.demo_report``) and the PNG plots to
