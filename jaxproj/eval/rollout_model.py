@@ -406,3 +406,30 @@ def _setup(config: RolloutConfig, part: str, robot: Robot) -> tuple[_Setup, int]
         ramp=jnp.asarray(t.ramp),
     )
     return setup, t.substeps
+
+
+def _leg_motions(
+    targets: np.ndarray, lengths: np.ndarray, leg_joints: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct leg motions of a batch, as ``RolloutConfig(split_legs=True)`` runs them.
+
+    Args:
+      targets: (B, T, n_joints) targets, rad; lengths: (B,) valid frames (frames past a
+        motion's length count as its last valid frame, as in the rollout).
+      leg_joints: (k,) indices into ``robot.joint_names`` of the legs' joints (NAO: 12).
+
+    Returns:
+      ``(rows, inverse)``: rows (U, T, k) float32, the distinct leg target sequences, padded to
+      a power of two ``U`` with copies of the first (one compile per size class), and inverse
+      (B,) int32, the row of each motion. Retargeted motions hold the legs still: ``U = 1``.
+    """
+    n_b, n_t = targets.shape[:2]
+    frame = np.minimum(np.arange(n_t)[None, :], lengths[:, None] - 1)  # (B, T)
+    legs = targets[np.arange(n_b)[:, None], frame][..., leg_joints].reshape(n_b, -1)
+    if np.all(legs == legs[:1]):
+        rows, inverse = legs[:1], np.zeros(n_b, dtype=np.int64)
+    else:
+        rows, inverse = np.unique(legs, axis=0, return_inverse=True)
+    size = 1 << (len(rows) - 1).bit_length()
+    rows = np.concatenate([rows, np.repeat(rows[:1], size - len(rows), axis=0)])
+    return rows.reshape(size, n_t, len(leg_joints)).astype(np.float32), inverse.astype(np.int32)

@@ -50,6 +50,7 @@ from jaxproj.eval.rollout_model import (
     CONTACT_GROUPS,
     RolloutConfig,
     RolloutResult,
+    _leg_motions,
     _Setup,
     _setup,
     _tables,
@@ -287,7 +288,6 @@ def simulate_warp(
       JaxprojError: MuJoCo Warp dropped contacts or constraints of some motion (its contact
         pool or constraint rows overflowed; waits for the rollout to check).
     """
-    from jaxproj.eval.rollout import _leg_motions  # noqa: PLC0415  (rollout imports us)
 
     device = check_warp(devices)
     n_b = len(q)
