@@ -98,7 +98,7 @@ from jaxproj.eval.rollout_model import (
     _leg_motions as _leg_motions,
 )
 from jaxproj.eval.rollout_physics import _legs_jit, _merge_jit, _simulate_jit
-from jaxproj.eval.rollout_warp import simulate_warp, warp_usable
+from jaxproj.eval.rollout_warp import VALIDATED_ROBOTS, simulate_warp, warp_usable
 from jaxproj.robots import Robot
 from jaxproj.robots import get as get_robot
 from jaxproj.robots.base import joint_qpos_index
@@ -171,7 +171,8 @@ def simulate(
         Warp's kernels on one CUDA GPU, ``rollout_warp``; needs the ``warp`` extra, ``pip
         install "jaxproj[warp]"``) or ``"auto"`` (default): ``"mujoco"`` when no ``devices``
         are given and JAX's default backend is the CPU; else ``"warp"`` where it can run (the
-        default device or the one device given is a CUDA GPU and warp-lang imports); else
+        default device or the one device given is a CUDA GPU, warp-lang imports and the robot's
+        Warp rollout was validated against C MuJoCo, ``rollout_warp.VALIDATED_ROBOTS``); else
         ``"mjx"``. All follow the same protocol. Contact-free motions agree with C MuJoCo to
         float32 round-off on every backend; in self-contact Warp stayed within 6.4e-5 rad of
         C MuJoCo over 206 random motions, where MJX-JAX's own constraint solver parted from
@@ -191,7 +192,7 @@ def simulate(
     devices = None if devices is None else list(devices)
     if devices and len(set(devices)) != len(devices):
         raise ConfigError(f"devices lists a device twice: {[str(d) for d in devices]}")
-    chosen = resolve_backend(backend, devices)
+    chosen = resolve_backend(backend, devices, robot)
     if chosen == "mujoco":
         if devices is not None:
             raise ConfigError("backend='mujoco' runs on the host's threads: devices must be None")
@@ -210,9 +211,14 @@ BACKENDS: tuple[str, ...] = ("auto", "mjx", "mujoco", "warp")
 """``simulate``'s backends (see its docstring)."""
 
 
-def resolve_backend(backend: str, devices: Sequence[jax.Device] | None = None) -> str:
-    """``"mjx"``, ``"mujoco"`` or ``"warp"``: the backend ``simulate(backend=..., devices=...)``
-    runs (``"auto"``: see ``simulate``).
+def resolve_backend(
+    backend: str,
+    devices: Sequence[jax.Device] | None = None,
+    robot: Robot | str | None = None,
+) -> str:
+    """``"mjx"``, ``"mujoco"`` or ``"warp"``: the backend ``simulate(backend=..., devices=...,
+    robot=...)`` runs (``"auto"``: see ``simulate``; Warp only for a robot in
+    ``rollout_warp.VALIDATED_ROBOTS``).
 
     Raises:
       ConfigError: an unknown backend.
@@ -223,7 +229,8 @@ def resolve_backend(backend: str, devices: Sequence[jax.Device] | None = None) -
         return backend
     if not devices and jax.default_backend() == "cpu":
         return "mujoco"
-    return "warp" if warp_usable(devices) else "mjx"
+    validated = get_robot(robot).name in VALIDATED_ROBOTS
+    return "warp" if validated and warp_usable(devices) else "mjx"
 
 
 def _run_shares(

@@ -280,6 +280,8 @@ def test_backend_choice(monkeypatch) -> None:
     assert rollout.resolve_backend("auto") == ("warp" if rollout_warp.warp_usable() else "mjx")
     monkeypatch.setattr(rollout, "warp_usable", lambda devices=None: True)
     assert rollout.resolve_backend("auto") == "warp"  # a CUDA GPU with warp-lang
+    assert rollout.resolve_backend("auto", robot="unitree_g1") == "mjx"  # not validated on Warp
+    assert rollout.resolve_backend("warp", robot="unitree_g1") == "warp"
     monkeypatch.setattr(rollout, "warp_usable", lambda devices=None: False)
     assert rollout.resolve_backend("auto") == "mjx"
     with pytest.raises(ConfigError, match="unknown rollout backend 'physx'"):
