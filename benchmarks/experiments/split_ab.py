@@ -11,7 +11,9 @@ unless ``--nao`` / ``--g1`` name model files), on ``--poses`` held-out MSR descr
 * ``stacked_own_sub``: padded, sub-batches sized for the path's own memory (``impl``'s);
 * ``split_own_sub``: both (today's ``project_batch``).
 
-With ``--knn-ab``, two more: today's program with the fused k-NN search computing every tile
+With ``--prune-ab``, one more: today's program with the fused k-NN search scanning every
+landmark for every row (``knn_pallas.PRUNE = False``, the search before 2026-11-27). With
+``--knn-ab``, two more: today's program with the fused k-NN search computing every tile
 of its power-of-two padding (``knn_pallas.SKIP_EMPTY_TILES = False``), and with blocks of 16
 landmarks however large the set (``knn_pallas.MAX_BLOCKS`` unbounded): the search before
 2026-11-26 in each respect.
@@ -85,6 +87,10 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
     if args.knn_ab:
         variants["split_own_sub_all_tiles"] = (True, True)
         variants["split_own_sub_blocks_of_16"] = (True, True)
+    if args.prune_ab:
+        variants["split_own_sub_full_scan"] = (True, True)
+    if args.variants:
+        variants = {k: v for k, v in variants.items() if k in args.variants.split(",")}
     ref = StackedReference(p)
     max_blocks = knn_pallas.MAX_BLOCKS
     out: dict = {"landmarks": list(p.layout.landmarks), "chains": list(p.layout.names)}
@@ -93,11 +99,13 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
         fn, sub = core(p, args.poses, split, own)
         knn_pallas.SKIP_EMPTY_TILES = not name.endswith("_all_tiles")  # read while tracing
         knn_pallas.MAX_BLOCKS = 1 << 30 if name.endswith("_blocks_of_16") else max_blocks
+        knn_pallas.PRUNE = not name.endswith("_full_scan")
         t0 = time.perf_counter()
         with jax.default_matmul_precision("float32"):
             r, _ = jax.block_until_ready(fn(p, h))
         compile_s = time.perf_counter() - t0
         knn_pallas.SKIP_EMPTY_TILES, knn_pallas.MAX_BLOCKS = True, max_blocks
+        knn_pallas.PRUNE = True
         r = np.asarray(r)
         verdicts = [ref.judge(h_host[i], r[i], L, M, 1e-4) for i in range(args.check)]
         out[name] = {
@@ -115,9 +123,10 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
             times[name].append(time.perf_counter() - t0)
     for name in variants:
         out[name]["ns_per_pose"] = round(1e9 * float(np.median(times[name])) / args.poses, 1)
-    base = out["stacked_xla_sub"]["ns_per_pose"]
-    for name in variants:
-        out[name]["speedup_vs_stacked_xla_sub"] = round(base / out[name]["ns_per_pose"], 3)
+    if "stacked_xla_sub" in variants:
+        base = out["stacked_xla_sub"]["ns_per_pose"]
+        for name in variants:
+            out[name]["speedup_vs_stacked_xla_sub"] = round(base / out[name]["ns_per_pose"], 3)
     # the public API on host poses (today's program)
     hp = np.resize(h_host, (args.host_poses, h_host.shape[1]))
     jaxproj.project(model, hp[: 2 * engine.default_batch_size()])  # compiles
@@ -144,6 +153,13 @@ def main() -> None:
         help="also today's program with the fused search computing every padding tile "
         "(knn_pallas.SKIP_EMPTY_TILES = False): the variant split_own_sub_all_tiles",
     )
+    ap.add_argument(
+        "--prune-ab",
+        action="store_true",
+        help="also today's program with the full-scan k-NN search for every row "
+        "(knn_pallas.PRUNE = False): the variant split_own_sub_full_scan",
+    )
+    ap.add_argument("--variants", help="comma-separated subset of the variants to run")
     ap.add_argument("--json")
     args = ap.parse_args()
     result: dict = {

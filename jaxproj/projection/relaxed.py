@@ -194,7 +194,8 @@ def relaxed_candidates(
     cand = jax.vmap(per_chain, in_axes=(None, 0, 0))(stack, x, hidx.transpose(1, 0, 2))
     c, n = cand.shape[1], cand.shape[3]  # cand: (S, C, L, n)
     rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
-    ridx = search_chains(stack.robot, stack.robot_sq, rows, n_m, sizes, impl)  # (C, S * L, M)
+    # the candidates lie near the robot landmarks: the pruned search certifies most rows
+    ridx = search_chains(stack.robot, stack.robot_sq, rows, n_m, sizes, impl, prune=True)
     return x, cand, ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
 
 
@@ -205,6 +206,7 @@ def search_chains(
     n: int,
     sizes: Sequence[int] | None = None,
     impl: ImplLike = Impl.AUTO,
+    prune: bool = False,
 ) -> jax.Array:
     """``(C, R, n)`` indices of the ``n`` nearest landmarks of each chain's rows, each chain
     searched over its own landmarks only.
@@ -221,12 +223,15 @@ def search_chains(
         against the right arm's 7,099). The same neighbours either way (padding is never
         returned).
       impl: the searches' backend (``ops.Impl``; static).
+      prune: the fused kernel's pruned exact search first (``search.nearest_rows``; static).
     """
     k = points.shape[1]
     if sizes is None or all(s == k for s in sizes):
-        return nearest_rows(points, points_sq, x, n, impl)[0]
+        return nearest_rows(points, points_sq, x, n, impl, prune)[0]
     parts = [
-        nearest_rows(points[c : c + 1, :s], points_sq[c : c + 1, :s], x[c : c + 1], n, impl)[0]
+        nearest_rows(points[c : c + 1, :s], points_sq[c : c + 1, :s], x[c : c + 1], n, impl, prune)[
+            0
+        ]
         for c, s in enumerate(sizes)
     ]
     return jnp.concatenate(parts, axis=0)

@@ -88,6 +88,7 @@ def nearest_rows(
     x: jax.Array,
     n: int,
     impl: ImplLike = Impl.AUTO,
+    prune: bool = False,
 ) -> tuple[jax.Array, jax.Array]:
     """The ``n`` nearest landmarks of many rows, per landmark set, exact.
 
@@ -100,6 +101,8 @@ def nearest_rows(
       impl: ``"xla"``: ``nearest`` per set; ``"pallas"``: the fused kernel (for
         ``n <= knn_pallas.SLOTS``; XLA above); ``"auto"`` (default): ``ops.resolve_impl``'s choice
         for the default backend (static).
+      prune: with the fused kernel, its pruned exact search first (``knn_pallas.knn``; static):
+        for rows near the landmarks.
 
     Returns:
       ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances. The
@@ -115,7 +118,8 @@ def nearest_rows(
 
     if n > _knn_pallas.SLOTS or resolve_impl(impl) is Impl.XLA:
         return xla(points, points_sq, x)
-    return _knn_pallas.knn(points, jnp.isfinite(points_sq), x, n, interpret=pallas_interpret())
+    valid = jnp.isfinite(points_sq)
+    return _knn_pallas.knn(points, valid, x, n, interpret=pallas_interpret(), prune=prune)
 
 
 def smallest(values: jax.Array, n: int) -> tuple[jax.Array, jax.Array]:

@@ -135,3 +135,51 @@ def test_impl_resolves_once_from_the_platform():
     assert resolve_impl("xla") is Impl.XLA and resolve_impl("pallas") is Impl.PALLAS
     with pytest.raises(ConfigError, match="impl must be one of 'auto', 'xla', 'pallas'"):
         resolve_impl("triton")
+
+
+@pytest.fixture
+def prune_every_set(monkeypatch):
+    """The pruned search on sets of any size (by default only from ``PRUNE_MIN_LANDMARKS``)."""
+    monkeypatch.setattr(_knn_pallas, "PRUNE_MIN_LANDMARKS", 0)
+
+
+def test_kd_order_is_a_permutation_with_padding_last():
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(2, 300, 3)).astype(np.float32)
+    valid = np.ones((2, 300), bool)
+    valid[1, 250:] = False
+    order = np.asarray(_knn_pallas.kd_order(jnp.asarray(pts), jnp.asarray(valid), 16))
+    for c in range(2):
+        assert sorted(order[c]) == list(range(300))
+    assert valid[1][order[1]][-16:].sum() < 16  # padding gathers in the last blocks
+
+
+def test_pruned_search_certifies_near_rows_and_fails_far_ones(prune_every_set):
+    """Rows near the landmarks are certified and exact; a row at the centre of landmarks on a
+    sphere (every landmark equally far, every block's box nearer) fails the certificate.
+    ``knn(prune=True)`` answers both exactly: the fallback's full scan on the failing rows, and
+    on every row when more fail than its capacity."""
+    rng = np.random.default_rng(9)
+    pts = rng.normal(size=(1, 1500, 4))
+    pts = (pts / np.linalg.norm(pts, axis=2, keepdims=True)).astype(np.float32)
+    x = (pts[:, rng.integers(0, 1500, 48)] + 0.01 * rng.normal(size=(1, 48, 4))).astype(np.float32)
+    x[0, 5] = 0.0  # the centre
+    valid = np.ones((1, 1500), bool)
+    args = (jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), 10, True)
+    idx, d2, ok = (np.asarray(a) for a in _knn_pallas.knn_pruned(*args))
+    assert not ok[0, 5] and ok.mean() > 0.5
+    _check_exact(pts, valid, x[:, ok[0]], idx[:, ok[0]], d2[:, ok[0]], 10)
+    idx, d2 = _knn_pallas.knn(*args, prune=True)  # a few failing rows: the fallback on them
+    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), 10)
+    far = 1e-3 * rng.normal(size=x.shape).astype(np.float32)  # every row near the centre
+    idx, d2 = _knn_pallas.knn(args[0], args[1], jnp.asarray(far), 10, True, prune=True)
+    _check_exact(pts, valid, far, np.asarray(idx), np.asarray(d2), 10)  # all fail: full scan
+
+
+def test_pruned_search_with_padding_and_small_sets(prune_every_set):
+    """Padded sets (one with barely ``n`` landmarks), ragged rows, duplicates: exact."""
+    pts, valid, x = _sets(np.random.default_rng(13), 3, 700, 3, 37, (700, 300, 11))
+    pts[0, 100:130] = pts[0, 0]
+    x[0, :4] = pts[0, 0]
+    idx, d2 = _knn_pallas.knn(jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), 10, True, True)
+    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), 10)

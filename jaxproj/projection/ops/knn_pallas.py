@@ -145,14 +145,14 @@ def _kernel(
     d_ref[...] = out_v
 
 
-def knn(
+def knn_full(
     points: jax.Array | np.ndarray,
     valid: jax.Array,
     x: jax.Array,
     n: int,
     interpret: bool = False,
 ) -> tuple[jax.Array, jax.Array]:
-    """Exact ``n`` nearest landmarks of every row, per landmark set (traceable).
+    """Exact ``n`` nearest landmarks of every row, per landmark set, by a full scan (traceable).
 
     Args:
       points: ``(C, K, d)`` float32 landmark sets.
@@ -211,3 +211,268 @@ def knn(
         **params,
     )(xp, pt.reshape(c, d, nb, block), pt)
     return idx[:, :r, :n], d2[:, :r, :n]
+
+
+# --- the pruned search -------------------------------------------------------------------------
+
+PRUNE = True
+"""``knn`` runs the pruned search (``knn_pruned``) first and the full scan only for the rows
+its certificate fails (``False``: the full scan for every row; read when a search is traced,
+for A/B runs)."""
+
+PRUNE_VISIT = 8
+"""Blocks of the spatial order whose landmarks the pruned search measures per row."""
+
+PRUNE_BLOCK = 128
+"""Landmarks per block of the spatial order (a power of two, at least ``BLOCK``). With
+``PRUNE_VISIT``, swept on one H100 on the NAO default model's real robot-search rows
+(``benchmarks/experiments/knn_prune_ab.py``, ``knn_prune_ab_h100.json``): 128 x 8 was fastest
+on both arms (certified 92-93 % of rows); fewer visited landmarks certify too few rows, more
+cost more in the pruned pass than they save in the fallback."""
+
+PRUNE_MIN_LANDMARKS = 4096
+"""Smaller sets take the full scan: on the NAO's head (1,010 landmarks) the pruned search was
+no faster (40-85 against 41 ns per pose)."""
+
+PRUNE_LB_TILE = 32
+"""Blocks per tile of the pruned search's lower-bound pass."""
+
+FALLBACK_SHARE = 8
+"""The full scan for the rows that fail the certificate runs on a fixed capacity of
+``rows / FALLBACK_SHARE`` rows per set (static shapes); more failing rows than that: on all."""
+
+_KEY_MAX = np.int32(2**31 - 1)
+
+
+def kd_order(points: jax.Array, valid: jax.Array, block: int) -> jax.Array:
+    """``(C, K)`` permutations putting each set's landmarks in a balanced k-d order: split at a
+    multiple of ``block`` landmarks along the widest axis, recursively, until one block each
+    (traceable; ``ceil(log2(K / block))`` sorts). Padding (``valid`` false) sorts to the end of
+    the part it is in."""
+    c, k, _ = points.shape
+    segs = [(0, k)]
+    levels = []
+    while any(b - a > block for a, b in segs):
+        ids = np.empty(k, np.int32)
+        nxt = []
+        for i, (a, b) in enumerate(segs):
+            ids[a:b] = i
+            nblk = -(-(b - a) // block)
+            if nblk > 1:
+                m = a + block * (-(-nblk // 2))
+                nxt += [(a, m), (m, b)]
+            else:
+                nxt.append((a, b))
+        levels.append((ids, len(segs)))
+        segs = nxt
+
+    def one(p: jax.Array, v: jax.Array) -> jax.Array:
+        perm = jnp.arange(k, dtype=jnp.int32)
+        for ids, ns in levels:
+            q, w = p[perm], v[perm]
+            seg = jnp.asarray(ids)
+            lo = jax.ops.segment_min(jnp.where(w[:, None], q, jnp.inf), seg, ns)
+            hi = jax.ops.segment_max(jnp.where(w[:, None], q, -jnp.inf), seg, ns)
+            axis = jnp.argmax(hi - lo, axis=1)[seg]  # each landmark's part's widest axis
+            key = jnp.where(w, jnp.take_along_axis(q, axis[:, None], axis=1)[:, 0], jnp.inf)
+            _, _, perm = jax.lax.sort((seg, key, perm), num_keys=2)
+        return perm
+
+    return jax.vmap(one)(points, valid)
+
+
+def _pruned_kernel(
+    x_ref, lo_ref, hi_ref, pf_ref, idx_ref, d_ref, ok_ref, key_ref, *, n: int, d: int, nb: int,
+    nt: int, block: int, sub: int, lbt: int, visit: int, sync: bool,
+):  # fmt: skip
+    xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
+    low = nb - 1  # the key's low bits: the block's column
+
+    def tile(t: jax.Array, carry: int) -> int:
+        s = pl.multiple_of(t * lbt, lbt)
+        lb = jnp.zeros((ROWS, lbt), jnp.float32)
+        for j in range(d):
+            xj = xs[j][:, None]
+            g = jnp.maximum(jnp.maximum(lo_ref[j, pl.ds(s, lbt)][None] - xj,
+                                        xj - hi_ref[j, pl.ds(s, lbt)][None]), 0.0)  # fmt: skip
+            lb = lb + g * g
+        cols = s + jax.lax.broadcasted_iota(jnp.int32, (ROWS, lbt), 1)
+        bits = jax.lax.bitcast_convert_type(lb, jnp.int32)  # >= 0: ordered as the floats
+        key_ref[:, pl.ds(s, lbt)] = (bits & ~low) | cols  # rounded down: still a lower bound
+        return carry
+
+    def empty(t: jax.Array, carry: int) -> int:
+        s = pl.multiple_of(t * lbt, lbt)
+        key_ref[:, pl.ds(s, lbt)] = jnp.full((ROWS, lbt), _KEY_MAX, jnp.int32)
+        return carry
+
+    jax.lax.fori_loop(0, nt, tile, 0)
+    if nt < nb // lbt:
+        jax.lax.fori_loop(nt, nb // lbt, empty, 0)
+    if sync:
+        from jax.experimental.pallas import triton as plgpu
+
+        plgpu.debug_barrier()
+    key = key_ref[...]  # (ROWS, nb): unique per row (the column is in the low bits)
+    per = block // sub  # sub-blocks per visited block
+    ns = visit * per
+    scol = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns), 1)
+    gid = jnp.zeros((ROWS, ns), jnp.int32)  # the sub-blocks of the visited blocks
+    for r in range(visit):
+        m = jnp.min(key, axis=1)
+        gid = jnp.where(scol // per == r, (m & low)[:, None] * per + scol % per, gid)
+        key = jnp.where(key == m[:, None], _KEY_MAX, key)
+    nxt = jnp.min(key, axis=1)  # the least lower bound of the blocks not visited
+    bound = jax.lax.bitcast_convert_type(nxt & ~low, jnp.float32)
+    # inside the visited blocks: the full search's two stages (sub-block minima, then the n
+    # nearest inside the n sub-blocks with the smallest minima)
+    member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns, sub), 2)
+    pidx = gid[:, :, None] * sub + member
+    d2 = jnp.zeros((ROWS, ns, sub), jnp.float32)
+    for j in range(d):
+        diff = xs[j][:, None, None] - pf_ref[j, pidx]
+        d2 = d2 + diff * diff
+    bm = jnp.min(d2, axis=2)  # (ROWS, ns)
+    slots = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS), 1)
+    big = nb * per
+    chosen = jnp.zeros((ROWS, SLOTS), jnp.int32)
+    for r in range(n):
+        m = jnp.min(bm, axis=1)
+        g = jnp.min(jnp.where(bm == m[:, None], gid, big), axis=1)
+        g = jnp.minimum(g, big - 1)  # a NaN row matches nothing: stay in bounds
+        chosen = jnp.where(slots == r, g[:, None], chosen)
+        bm = jnp.where(gid == g[:, None], jnp.inf, bm)
+    member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, sub), 2)
+    slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, sub), 1)
+    pidx = chosen[:, :, None] * sub + member
+    d2 = jnp.zeros((ROWS, SLOTS, sub), jnp.float32)
+    for j in range(d):
+        diff = xs[j][:, None, None] - pf_ref[j, pidx]
+        d2 = d2 + diff * diff
+    width = SLOTS * sub
+    d2 = jnp.where(slot3 < n, d2, jnp.inf).reshape(ROWS, width)
+    pidx = pidx.reshape(ROWS, width)
+    kp = nb * block
+    out_v = jnp.full((ROWS, SLOTS), jnp.inf, jnp.float32)
+    out_i = jnp.zeros((ROWS, SLOTS), jnp.int32)
+    m = jnp.zeros((ROWS,), jnp.float32)
+    for r in range(n):
+        m = jnp.min(d2, axis=1)
+        i = jnp.min(jnp.where(d2 == m[:, None], pidx, kp), axis=1)
+        i = jnp.minimum(i, kp - 1)
+        out_v = jnp.where(slots == r, m[:, None], out_v)
+        out_i = jnp.where(slots == r, i[:, None], out_i)
+        d2 = jnp.where(pidx == i[:, None], jnp.inf, d2)
+    # the certificate: no block left unvisited can hold a landmark nearer than the n-th
+    ok = (nxt == _KEY_MAX) | (m <= bound)
+    idx_ref[...] = out_i
+    d_ref[...] = out_v
+    ok_ref[...] = jnp.where(ok[:, None], 1, 0) + jnp.zeros((ROWS, SLOTS), jnp.int32)
+
+
+def knn_pruned(
+    points: jax.Array | np.ndarray,
+    valid: jax.Array,
+    x: jax.Array,
+    n: int,
+    interpret: bool = False,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The pruned search alone: ``(idx, d2, ok)``, ``ok`` (``(C, R)`` bool) where the answer is
+    certified exact (``knn``'s arguments; ``idx`` in the landmarks' own order). Not certified
+    rows hold some landmarks, not necessarily the nearest."""
+    if not 1 <= n <= SLOTS:
+        raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
+    c, k, d = points.shape
+    r = x.shape[1]
+    block, lbt, sub = PRUNE_BLOCK, PRUNE_LB_TILE, min(BLOCK, PRUNE_BLOCK)
+    nblk = -(-k // block)
+    nb = max(_pow2(nblk), lbt)
+    visit = max(min(PRUNE_VISIT, _pow2(nblk)), _pow2(-(-n // (block // sub))))
+    kp = nb * block
+    rp = -(-r // ROWS) * ROWS
+    valid = jnp.asarray(valid)
+    order = kd_order(jnp.asarray(points, jnp.float32), valid, block)  # (C, K)
+    pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
+    srt = jnp.take_along_axis(pts, order[..., None], axis=1)  # (C, K, d)
+    ok_pt = jnp.take_along_axis(valid, order, axis=1)
+    pad = jnp.full((c, kp - k, d), FAR, jnp.float32)
+    blocks = jnp.concatenate([srt, pad], axis=1).reshape(c, nb, block, d)
+    okb = jnp.concatenate([ok_pt, jnp.zeros((c, kp - k), bool)], axis=1).reshape(c, nb, block)
+    lo = jnp.min(jnp.where(okb[..., None], blocks, jnp.inf), axis=2)  # (C, nb, d)
+    hi = jnp.max(jnp.where(okb[..., None], blocks, -jnp.inf), axis=2)
+    none = ~okb.any(axis=2)[..., None]
+    lo, hi = jnp.where(none, FAR, lo), jnp.where(none, FAR, hi)  # a block of padding: far
+    pt = blocks.reshape(c, kp, d).transpose(0, 2, 1)
+    xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
+    nt = -(-nblk // lbt)
+    kern = functools.partial(_pruned_kernel, n=n, d=d, nb=nb, nt=nt, block=block, sub=sub,
+                             lbt=lbt, visit=visit, sync=not interpret)  # fmt: skip
+    params: dict[str, Any] = {}
+    if not interpret:
+        from jax.experimental.pallas import triton as plgpu
+
+        params = dict(compiler_params=plgpu.CompilerParams(num_warps=WARPS))
+    row = pl.BlockSpec((None, ROWS, SLOTS), lambda ci, b: (ci, b, 0))
+    idx, d2, ok, _ = pl.pallas_call(
+        kern,
+        grid=(c, rp // ROWS),
+        in_specs=[
+            pl.BlockSpec((None, ROWS, d), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, d, nb), lambda ci, b: (ci, 0, 0)),
+            pl.BlockSpec((None, d, nb), lambda ci, b: (ci, 0, 0)),
+            pl.BlockSpec((None, d, kp), lambda ci, b: (ci, 0, 0)),
+        ],
+        out_specs=[row, row, row, pl.BlockSpec((None, ROWS, nb), lambda ci, b: (ci, b, 0))],
+        out_shape=[
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.int32),
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.float32),
+            jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.int32),
+            jax.ShapeDtypeStruct((c, rp, nb), jnp.int32),
+        ],
+        interpret=interpret,
+        **params,
+    )(xp, lo.transpose(0, 2, 1), hi.transpose(0, 2, 1), pt)
+    pos = jnp.minimum(idx[:, :r, :n], k - 1)  # a position of padding is no landmark's
+    own = jnp.take_along_axis(order, pos.reshape(c, -1), axis=1).reshape(pos.shape)
+    return own, d2[:, :r, :n], ok[:, :r, 0] == 1
+
+
+def knn(
+    points: jax.Array | np.ndarray,
+    valid: jax.Array,
+    x: jax.Array,
+    n: int,
+    interpret: bool = False,
+    prune: bool = False,
+) -> tuple[jax.Array, jax.Array]:
+    """Exact ``n`` nearest landmarks of every row, per landmark set (traceable).
+
+    With ``prune`` (and ``PRUNE``, and at least ``PRUNE_MIN_LANDMARKS`` landmarks a set) the
+    pruned search (``knn_pruned``) answers every row its certificate holds for, and the full
+    scan (``knn_full``) the others: up to ``rows / FALLBACK_SHARE`` of them per set on those rows
+    alone, more on every row. Otherwise the full scan. The same arguments and answers as
+    ``knn_full`` (ties at exactly equal distances may resolve to either landmark). Pruning pays
+    where the rows lie near the landmarks (the relaxed projection's robot search: candidates
+    predicted from the robot landmarks' kernels), not for rows far from them (all fail).
+    """
+    if not (prune and PRUNE and points.shape[1] >= PRUNE_MIN_LANDMARKS):
+        return knn_full(points, valid, x, n, interpret)
+    idx, d2, ok = knn_pruned(points, valid, x, n, interpret)
+    c, r = ok.shape
+    cap = min(-(-max(r // FALLBACK_SHARE, 1) // ROWS) * ROWS, r)
+    bad = ~ok
+    worst = jnp.max(jnp.sum(bad, axis=1))
+
+    def some() -> tuple[jax.Array, jax.Array]:
+        (rows,) = jax.vmap(lambda b: jnp.nonzero(b, size=cap, fill_value=r))(bad)
+        take = jnp.minimum(rows, r - 1)
+        xs = jnp.take_along_axis(x, take[..., None], axis=1)
+        i2, v2 = knn_full(points, valid, xs, n, interpret)
+        put = jax.vmap(lambda a, rw, b: a.at[rw].set(b, mode="drop"))
+        return put(idx, rows, i2), put(d2, rows, v2)
+
+    def every() -> tuple[jax.Array, jax.Array]:
+        return knn_full(points, valid, x, n, interpret)
+
+    return jax.lax.cond(worst == 0, lambda: (idx, d2),
+                        lambda: jax.lax.cond(worst <= cap, some, every))  # fmt: skip
