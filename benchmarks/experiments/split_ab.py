@@ -16,7 +16,11 @@ landmark for every row (``knn_pallas.PRUNE = False``, the search before 2026-11-
 ``--knn-ab``, two more: today's program with the fused k-NN search computing every tile
 of its power-of-two padding (``knn_pallas.SKIP_EMPTY_TILES = False``), and with blocks of 16
 landmarks however large the set (``knn_pallas.MAX_BLOCKS`` unbounded): the search before
-2026-11-26 in each respect.
+2026-11-26 in each respect. With ``--index-ab``, one more: today's program on the projector
+without its precomputed robot-landmark pruning index (``robot_index=None``: the pruned search
+computes the k-d order and block boxes in every call, as before ``with_search_index``); every
+variant's answers are also compared bit for bit with ``split_own_sub``'s on every pose, and the
+index's own cost, once per projector, is timed.
 
 Compile apart (the first call), then the median of repeated calls, blocked until ready,
 variants interleaved round by round. Correctness first: each variant's answers on the first
@@ -30,6 +34,7 @@ variants interleaved round by round. Correctness first: each variant's answers o
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import platform
 import time
@@ -44,6 +49,7 @@ from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
 from jaxproj.projection.ops import knn_pallas, resolve_impl
+from jaxproj.projection.projector import with_search_index
 from jaxproj.testing import StackedReference
 
 L = M = 10
@@ -89,21 +95,31 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
         variants["split_own_sub_blocks_of_16"] = (True, True)
     if args.prune_ab:
         variants["split_own_sub_full_scan"] = (True, True)
+    if args.index_ab:
+        variants["split_own_sub_index_in_trace"] = (True, True)
     if args.variants:
         variants = {k: v for k, v in variants.items() if k in args.variants.split(",")}
     ref = StackedReference(p)
     max_blocks = knn_pallas.MAX_BLOCKS
     out: dict = {"landmarks": list(p.layout.landmarks), "chains": list(p.layout.names)}
-    fns = {}
+    fns, projs, answers = {}, {}, {}
+    if args.index_ab:  # the index's own cost, once per projector (compile, then again)
+        bare = dataclasses.replace(p, robot_index=None)
+        for key in ("index_first_s", "index_again_s"):
+            t0 = time.perf_counter()
+            jax.block_until_ready(jax.tree.leaves(with_search_index(bare).robot_index))
+            out[key] = round(time.perf_counter() - t0, 4)
     for name, (split, own) in variants.items():
         fn, sub = core(p, args.poses, split, own)
+        pv = dataclasses.replace(p, robot_index=None) if name.endswith("_index_in_trace") else p
         knn_pallas.SKIP_EMPTY_TILES = not name.endswith("_all_tiles")  # read while tracing
         knn_pallas.MAX_BLOCKS = 1 << 30 if name.endswith("_blocks_of_16") else max_blocks
         knn_pallas.PRUNE = not name.endswith("_full_scan")
         t0 = time.perf_counter()
         with jax.default_matmul_precision("float32"):
-            r, _ = jax.block_until_ready(fn(p, h))
+            r, v = jax.block_until_ready(fn(pv, h))
         compile_s = time.perf_counter() - t0
+        answers[name] = (np.asarray(r), np.asarray(v))
         knn_pallas.SKIP_EMPTY_TILES, knn_pallas.MAX_BLOCKS = True, max_blocks
         knn_pallas.PRUNE = True
         r = np.asarray(r)
@@ -113,13 +129,18 @@ def one_robot(model: engine.Model, args: argparse.Namespace) -> dict:
             "compile_and_first_call_s": round(compile_s, 2),
             "judged": {v: verdicts.count(v) for v in ("exact", "tie", "differs")},
         }
-        fns[name] = fn
+        fns[name], projs[name] = fn, pv
+    if "split_own_sub" in answers:
+        a, b = answers["split_own_sub"]
+        for name, (r, v) in answers.items():
+            same = np.array_equal(r, a) and np.array_equal(v, b)
+            out[name]["bitwise_as_split_own_sub"] = bool(same)
     times: dict[str, list[float]] = {k: [] for k in variants}
     for _ in range(args.rounds):
         for name, fn in fns.items():
             t0 = time.perf_counter()
             with jax.default_matmul_precision("float32"):
-                jax.block_until_ready(fn(p, h))
+                jax.block_until_ready(fn(projs[name], h))
             times[name].append(time.perf_counter() - t0)
     for name in variants:
         out[name]["ns_per_pose"] = round(1e9 * float(np.median(times[name])) / args.poses, 1)
@@ -158,6 +179,11 @@ def main() -> None:
         action="store_true",
         help="also today's program with the full-scan k-NN search for every row "
         "(knn_pallas.PRUNE = False): the variant split_own_sub_full_scan",
+    )
+    ap.add_argument(
+        "--index-ab",
+        action="store_true",
+        help="the projector without its precomputed pruning index: split_own_sub_index_in_trace",
     )
     ap.add_argument("--variants", help="comma-separated subset of the variants to run")
     ap.add_argument("--json")

@@ -24,6 +24,7 @@ from jaxproj.errors import ConfigError
 from jaxproj.projection.elm import predict
 from jaxproj.projection.ops import Impl, ImplLike, pallas_interpret, resolve_impl
 from jaxproj.projection.ops.backproj_pallas import back_min
+from jaxproj.projection.ops.knn_pallas import PruneIndex
 from jaxproj.projection.projector import (
     ChainLayout,
     Projector,
@@ -195,7 +196,8 @@ def relaxed_candidates(
     c, n = cand.shape[1], cand.shape[3]  # cand: (S, C, L, n)
     rows = cand.transpose(1, 0, 2, 3).reshape(c, s * n_l, n)
     # the candidates lie near the robot landmarks: the pruned search certifies most rows
-    ridx = search_chains(stack.robot, stack.robot_sq, rows, n_m, sizes, impl, prune=True)
+    index = _one_chain_index(p) if isinstance(p, StackedProjector) else stack.robot_index
+    ridx = search_chains(stack.robot, stack.robot_sq, rows, n_m, sizes, impl, True, index)
     return x, cand, ridx.reshape(c, s, n_l, n_m).transpose(1, 0, 2, 3)
 
 
@@ -207,6 +209,7 @@ def search_chains(
     sizes: Sequence[int] | None = None,
     impl: ImplLike = Impl.AUTO,
     prune: bool = False,
+    index: PruneIndex | None = None,
 ) -> jax.Array:
     """``(C, R, n)`` indices of the ``n`` nearest landmarks of each chain's rows, each chain
     searched over its own landmarks only.
@@ -224,10 +227,13 @@ def search_chains(
         returned).
       impl: the searches' backend (``ops.Impl``; static).
       prune: the fused kernel's pruned exact search first (``search.nearest_rows``; static).
+      index: with ``prune``, the ``(C, ...)`` sets' pruning index computed beforehand
+        (``search.nearest_rows``), for the one batched call; chain by chain it is computed in
+        the trace.
     """
     k = points.shape[1]
     if sizes is None or all(s == k for s in sizes):
-        return nearest_rows(points, points_sq, x, n, impl, prune)[0]
+        return nearest_rows(points, points_sq, x, n, impl, prune, index)[0]
     parts = [
         nearest_rows(points[c : c + 1, :s], points_sq[c : c + 1, :s], x[c : c + 1], n, impl, prune)[
             0
@@ -235,6 +241,14 @@ def search_chains(
         for c, s in enumerate(sizes)
     ]
     return jnp.concatenate(parts, axis=0)
+
+
+def _one_chain_index(p: StackedProjector) -> PruneIndex | None:
+    """A one-chain stacked projector's robot-landmark pruning index (``(1, ...)``), if any."""
+    idx = p.robot_index
+    if idx is None or len(idx) != 1 or idx[0] is None:
+        return None
+    return jax.tree.map(lambda a: a[None], idx[0])
 
 
 def _chains(p: Projector | StackedProjector) -> tuple[Projector, ChainLayout | None]:

@@ -89,6 +89,7 @@ def nearest_rows(
     n: int,
     impl: ImplLike = Impl.AUTO,
     prune: bool = False,
+    index: _knn_pallas.PruneIndex | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """The ``n`` nearest landmarks of many rows, per landmark set, exact.
 
@@ -103,6 +104,9 @@ def nearest_rows(
         for the default backend (static).
       prune: with the fused kernel, its pruned exact search first (``knn_pallas.knn``; static):
         for rows near the landmarks.
+      index: with ``prune``, the sets' ``knn_pallas.prune_index`` computed beforehand (once per
+        projector: ``projector.with_search_index``), else computed in the trace; the same
+        answers either way.
 
     Returns:
       ``(idx, d2)``: ``(C, R, n)`` int32 indices, nearest first, and squared distances. The
@@ -119,7 +123,9 @@ def nearest_rows(
     if n > _knn_pallas.SLOTS or resolve_impl(impl) is Impl.XLA:
         return xla(points, points_sq, x)
     valid = jnp.isfinite(points_sq)
-    return _knn_pallas.knn(points, valid, x, n, interpret=pallas_interpret(), prune=prune)
+    return _knn_pallas.knn(
+        points, valid, x, n, interpret=pallas_interpret(), prune=prune, index=index
+    )
 
 
 def smallest(values: jax.Array, n: int) -> tuple[jax.Array, jax.Array]:

@@ -20,7 +20,13 @@ from jaxproj.human.skeleton import resolve_bones
 from jaxproj.projection.config import BuildConfig, FullConfig
 from jaxproj.projection.elm import ELMBank
 from jaxproj.projection.full import project_full_one
-from jaxproj.projection.projector import ChainLayout, Projector, StackedProjector
+from jaxproj.projection.ops import Impl, resolve_impl
+from jaxproj.projection.projector import (
+    ChainLayout,
+    Projector,
+    StackedProjector,
+    with_search_index,
+)
 from jaxproj.projection.relaxed import project_relaxed_one
 from jaxproj.robots import Chain
 
@@ -48,8 +54,16 @@ def _pad_bank(bank: ELMBank, k: int, hidden: int, d_in: int, d_out: int, kk: int
     )
 
 
-def stack_projectors(chains: Sequence[Projector], layout: ChainLayout) -> StackedProjector:
-    """Pad per-chain projectors to the largest and stack them (see ``StackedProjector``)."""
+def stack_projectors(
+    chains: Sequence[Projector], layout: ChainLayout, search_index: bool | None = None
+) -> StackedProjector:
+    """Pad per-chain projectors to the largest and stack them (see ``StackedProjector``).
+
+    ``search_index``: compute each chain's robot-landmark pruning index once, here
+    (``projector.with_search_index``: a model built or loaded carries it); ``None`` (default):
+    where the default backend runs the Pallas kernels (CUDA GPUs; elsewhere the pruned search
+    does not run by default).
+    """
     if len(chains) != layout.n_chains or not chains:
         raise ConfigError(f"{len(chains)} projectors for {layout.n_chains} chains")
     for c, p in enumerate(chains):
@@ -77,7 +91,10 @@ def stack_projectors(chains: Sequence[Projector], layout: ChainLayout) -> Stacke
         for p in chains
     ]
     stack = jax.tree.map(lambda *a: jnp.asarray(np.stack(a)), *padded)
-    return StackedProjector(stack=stack, layout=layout)
+    sp = StackedProjector(stack=stack, layout=layout)
+    if search_index is None:
+        search_index = resolve_impl(Impl.AUTO) is Impl.PALLAS
+    return with_search_index(sp) if search_index else sp
 
 
 def chain_inputs(config: BuildConfig, chain: Chain) -> tuple[int, ...]:

@@ -737,3 +737,44 @@ def test_training_people_are_validated_and_recorded_in_the_model_file(model, tmp
     data["meta"] = np.array(json.dumps(meta))
     np.savez(tmp_path / "old.npz", **data)
     assert engine.load(tmp_path / "old.npz").config.utkinect_people == ()
+
+
+def test_precomputed_search_index_gives_the_same_projections(chain_model, monkeypatch):
+    """A projector carrying its robot landmarks' pruning index (``with_search_index``, what
+    ``stack_projectors`` attaches on CUDA GPUs) projects bit for bit as one without (the pruned
+    search computing it in the trace), with the Pallas path (Pallas' interpreter here, the
+    pruned search on every chain): the public traceable core inside a user's own jit, and
+    ``project`` through the wrappers."""
+    import jax.numpy as jnp
+
+    from jaxproj._internal.jit import jit
+    from jaxproj.projection.ops import knn_pallas
+    from jaxproj.projection.projector import with_search_index
+    from jaxproj.projection.stacked import stack_projectors
+
+    monkeypatch.setattr(knn_pallas, "PRUNE_MIN_LANDMARKS", 0)
+    index = knn_pallas.prune_index
+    sp = chain_model.projector
+    assert sp.robot_index is None  # the CPU: not attached by default
+    lay = sp.layout
+    with_idx = with_search_index(sp)
+    assert with_idx.robot_index is not None and len(with_idx.robot_index) == lay.n_chains
+    for c, idx in enumerate(with_idx.robot_index):
+        assert idx is not None and idx.order.shape == (lay.landmarks[c],)
+    again = stack_projectors([sp.chain(c) for c in range(lay.n_chains)], lay, search_index=True)
+    leaves = jax.tree.leaves
+    for a, b in zip(leaves(again.robot_index), leaves(with_idx.robot_index), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    traced = []  # the pruned search computes the index in its trace only without one
+    monkeypatch.setattr(knn_pallas, "prune_index", lambda *a: traced.append(1) or index(*a))
+    h = jnp.asarray(_descriptors([4], actions=[2, 9])[:16])
+    user = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="pallas"))
+    r0, v0 = user(sp, h)
+    assert len(traced) == lay.n_chains
+    r1, v1 = user(with_idx, h)
+    assert len(traced) == lay.n_chains
+    np.testing.assert_array_equal(np.asarray(r1), np.asarray(r0))
+    np.testing.assert_array_equal(np.asarray(v1), np.asarray(v0))
+    r2, v2 = engine.project(with_idx, np.asarray(h), n_l=5, n_m=5, batch_size=16, impl="pallas")
+    np.testing.assert_array_equal(r2, np.asarray(r0))
+    np.testing.assert_array_equal(v2, np.asarray(v0))
