@@ -1,5 +1,9 @@
 """Fused exact k-nearest-neighbour search on CUDA GPUs: one Pallas (Triton) kernel.
 
+Size: over 500 lines on purpose: one exact search in two kernels, the full scan and the pruned
+pass (``knn_pruned``) whose uncertified rows fall back to it, sharing its constants, its
+selection code and the dispatch (``knn``).
+
 ``search.nearest_rows`` calls it with ``impl="pallas"`` (the default on CUDA GPUs,
 ``jaxproj.projection.ops.Impl``); ``impl="xla"`` runs the XLA search (``search.nearest``). The
 kernel does, per program (``ROWS`` query rows of one landmark set):
