@@ -66,13 +66,43 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+HEAVY_FILES = (
+    "integration/test_notebooks.py",
+    "projection/test_projection.py",
+    "integration/test_demo.py",
+    "integration/test_reliability.py",
+    "eval/test_rollout.py",
+    "integration/test_bench.py",
+    "integration/test_cli.py",
+    "robots/test_generic_ik.py",
+    "projection/test_landmarks.py",
+    "test_testing.py",
+    "integration/test_robot_seam.py",
+    "eval/test_evaluate.py",
+    "integration/test_readme.py",
+    "projection/test_sharding.py",
+    "integration/test_bad_input.py",
+)
+"""The test files of more than ~40 worker-seconds, longest first (measured on the 2-core VM,
+2026-11-26, ``--durations=0`` summed per file: 318 s for the notebooks down to 40 s)."""
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """The files holding ``slow`` tests (the quick demo, the notebooks) run first, the rest in
-    their usual order: with whole files per xdist worker (handed out in this order:
-    ``--no-loadscope-reorder`` in pyproject.toml), a long file that starts last leaves the other
-    worker idle until it ends (measured: the quick demo alone for its last ~4 min)."""
+    """The longest files first (``HEAVY_FILES``, then every file holding a ``slow`` test), the
+    rest in their usual order: with whole files per xdist worker (handed out in this order:
+    ``--no-loadscope-reorder`` in pyproject.toml), longest first keeps the two workers' ends
+    close (a long file that starts last leaves the other worker idle until it ends: measured,
+    the quick demo alone for its last ~4 min), and the many short files fill the gaps."""
+    root = config.rootpath / "tests"
+    rank = {root / name: i for i, name in enumerate(HEAVY_FILES)}
     slow_files = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow_files)  # stable: file order kept
+
+    def key(item: pytest.Item) -> int:
+        if item.path in rank:
+            return rank[item.path]
+        return len(rank) + (item.path not in slow_files)
+
+    items.sort(key=key)  # stable: file order kept within a rank
 
 
 @pytest.fixture(autouse=True, scope="module")

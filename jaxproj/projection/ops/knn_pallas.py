@@ -1,4 +1,4 @@
-"""Fused exact k-nearest-neighbour search on CUDA GPUs: one Pallas (Triton) kernel.
+"""Fused exact k-nearest-neighbour search on CUDA GPUs: Pallas (Triton) kernels.
 
 Size: over 500 lines on purpose: one exact search in two kernels, the full scan and the pruned
 pass (``knn_pruned``) whose uncertified rows fall back to it, sharing its constants, its
