@@ -188,34 +188,35 @@ def test_pruned_search_with_padding_and_small_sets(prune_every_set):
 def test_precomputed_prune_index_gives_the_same_answers(prune_every_set, monkeypatch):
     """The pruning index computed once beforehand (jitted ``prune_index``, as
     ``projector.with_search_index`` does) is the one the search computes in its trace, bit for
-    bit, and the pruned search and ``knn(prune=True)`` give identical answers with it; an index
-    for other settings (``PruneIndex.fits``) is not used."""
+    bit, and the pruned search gives identical answers with it; an index for other settings
+    (``PruneIndex.fits``) is not used: the search computes its own (traced only, not run)."""
     rng = np.random.default_rng(21)
-    pts, valid, _ = _sets(rng, 2, 3000, 4, 1, (3000, 2100))
+    pts, valid, _ = _sets(rng, 2, 1600, 4, 1, (1600, 1100))
     pts = (pts / np.linalg.norm(pts, axis=2, keepdims=True)).astype(np.float32)  # on a sphere
     pts[0, 200:240] = pts[0, 3]  # duplicates: exact ties in the k-d sort keys and distances
-    x = (pts[:, rng.integers(0, 2100, 40)] + 0.01 * rng.normal(size=(2, 40, 4))).astype(np.float32)
+    x = (pts[:, rng.integers(0, 1100, 16)] + 0.01 * rng.normal(size=(2, 16, 4))).astype(np.float32)
     x[:, 7] = 0.0  # the centre: fails the certificate
     args = (jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x))
     blk, lbt = _knn_pallas.PRUNE_BLOCK, _knn_pallas.PRUNE_LB_TILE
-    pre = jax.jit(_knn_pallas.prune_index, static_argnames=("block", "lbt"))(
-        args[0], args[1], block=blk, lbt=lbt
-    )
-    assert pre.fits(2, 3000, 4) and not pre.fits(2, 3000, 3)
+    index = _knn_pallas.prune_index
+    pre = jax.jit(index, static_argnames=("block", "lbt"))(args[0], args[1], block=blk, lbt=lbt)
+    assert pre.fits(2, 1600, 4) and not pre.fits(2, 1600, 3)
     order = jax.jit(lambda p, v: _knn_pallas.kd_order(p, v, blk))(args[0], args[1])
     np.testing.assert_array_equal(np.asarray(pre.order), np.asarray(order))
-
-    def both(index):
-        pruned = jax.jit(lambda p, v, q, i: _knn_pallas.knn_pruned(p, v, q, 10, True, i))
-        full = jax.jit(lambda p, v, q, i: _knn_pallas.knn(p, v, q, 10, True, True, i))
-        return [np.asarray(a) for a in (*pruned(*args, index), *full(*args, index))]
-
-    got, want = both(pre), both(None)
+    pruned = jax.jit(lambda p, v, q, i: _knn_pallas.knn_pruned(p, v, q, 10, True, i))
+    got = [np.asarray(a) for a in pruned(*args, pre)]
+    want = [np.asarray(a) for a in pruned(*args, None)]
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g, w)
-    assert not got[2].all() and got[2].mean() > 0.5  # both the certified and the fallback rows
-    _check_exact(pts, valid, x, got[3], got[4], 10)
+    assert not got[2].all() and got[2].mean() > 0.5  # both the certified and the uncertified rows
+    for c, ok in enumerate(got[2]):  # the certified rows: exact
+        sel = (slice(c, c + 1), ok)
+        _check_exact(pts[c : c + 1], valid[c : c + 1], x[sel], got[0][sel], got[1][sel], 10)
+    traced = []
+    monkeypatch.setattr(_knn_pallas, "prune_index", lambda *a: traced.append(1) or index(*a))
+    jax.eval_shape(lambda: _knn_pallas.knn(*args, 10, True, True, pre))
+    assert traced == []  # the index fits: used
     monkeypatch.setattr(_knn_pallas, "PRUNE_BLOCK", 64)  # other settings: computed anew
-    assert not pre.fits(2, 3000, 4)
-    idx, d2 = _knn_pallas.knn(*args, 10, True, True, pre)
-    _check_exact(pts, valid, x, np.asarray(idx), np.asarray(d2), 10)
+    assert not pre.fits(2, 1600, 4)
+    jax.eval_shape(lambda: _knn_pallas.knn(*args, 10, True, True, pre))
+    assert traced == [1]
