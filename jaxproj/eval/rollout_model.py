@@ -39,9 +39,11 @@ class RolloutConfig:
         ``round(frame_dt / timestep)`` physics steps of 2 ms.
       kp_scale: multiplies the position gain ``kp`` of every servo (1 = the MJCF's gains).
       gravity: gravity on (-9.81 m/s^2 along the torso's -z) or off.
-      solver_iterations: cap on the Newton constraint-solver iterations per step (MJX only; the
-        MJCF keeps MuJoCo's 100, with early exit).
-      ls_iterations: cap on the line-search iterations per solver iteration (MJX only; MJCF 50).
+      solver_iterations: cap on the Newton constraint-solver iterations per step (set on the
+        model every backend runs: MJX, Warp and C MuJoCo; the MJCF keeps MuJoCo's 100, with
+        early exit).
+      ls_iterations: cap on the line-search iterations per solver iteration (every backend, as
+        above; MJCF 50).
       contact_friction: self-contacts with friction (the MJCF's ``condim=3``, pyramidal cone: 4
         constraint rows per contact slot). ``False`` makes every contact frictionless
         (``condim=1``, one row per slot: 80 constraint rows instead of 239), a speed option that
