@@ -87,6 +87,17 @@ def _pow2(v: int) -> int:
     return p
 
 
+def _gathered_d2(xs: list[jax.Array], pf_ref: Any, pidx: jax.Array) -> jax.Array:
+    """``|x - p|^2`` of each row ``x`` (``xs``: ``d`` coordinates, ``(ROWS,)`` each) to the
+    landmarks ``pidx`` (``(ROWS, S, B)`` indices into ``pf_ref``, ``(d, K)``), coordinate by
+    coordinate in one fixed order (both kernels' selections, so that they round alike)."""
+    d2 = jnp.zeros(pidx.shape, jnp.float32)
+    for j, xj in enumerate(xs):
+        diff = xj[:, None, None] - pf_ref[j, pidx]
+        d2 = d2 + diff * diff
+    return d2
+
+
 def _kernel(
     x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, nt: int,
     block: int, tb: int, sync: bool,
@@ -127,10 +138,7 @@ def _kernel(
     member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, block), 2)
     slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, block), 1)
     pidx = blk[:, :, None] * block + member  # (ROWS, SLOTS, block) landmark indices
-    d2 = jnp.zeros((ROWS, SLOTS, block), jnp.float32)
-    for j in range(d):
-        diff = xs[j][:, None, None] - pf_ref[j, pidx]
-        d2 = d2 + diff * diff
+    d2 = _gathered_d2(xs, pf_ref, pidx)
     width = SLOTS * block
     d2 = jnp.where(slot3 < n, d2, jnp.inf).reshape(ROWS, width)
     pidx = pidx.reshape(ROWS, width)
@@ -333,10 +341,7 @@ def _pruned_kernel(
     # nearest inside the n sub-blocks with the smallest minima)
     member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns, sub), 2)
     pidx = gid[:, :, None] * sub + member
-    d2 = jnp.zeros((ROWS, ns, sub), jnp.float32)
-    for j in range(d):
-        diff = xs[j][:, None, None] - pf_ref[j, pidx]
-        d2 = d2 + diff * diff
+    d2 = _gathered_d2(xs, pf_ref, pidx)
     bm = jnp.min(d2, axis=2)  # (ROWS, ns)
     slots = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS), 1)
     big = nb * per
@@ -350,10 +355,7 @@ def _pruned_kernel(
     member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, sub), 2)
     slot3 = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS, sub), 1)
     pidx = chosen[:, :, None] * sub + member
-    d2 = jnp.zeros((ROWS, SLOTS, sub), jnp.float32)
-    for j in range(d):
-        diff = xs[j][:, None, None] - pf_ref[j, pidx]
-        d2 = d2 + diff * diff
+    d2 = _gathered_d2(xs, pf_ref, pidx)
     width = SLOTS * sub
     d2 = jnp.where(slot3 < n, d2, jnp.inf).reshape(ROWS, width)
     pidx = pidx.reshape(ROWS, width)
