@@ -7,7 +7,10 @@ the relaxed projection (L = M = 10): the ``L`` forward-kernel candidates of ever
 ``M`` nearest robot landmarks are searched (``relaxed.relaxed_candidates``). Per chain, the
 full scan (``knn_pallas.knn_full``, today's kernel before 2026-11-27) and the pruned search with
 its fallback (``knn_pallas.knn``, ``PRUNE = True``) over a grid of ``(PRUNE_BLOCK,
-PRUNE_VISIT)``: exactness first (the neighbour sets of the first ``--check`` rows against
+PRUNE_VISIT, PRUNE_ROWS, PRUNE_WARPS, PRUNE_SUB, PRUNE_TILED, FALLBACK_SHARE)`` (``--blocks``,
+``--visits``, ``--rows``, ``--warps``, ``--subs``, ``--tiled``, ``--shares``; each defaults to
+today's value but the first two) on every chain of at least ``--min-landmarks`` (default 0) or
+those ``--chains`` names: exactness first (the neighbour sets of the first ``--check`` rows against
 float64 distances; rows whose ``n``-th and ``n+1``-th float64 distances lie within 1e-5 relative
 are near ties and not counted), the share of rows the certificate passes, then compile apart and
 the median of ``--repeats`` calls blocked until ready, in ns per pose (``L`` rows). Also the
@@ -59,6 +62,13 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--blocks", default="32,64,128")
     ap.add_argument("--visits", default="4,8,16")
+    ap.add_argument("--rows", default=str(knn_pallas.PRUNE_ROWS), help="PRUNE_ROWS values")
+    ap.add_argument("--warps", default=str(knn_pallas.PRUNE_WARPS), help="PRUNE_WARPS values")
+    ap.add_argument("--subs", default=str(knn_pallas.PRUNE_SUB), help="PRUNE_SUB values")
+    ap.add_argument("--tiled", default=str(int(knn_pallas.PRUNE_TILED)), help="PRUNE_TILED 0/1")
+    ap.add_argument("--shares", default=str(knn_pallas.FALLBACK_SHARE), help="FALLBACK_SHARE")
+    ap.add_argument("--min-landmarks", type=int, default=0, help="PRUNE_MIN_LANDMARKS")
+    ap.add_argument("--chains", help="comma-separated chain names (default: all)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     if args.nao:
@@ -76,12 +86,18 @@ def main() -> None:
     p = model.projector
     h = jax.device_put(held_out(model.config.bones, args.poses))
     grid = list(itertools.product(*(tuple(int(v) for v in a.split(","))
-                                    for a in (args.blocks, args.visits))))  # fmt: skip
-    base = knn_pallas.PRUNE_BLOCK, knn_pallas.PRUNE_VISIT
-    knn_pallas.PRUNE_MIN_LANDMARKS = 0  # every set, the head too
+                                    for a in (args.blocks, args.visits, args.rows,
+                                              args.warps, args.subs, args.tiled,
+                                              args.shares))))  # fmt: skip
+    names = ("PRUNE_BLOCK", "PRUNE_VISIT", "PRUNE_ROWS", "PRUNE_WARPS", "PRUNE_SUB", "PRUNE_TILED",
+             "FALLBACK_SHARE")  # fmt: skip
+    base = tuple(getattr(knn_pallas, a) for a in names)
+    knn_pallas.PRUNE_MIN_LANDMARKS = args.min_landmarks  # default 0: every set, the head too
     for c, cols in enumerate(p.layout.inputs):
         pc = p.chain_slice(c)
         name = p.layout.names[c]
+        if args.chains and name not in args.chains.split(","):
+            continue
         _, cand, _ = jax.jit(lambda q, h: relaxed.relaxed_candidates(q, h, L, M))(
             pc, h[:, list(cols)]
         )
@@ -117,20 +133,24 @@ def main() -> None:
         _, med, _ = timed(order, pts, valid, repeats=args.repeats)
         res["kd_order_us"] = round(1e6 * med, 1)
         res["pruned"] = []
-        for blk, vis in grid:
-            knn_pallas.PRUNE_BLOCK, knn_pallas.PRUNE_VISIT = blk, vis
+        for point in grid:
+            blk, vis, rws, wps, sub, tld, share = point
+            for a, v in zip(names, point, strict=True):
+                setattr(knn_pallas, a, bool(v) if a == "PRUNE_TILED" else v)
+            where = {"block": blk, "visit": vis, "rows": rws, "warps": wps, "sub": sub,
+                     "tiled": bool(tld), "fallback_share": share}  # fmt: skip
             alone = jax.jit(lambda a, v, x: knn_pallas.knn_pruned(a, v, x, M))
             both = jax.jit(lambda a, v, x: knn_pallas.knn(a, v, x, M, prune=True))
             try:
                 _, med_a, (_, _, ok) = timed(alone, pts, valid, rows, repeats=args.repeats)
                 first, med, (idx, _) = timed(both, pts, valid, rows, repeats=args.repeats)
             except Exception as err:  # a shape Triton refuses
-                res["pruned"].append({"block": blk, "visit": vis, "error": str(err)[:300]})
+                res["pruned"].append({**where, "error": str(err)[:300]})
                 print(name, res["pruned"][-1], flush=True)
                 continue
             okn = np.asarray(ok[0])
             res["pruned"].append({
-                "block": blk, "visit": vis, "certified": round(float(okn.mean()), 5),
+                **where, "certified": round(float(okn.mean()), 5),
                 "worst_pose_chunk_failures": int((~okn).sum()),
                 "pruned_alone_ns_per_pose": round(1e9 * med_a / args.poses, 1),
                 "ns_per_pose": round(1e9 * med / args.poses, 1),
@@ -142,7 +162,8 @@ def main() -> None:
             if args.json:
                 with open(args.json, "w") as fh:
                     json.dump(out, fh, indent=1)
-        knn_pallas.PRUNE_BLOCK, knn_pallas.PRUNE_VISIT = base
+        for a, v in zip(names, base, strict=True):
+            setattr(knn_pallas, a, v)
         out["chains"][name] = res
     text = json.dumps(out, indent=1)
     if args.json:

@@ -20,7 +20,6 @@ from collections.abc import Sequence
 from typing import Any, Literal
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
@@ -365,10 +364,12 @@ def project(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Project human descriptors to robot poses.
 
-    The queries go to the device in one transfer, are padded to a multiple of ``batch_size``
-    and run as one jitted call per batch, dispatched back to back without waiting (the device
-    never waits for the host between batches); the answers come back in one transfer. Every
-    call compiles once per ``(objective, L, M, full, batch_size, impl)``.
+    The queries run as one jitted call per batch of ``batch_size`` (the last one padded),
+    dispatched back to back without waiting: each batch's transfer to the device is issued
+    just before its call and its answers' transfer back just after it, so the transfers overlap
+    the device's work on the other batches (the host never waits for the device before the
+    last batch's answers). Every call compiles once per ``(objective, L, M, full, batch_size,
+    impl)``.
 
     Args:
       model: a ``Model``, or a bare ``StackedProjector`` / ``Projector``.
@@ -424,32 +425,34 @@ def project(
     n = p.layout.n if isinstance(p, StackedProjector) else p.robot.shape[1]
     if len(h) == 0:
         return np.zeros((0, n), np.float32), np.zeros((0,), np.float32)
-    pad = (-len(h)) % batch_size
-    if pad:
-        h = np.concatenate([h, np.repeat(_padding_query(p), pad, axis=0)], axis=0)
     kw: dict[str, Any] = {"objective": objective, "n_l": n_l, "n_m": n_m, "full": full}
     if impl is not resolve_impl(Impl.AUTO):
         # another backend than ``project_batch``'s own "auto" (the default backend's) picks:
         # pass it; otherwise leave it out, so that every call of one backend shares one
         # executable with callers that compile ``project_chunk`` without ``impl``
         kw["impl"] = impl
-    cut = len(h) - pad
-    n_batches = len(h) // batch_size
-    if isinstance(place, Mesh):
-        # every batch split over the devices: (n_batches, batch, m) with the batch axis sharded,
-        # so each device holds its slice of every batch (one transfer in)
-        h3 = h.reshape(n_batches, batch_size, m)
-        h_dev = jax.device_put(h3, NamedSharding(place, PartitionSpec(None, "batch")))
-        outs = [project_sharded(p, h_dev[i], mesh=place, **kw) for i in range(n_batches)]
-    else:
-        # one transfer in, one dispatch per batch without a host sync, one transfer out
-        h_dev = jax.device_put(h, place)
-        outs = [
-            project_chunk(p, h_dev[s : s + batch_size], **kw) for s in range(0, len(h), batch_size)
-        ]
-    r = jnp.concatenate([o[0] for o in outs]) if len(outs) > 1 else outs[0][0]
-    v = jnp.concatenate([o[1] for o in outs]) if len(outs) > 1 else outs[0][1]
-    return np.asarray(r)[:cut], np.asarray(v)[:cut]
+    cut = len(h)
+    filler = _padding_query(p)
+    outs = []
+    for s in range(0, cut, batch_size):
+        # batch by batch: each batch's transfer in is issued right before its call and its
+        # transfer out right after it, so both overlap the device's work on the batches around
+        # them (one transfer of the whole array each way waited for all of it first); only the
+        # last batch is padded, on its own
+        part = h[s : s + batch_size]
+        if len(part) < batch_size:
+            part = np.concatenate([part, np.repeat(filler, batch_size - len(part), axis=0)])
+        if isinstance(place, Mesh):
+            x = jax.device_put(part, NamedSharding(place, PartitionSpec("batch")))
+            out = project_sharded(p, x, mesh=place, **kw)
+        else:
+            out = project_chunk(p, jax.device_put(part, place), **kw)
+        for a in out:
+            a.copy_to_host_async()
+        outs.append(out)
+    r = np.concatenate([np.asarray(o[0]) for o in outs])
+    v = np.concatenate([np.asarray(o[1]) for o in outs])
+    return r[:cut], v[:cut]
 
 
 def _padding_query(p: AnyProjector) -> np.ndarray:

@@ -139,8 +139,11 @@ def test_impl_resolves_once_from_the_platform():
 
 @pytest.fixture
 def prune_every_set(monkeypatch):
-    """The pruned search on sets of any size (by default only from ``PRUNE_MIN_LANDMARKS``)."""
+    """The pruned search on sets of any size (by default only from ``PRUNE_MIN_LANDMARKS``),
+    visiting 8 blocks (these sets have 12-16: the default 16 would visit all, and every row
+    would be certified)."""
     monkeypatch.setattr(_knn_pallas, "PRUNE_MIN_LANDMARKS", 0)
+    monkeypatch.setattr(_knn_pallas, "PRUNE_VISIT", 8)
 
 
 def test_kd_order_is_a_permutation_with_padding_last():
@@ -174,6 +177,29 @@ def test_pruned_search_certifies_near_rows_and_fails_far_ones(prune_every_set):
     far = 1e-3 * rng.normal(size=x.shape).astype(np.float32)  # every row near the centre
     idx, d2 = _knn_pallas.knn(args[0], args[1], jnp.asarray(far), 10, True, prune=True)
     _check_exact(pts, valid, far, np.asarray(idx), np.asarray(d2), 10)  # all fail: full scan
+
+
+def test_pruned_search_fallback_capacities(prune_every_set, monkeypatch):
+    """The fallback's full scan on a small capacity of rows, a larger one, or every row, by how
+    many fail the certificate (here 16 / 32 of 48 rows: shares 3 and 2): exact in each case."""
+    monkeypatch.setattr(_knn_pallas, "FALLBACK_SMALL_SHARE", 3)
+    monkeypatch.setattr(_knn_pallas, "FALLBACK_SHARE", 2)
+    rng = np.random.default_rng(4)
+    pts = rng.normal(size=(1, 1500, 4))
+    pts = (pts / np.linalg.norm(pts, axis=2, keepdims=True)).astype(np.float32)
+    near = (pts[:, rng.integers(0, 1500, 48)] + 0.01 * rng.normal(size=(1, 48, 4))).astype(
+        np.float32
+    )
+    centre = 1e-3 * rng.normal(size=near.shape).astype(np.float32)  # fail the certificate
+    valid = jnp.ones((1, 1500), bool)
+    search = jax.jit(lambda x: _knn_pallas.knn(jnp.asarray(pts), valid, x, 10, True, True))
+    pruned = jax.jit(lambda x: _knn_pallas.knn_pruned(jnp.asarray(pts), valid, x, 10, True)[2])
+    for failing in (3, 24, 48):  # the small capacity, the larger one, every row
+        x = near.copy()
+        x[:, :failing] = centre[:, :failing]
+        assert int((~np.asarray(pruned(jnp.asarray(x)))).sum()) >= failing
+        idx, d2 = search(jnp.asarray(x))
+        _check_exact(pts, np.ones((1, 1500), bool), x, np.asarray(idx), np.asarray(d2), 10)
 
 
 def test_pruned_search_with_padding_and_small_sets(prune_every_set):

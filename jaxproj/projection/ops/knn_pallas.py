@@ -32,6 +32,7 @@ projection's answers identical on all 65,536 poses.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -233,8 +234,14 @@ PRUNE = True
 its certificate fails (``False``: the full scan for every row; read when a search is traced,
 for A/B runs)."""
 
-PRUNE_VISIT = 8
-"""Blocks of the spatial order whose landmarks the pruned search measures per row."""
+PRUNE_VISIT = 16
+"""Blocks of the spatial order whose landmarks the pruned search measures per row. 8 until
+2026-11-26, when the pruned pass measured one block at a time (``PRUNE_TILED``): then 16
+certified 99.98-100 % of the NAO's arm rows against 92-93 % (one H100, ``python -m
+benchmarks.experiments.knn_prune_ab --chains left_arm,right_arm --blocks 64,128 --visits 8,16
+--shares 8,16``, ``knn_prune_arms_h100.json``; ns per pose with the fallback, left / right arm:
+77.4 / 97.2 with 8 blocks, 61.8 / 95.4 with 16, the right arm's rest the fallback's capacity:
+``FALLBACK_SMALL_SHARE``); blocks of 64 certified fewer (83 % with 8, 99.4-99.8 % with 16)."""
 
 PRUNE_BLOCK = 128
 """Landmarks per block of the spatial order (a power of two, at least ``BLOCK``). With
@@ -250,9 +257,37 @@ no faster (40-85 against 41 ns per pose)."""
 PRUNE_LB_TILE = 32
 """Blocks per tile of the pruned search's lower-bound pass."""
 
-FALLBACK_SHARE = 8
-"""The full scan for the rows that fail the certificate runs on a fixed capacity of
-``rows / FALLBACK_SHARE`` rows per set (static shapes); more failing rows than that: on all."""
+PRUNE_ROWS = 8
+"""Query rows per program of the pruned pass (the full scan's are ``ROWS``)."""
+
+PRUNE_WARPS = 8
+"""Warps per program of the pruned pass."""
+
+PRUNE_SUB = BLOCK
+"""Landmarks per sub-block inside a visited block (the pruned pass's two-stage selection)."""
+
+PRUNE_TILED = True
+"""The pruned pass measures its visited blocks one at a time (``(rows, PRUNE_BLOCK)``
+distances live at once) instead of all together (``(rows, PRUNE_VISIT * PRUNE_BLOCK)``; read
+when a search is traced, for A/B runs). With ``PRUNE_ROWS`` and ``PRUNE_WARPS``, swept on one
+H100 on the NAO default model's real robot-search rows (2026-11-26, blocks of 128, 8 visited,
+``python -m benchmarks.experiments.knn_prune_ab --chains left_arm,right_arm --blocks 128
+--visits 8 --rows 8,16,32 --warps 4,8 --tiled 0,1``, ``knn_prune_grid_h100.json``), ns per
+pose with the fallback: left arm 133.9 -> 75.4, right arm 156.2 -> 96.3 (16 rows, 4 warps, all
+together -> 8 rows, 8 warps, one block at a time; the pruned pass alone 108 -> 51 and 120 ->
+60), the same certified rows and answers. All together, each thread held the distances of
+``16 * 1,024`` landmarks over 128 threads."""
+
+FALLBACK_SHARE = 16
+"""The full scan for the rows that fail the certificate runs on a fixed capacity of rows per
+set (static shapes): ``rows / FALLBACK_SMALL_SHARE`` where that many suffice, else ``rows /
+FALLBACK_SHARE``; more failing rows than that: on all."""
+
+FALLBACK_SMALL_SHARE = 128
+"""The smaller capacity of the fallback (``FALLBACK_SHARE``): with 16 blocks visited, 0-0.02 %
+of the NAO default model's robot-search rows failed the certificate (one H100, 2026-11-26,
+``knn_prune_arms_h100.json``), where a capacity of a sixteenth of the rows cost the right arm
+25 ns per pose."""
 
 _KEY_MAX = np.int32(2**31 - 1)
 
@@ -295,9 +330,11 @@ def kd_order(points: jax.Array, valid: jax.Array, block: int) -> jax.Array:
 
 
 def _pruned_kernel(
-    x_ref, lo_ref, hi_ref, pf_ref, idx_ref, d_ref, ok_ref, key_ref, *, n: int, d: int, nb: int,
-    nt: int, block: int, sub: int, lbt: int, visit: int, sync: bool,
+    x_ref, lo_ref, hi_ref, pf_ref, idx_ref, d_ref, ok_ref, key_ref, bm_ref, *, n: int, d: int,
+    nb: int, nt: int, block: int, sub: int, lbt: int, visit: int, sync: bool, rows: int,
+    tiled: bool,
 ):  # fmt: skip
+    ROWS = rows  # noqa: N806 - this kernel's rows per program (``PRUNE_ROWS``)
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
     low = nb - 1  # the key's low bits: the block's column
 
@@ -331,18 +368,31 @@ def _pruned_kernel(
     ns = visit * per
     scol = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns), 1)
     gid = jnp.zeros((ROWS, ns), jnp.int32)  # the sub-blocks of the visited blocks
+    visited = []
     for r in range(visit):
         m = jnp.min(key, axis=1)
+        visited.append(m & low)
         gid = jnp.where(scol // per == r, (m & low)[:, None] * per + scol % per, gid)
         key = jnp.where(key == m[:, None], _KEY_MAX, key)
     nxt = jnp.min(key, axis=1)  # the least lower bound of the blocks not visited
     bound = jax.lax.bitcast_convert_type(nxt & ~low, jnp.float32)
     # inside the visited blocks: the full search's two stages (sub-block minima, then the n
     # nearest inside the n sub-blocks with the smallest minima)
-    member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns, sub), 2)
-    pidx = gid[:, :, None] * sub + member
-    d2 = _gathered_d2(xs, pf_ref, pidx)
-    bm = jnp.min(d2, axis=2)  # (ROWS, ns)
+    if tiled:  # one visited block at a time: (ROWS, block) distances live at once, not all
+        sb = jax.lax.broadcasted_iota(jnp.int32, (ROWS, per, sub), 1)
+        member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, per, sub), 2)
+        for r, b in enumerate(visited):
+            d2 = _gathered_d2(xs, pf_ref, b[:, None, None] * block + sb * sub + member)
+            bm_ref[:, pl.ds(r * per, per)] = jnp.min(d2, axis=2)
+        if sync:
+            from jax.experimental.pallas import triton as plgpu
+
+            plgpu.debug_barrier()
+        bm = bm_ref[...]  # (ROWS, ns)
+    else:
+        member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns, sub), 2)
+        d2 = _gathered_d2(xs, pf_ref, gid[:, :, None] * sub + member)
+        bm = jnp.min(d2, axis=2)  # (ROWS, ns)
     slots = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS), 1)
     big = nb * per
     chosen = jnp.zeros((ROWS, SLOTS), jnp.int32)
@@ -458,40 +508,50 @@ def knn_pruned(
         raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
     c, k, d = points.shape
     r = x.shape[1]
-    block, lbt, sub = PRUNE_BLOCK, PRUNE_LB_TILE, min(BLOCK, PRUNE_BLOCK)
+    block, lbt, sub = PRUNE_BLOCK, PRUNE_LB_TILE, min(PRUNE_SUB, PRUNE_BLOCK)
+    rows = PRUNE_ROWS
     nblk = -(-k // block)
     nb = max(_pow2(nblk), lbt)
     visit = max(min(PRUNE_VISIT, _pow2(nblk)), _pow2(-(-n // (block // sub))))
     kp = nb * block
-    rp = -(-r // ROWS) * ROWS
+    rp = -(-r // rows) * rows
     if index is None or not index.fits(c, k, d):
         index = prune_index(points, valid, block, lbt)
     order = index.order
     xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
     nt = -(-nblk // lbt)
+    ns = visit * (block // sub)
     kern = functools.partial(_pruned_kernel, n=n, d=d, nb=nb, nt=nt, block=block, sub=sub,
-                             lbt=lbt, visit=visit, sync=not interpret)  # fmt: skip
+                             lbt=lbt, visit=visit, sync=not interpret, rows=rows,
+                             tiled=PRUNE_TILED)  # fmt: skip
     params: dict[str, Any] = {}
     if not interpret:
         from jax.experimental.pallas import triton as plgpu
 
-        params = dict(compiler_params=plgpu.CompilerParams(num_warps=WARPS))
-    row = pl.BlockSpec((None, ROWS, SLOTS), lambda ci, b: (ci, b, 0))
-    idx, d2, ok, _ = pl.pallas_call(
+        params = dict(compiler_params=plgpu.CompilerParams(num_warps=PRUNE_WARPS))
+    row = pl.BlockSpec((None, rows, SLOTS), lambda ci, b: (ci, b, 0))
+    idx, d2, ok, _, _ = pl.pallas_call(
         kern,
-        grid=(c, rp // ROWS),
+        grid=(c, rp // rows),
         in_specs=[
-            pl.BlockSpec((None, ROWS, d), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, rows, d), lambda ci, b: (ci, b, 0)),
             pl.BlockSpec((None, d, nb), lambda ci, b: (ci, 0, 0)),
             pl.BlockSpec((None, d, nb), lambda ci, b: (ci, 0, 0)),
             pl.BlockSpec((None, d, kp), lambda ci, b: (ci, 0, 0)),
         ],
-        out_specs=[row, row, row, pl.BlockSpec((None, ROWS, nb), lambda ci, b: (ci, b, 0))],
+        out_specs=[
+            row,
+            row,
+            row,
+            pl.BlockSpec((None, rows, nb), lambda ci, b: (ci, b, 0)),
+            pl.BlockSpec((None, rows, ns if PRUNE_TILED else 1), lambda ci, b: (ci, b, 0)),
+        ],
         out_shape=[
             jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.int32),
             jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.float32),
             jax.ShapeDtypeStruct((c, rp, SLOTS), jnp.int32),
             jax.ShapeDtypeStruct((c, rp, nb), jnp.int32),
+            jax.ShapeDtypeStruct((c, rp, ns if PRUNE_TILED else 1), jnp.float32),
         ],
         interpret=interpret,
         **params,
@@ -514,8 +574,9 @@ def knn(
 
     With ``prune`` (and ``PRUNE``, and at least ``PRUNE_MIN_LANDMARKS`` landmarks a set) the
     pruned search (``knn_pruned``) answers every row its certificate holds for, and the full
-    scan (``knn_full``) the others: up to ``rows / FALLBACK_SHARE`` of them per set on those rows
-    alone, more on every row. Otherwise the full scan. The same arguments and answers as
+    scan (``knn_full``) the others: on a capacity of ``rows / FALLBACK_SMALL_SHARE`` or ``rows /
+    FALLBACK_SHARE`` rows per set (the smaller where it holds them all), on every row where more
+    fail. Otherwise the full scan. The same arguments and answers as
     ``knn_full`` (ties at exactly equal distances may resolve to either landmark). Pruning pays
     where the rows lie near the landmarks (the relaxed projection's robot search: candidates
     predicted from the robot landmarks' kernels), not for rows far from them (all fail).
@@ -525,20 +586,26 @@ def knn(
         return knn_full(points, valid, x, n, interpret)
     idx, d2, ok = knn_pruned(points, valid, x, n, interpret, index)
     c, r = ok.shape
-    cap = min(-(-max(r // FALLBACK_SHARE, 1) // ROWS) * ROWS, r)
     bad = ~ok
     worst = jnp.max(jnp.sum(bad, axis=1))
 
-    def some() -> tuple[jax.Array, jax.Array]:
-        (rows,) = jax.vmap(lambda b: jnp.nonzero(b, size=cap, fill_value=r))(bad)
-        take = jnp.minimum(rows, r - 1)
-        xs = jnp.take_along_axis(x, take[..., None], axis=1)
-        i2, v2 = knn_full(points, valid, xs, n, interpret)
-        put = jax.vmap(lambda a, rw, b: a.at[rw].set(b, mode="drop"))
-        return put(idx, rows, i2), put(d2, rows, v2)
+    def some(cap: int) -> Callable[[], tuple[jax.Array, jax.Array]]:
+        def run() -> tuple[jax.Array, jax.Array]:
+            (rows,) = jax.vmap(lambda b: jnp.nonzero(b, size=cap, fill_value=r))(bad)
+            take = jnp.minimum(rows, r - 1)
+            xs = jnp.take_along_axis(x, take[..., None], axis=1)
+            i2, v2 = knn_full(points, valid, xs, n, interpret)
+            put = jax.vmap(lambda a, rw, b: a.at[rw].set(b, mode="drop"))
+            return put(idx, rows, i2), put(d2, rows, v2)
+
+        return run
 
     def every() -> tuple[jax.Array, jax.Array]:
         return knn_full(points, valid, x, n, interpret)
 
-    return jax.lax.cond(worst == 0, lambda: (idx, d2),
-                        lambda: jax.lax.cond(worst <= cap, some, every))  # fmt: skip
+    caps = sorted({min(-(-max(r // share, 1) // ROWS) * ROWS, r)
+                   for share in (FALLBACK_SHARE, FALLBACK_SMALL_SHARE)})  # fmt: skip
+    branch = every
+    for cap in reversed(caps):  # the smallest capacity that holds every failing row
+        branch = functools.partial(jax.lax.cond, worst <= cap, some(cap), branch)
+    return jax.lax.cond(worst == 0, lambda: (idx, d2), branch)
