@@ -9,12 +9,11 @@ kernels on CUDA GPUs, XLA elsewhere):
 * ``whole``: ``api.project_chunk`` (the jitted core of ``jaxproj.project``);
 * per chain, at its own size (``StackedProjector.chain_slice``), each stage alone on the
   previous stage's real outputs: the human-landmark search (``L`` per query), the forward
-  kernels (``L`` candidates), the robot-landmark search (``M`` per candidate; with the
-  projector's pruning index where it has one), the back-projection (``L * M`` backward
-  kernels) and the pick;
-* with ``--no-prune``, the robot search's full scan as well (``knn_pallas.PRUNE = False``);
-* with ``--human-prune``, the human search by the pruned search too (its index computed once
-  beforehand, as the robot landmarks' is), and the share of its rows the certificate holds for.
+  kernels (``L`` candidates), the robot-landmark search (``M`` per candidate; both searches
+  with the projector's pruning indices where it has them), the back-projection (``L * M``
+  backward kernels) and the pick;
+* with ``--no-prune``, the human and robot searches' full scans as well (``knn_pallas.PRUNE =
+  False``); on CUDA GPUs, the share of each search's rows its pruned pass certifies.
 
 On a CPU the stages run in the engine's CPU batching: searches ``search_batch(...)`` queries
 per call, the back-projection ``sub_batch(...)`` at a time, both looped with ``lax.map``. The
@@ -63,7 +62,6 @@ def chain_stages(
     sub: int,
     repeats: int,
     no_prune: bool,
-    human_prune: bool = False,
 ) -> dict:
     """The stages of one chain's relaxed projection (``relaxed.relaxed_candidates`` and
     ``project_relaxed_rows`` step by step), each timed alone, ns per pose."""
@@ -84,7 +82,8 @@ def chain_stages(
         return jax.jit(run)
 
     def human(x: jax.Array) -> jax.Array:
-        return relaxed.search_chains(stack.human, stack.human_sq, x[None], L, None, impl)[0]
+        return relaxed.search_chains(stack.human, stack.human_sq, x[None], L, None, impl, True,
+                                     stack.human_index)[0]  # fmt: skip
 
     def forward(x: jax.Array, hidx: jax.Array) -> jax.Array:
         return jax.vmap(lambda q, i: predict(pc.forward, q, i))(x, hidx)  # (S, L, n)
@@ -130,26 +129,17 @@ def chain_stages(
     if no_prune:
         knn_pallas.PRUNE = False  # read while tracing
         out["robot_search_full_scan"] = ns_per_pose(looped(robot), (cand,), batch, repeats)
+        out["human_search_full_scan"] = ns_per_pose(looped(human), (h,), batch, repeats)
         knn_pallas.PRUNE = True
-    if (
-        human_prune
-        and impl is Impl.PALLAS
-        and stack.human.shape[1] >= knn_pallas.PRUNE_MIN_LANDMARKS
-    ):
+    if impl is Impl.PALLAS and stack.human_index is not None:
         valid = jnp.isfinite(stack.human_sq)
-        index = jax.jit(knn_pallas.prune_index, static_argnames=("block", "lbt"))(
-            stack.human, valid, knn_pallas.PRUNE_BLOCK, knn_pallas.PRUNE_LB_TILE
-        )
-
-        def human_pruned(x: jax.Array) -> jax.Array:
-            return relaxed.search_chains(stack.human, stack.human_sq, x[None], L, None, impl,
-                                         True, index)[0]  # fmt: skip
-
-        fn = looped(human_pruned)
-        out["human_search_pruned"] = ns_per_pose(fn, (h,), batch, repeats)
-        out["human_pruned_same"] = bool(np.array_equal(np.asarray(fn(h)), np.asarray(hidx)))
-        ok = knn_pallas.knn_pruned(stack.human, valid, h[None], L, index=index)[2]
+        ok = knn_pallas.knn_pruned(stack.human, valid, h[None], L, index=stack.human_index)[2]
         out["human_certified_share"] = round(float(jnp.mean(ok)), 4)
+    if impl is Impl.PALLAS and stack.robot_index is not None:
+        valid = jnp.isfinite(stack.robot_sq)
+        rows = cand.reshape(1, -1, cand.shape[-1])
+        ok = knn_pallas.knn_pruned(stack.robot, valid, rows, M, index=stack.robot_index)[2]
+        out["robot_certified_share"] = round(float(jnp.mean(ok)), 5)
     return out
 
 
@@ -159,7 +149,6 @@ def main() -> None:
     ap.add_argument("--batch", type=int)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--no-prune", action="store_true")
-    ap.add_argument("--human-prune", action="store_true")
     ap.add_argument("--json")
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -195,9 +184,7 @@ def main() -> None:
     stages: dict[str, float] = {}
     for c, (name, cols) in enumerate(zip(p.layout.names, p.layout.inputs, strict=True)):
         pc = p.chain_slice(c)
-        out[name] = chain_stages(
-            pc, h[:, list(cols)], outer, sub, args.repeats, args.no_prune, args.human_prune
-        )
+        out[name] = chain_stages(pc, h[:, list(cols)], outer, sub, args.repeats, args.no_prune)
         for k, v in out[name].items():
             if k in ("human_search", "forward", "robot_search", "back_projection", "pick"):
                 stages[k] = round(stages.get(k, 0.0) + v, 1)

@@ -41,6 +41,7 @@ class Projector:
         no leading set axis), computed once by ``with_search_index``; ``None``: the pruned
         search computes it in every traced call (the same answers). It belongs to ``robot``:
         a projector made with other robot landmarks must not keep it.
+      human_index: the same for the human landmarks (``human``).
     """
 
     human: jax.Array | np.ndarray
@@ -53,6 +54,7 @@ class Projector:
     upper: jax.Array | np.ndarray
     n_landmarks: int = field(metadata=dict(static=True))
     robot_index: knn_pallas.PruneIndex | None = None
+    human_index: knn_pallas.PruneIndex | None = None
 
 
 def make_projector(
@@ -201,11 +203,13 @@ class StackedProjector:
       robot_index: per chain, the pruning index of its own robot landmarks (as
         ``chain_slice(c).robot``: ``Projector.robot_index``; ``None`` for a chain too small to
         be pruned), or ``None``: computed in every traced call. ``chain_slice`` hands it on.
+      human_index: the same for the human landmarks (``Projector.human_index``).
     """
 
     stack: Projector
     layout: ChainLayout = field(metadata=dict(static=True))
     robot_index: tuple[knn_pallas.PruneIndex | None, ...] | None = None
+    human_index: tuple[knn_pallas.PruneIndex | None, ...] | None = None
 
     @property
     def n_landmarks(self) -> int:
@@ -237,6 +241,7 @@ class StackedProjector:
             upper=s.upper[:n],
             n_landmarks=k,
             robot_index=None if self.robot_index is None else self.robot_index[c],
+            human_index=None if self.human_index is None else self.human_index[c],
         )
 
 
@@ -261,11 +266,21 @@ def robot_index_of(p: Projector) -> knn_pallas.PruneIndex | None:
     fewer than ``knn_pallas.PRUNE_MIN_LANDMARKS``), computed by one jitted call of the
     function the pruned search traces otherwise (``knn_pallas.prune_index``), on the same
     arrays: the same index bit for bit."""
-    k = int(p.robot.shape[0])
-    if k < knn_pallas.PRUNE_MIN_LANDMARKS:
+    return _index_of(p.robot, p.robot_sq)
+
+
+def human_index_of(p: Projector) -> knn_pallas.PruneIndex | None:
+    """The same as ``robot_index_of`` for ``p``'s human landmarks."""
+    return _index_of(p.human, p.human_sq)
+
+
+def _index_of(
+    points: jax.Array | np.ndarray, sq: jax.Array | np.ndarray
+) -> knn_pallas.PruneIndex | None:
+    if int(points.shape[0]) < knn_pallas.PRUNE_MIN_LANDMARKS:
         return None
-    valid = jnp.isfinite(jnp.asarray(p.robot_sq))[None]
-    idx = _prune_index(jnp.asarray(p.robot)[None], valid, knn_pallas.PRUNE_BLOCK,
+    valid = jnp.isfinite(jnp.asarray(sq))[None]
+    idx = _prune_index(jnp.asarray(points)[None], valid, knn_pallas.PRUNE_BLOCK,
                        knn_pallas.PRUNE_LB_TILE)  # fmt: skip
     return jax.tree.map(lambda a: a[0], idx)
 
@@ -277,12 +292,15 @@ _P = TypeVar("_P", Projector, StackedProjector)
 
 
 def with_search_index(p: _P) -> _P:
-    """``p`` with its robot landmarks' pruning index computed once (``robot_index_of``; per
-    chain at the chain's own size for a stacked projector, as ``chain_slice`` hands it to the
-    relaxed projection's split path), instead of in every traced call of the pruned search
-    (``knn_pallas.knn``; 1.09 / 1.40 ms a call on the NAO's arms, one H100). The same answers.
-    ``stack_projectors`` calls it where the default backend runs the Pallas kernels."""
+    """``p`` with its robot and human landmarks' pruning indices computed once
+    (``robot_index_of``, ``human_index_of``; per chain at the chain's own size for a stacked
+    projector, as ``chain_slice`` hands them to the relaxed projection's split path), instead
+    of in every traced call of the pruned search (``knn_pallas.knn``; 1.09 / 1.40 ms a call on
+    the NAO's arms' robot landmarks, one H100). The same answers. ``stack_projectors`` calls it
+    where the default backend runs the Pallas kernels."""
     if isinstance(p, StackedProjector):
-        found = tuple(robot_index_of(p.chain_slice(c)) for c in range(p.layout.n_chains))
-        return dataclasses.replace(p, robot_index=found)
-    return dataclasses.replace(p, robot_index=robot_index_of(p))
+        chains = [p.chain_slice(c) for c in range(p.layout.n_chains)]
+        robot = tuple(robot_index_of(q) for q in chains)
+        human = tuple(human_index_of(q) for q in chains)
+        return dataclasses.replace(p, robot_index=robot, human_index=human)
+    return dataclasses.replace(p, robot_index=robot_index_of(p), human_index=human_index_of(p))

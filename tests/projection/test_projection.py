@@ -740,10 +740,11 @@ def test_training_people_are_validated_and_recorded_in_the_model_file(model, tmp
 
 
 def test_precomputed_search_index_gives_the_same_projections(chain_model, monkeypatch):
-    """A projector carrying its robot landmarks' pruning index (``with_search_index``, what
-    ``stack_projectors`` attaches on CUDA GPUs) projects bit for bit as one without (the pruned
-    search computing it in the trace), with the Pallas path (Pallas' interpreter here, the
-    pruned search forced on): the public traceable core inside a user's own jit, and
+    """A projector carrying its robot and human landmarks' pruning indices
+    (``with_search_index``, what ``stack_projectors`` attaches on CUDA GPUs) projects bit for bit
+    as one without (the pruned searches computing them in the trace), with the Pallas path
+    (Pallas' interpreter here, the pruned search forced on): the public traceable core inside a
+    user's own jit, and
     ``project`` through the wrappers. The stacked projector's indices are checked as data; the
     projections run on one chain (the right arm) alone: a third of the program to compile."""
     import jax.numpy as jnp
@@ -756,30 +757,34 @@ def test_precomputed_search_index_gives_the_same_projections(chain_model, monkey
     monkeypatch.setattr(knn_pallas, "PRUNE_MIN_LANDMARKS", 0)
     index = knn_pallas.prune_index
     sp = chain_model.projector
-    assert sp.robot_index is None  # the CPU: not attached by default
+    assert sp.robot_index is None and sp.human_index is None  # the CPU: not attached by default
     lay = sp.layout
     with_idx = with_search_index(sp)
-    assert with_idx.robot_index is not None and len(with_idx.robot_index) == lay.n_chains
-    for c, idx in enumerate(with_idx.robot_index):
-        assert idx is not None and idx.order.shape == (lay.landmarks[c],)
+    for found, sets in ((with_idx.robot_index, "robot"), (with_idx.human_index, "human")):
+        assert found is not None and len(found) == lay.n_chains, sets
+        for c, idx in enumerate(found):
+            assert idx is not None and idx.order.shape == (lay.landmarks[c],), sets
     again = stack_projectors([sp.chain(c) for c in range(lay.n_chains)], lay, search_index=True)
     leaves = jax.tree.leaves
-    for a, b in zip(leaves(again.robot_index), leaves(with_idx.robot_index), strict=True):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    for name in ("robot_index", "human_index"):
+        got, want = leaves(getattr(again, name)), leaves(getattr(with_idx, name))
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     arm = lay.names.index("right_arm")
     p0, p1 = sp.chain_slice(arm), with_idx.chain_slice(arm)
     assert p0.robot_index is None and p1.robot_index is not None
-    traced = []  # the pruned search computes the index in its trace only without one
+    assert p0.human_index is None and p1.human_index is not None
+    traced = []  # the pruned searches compute the indices in their trace only without them
     monkeypatch.setattr(knn_pallas, "prune_index", lambda *a: traced.append(1) or index(*a))
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:16][:, np.asarray(lay.inputs[arm])])
     user = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="pallas"))
     r0, v0 = user(p0, h)
-    assert len(traced) == 1
+    assert len(traced) == 2  # human and robot landmarks
     r1, v1 = user(p1, h)
-    assert len(traced) == 1
+    assert len(traced) == 2
     np.testing.assert_array_equal(np.asarray(r1), np.asarray(r0))
     np.testing.assert_array_equal(np.asarray(v1), np.asarray(v0))
     r2, v2 = engine.project(p1, np.asarray(h), n_l=5, n_m=5, batch_size=16, impl="pallas")
-    assert len(traced) == 1
+    assert len(traced) == 2
     np.testing.assert_array_equal(r2, np.asarray(r0))
     np.testing.assert_array_equal(v2, np.asarray(v0))
