@@ -741,12 +741,14 @@ def test_training_people_are_validated_and_recorded_in_the_model_file(model, tmp
 
 def test_precomputed_search_index_gives_the_same_projections(chain_model, monkeypatch):
     """A projector carrying its robot and human landmarks' pruning indices
-    (``with_search_index``, what ``stack_projectors`` attaches on CUDA GPUs) projects bit for bit
-    as one without (the pruned searches computing them in the trace), with the Pallas path
-    (Pallas' interpreter here, the pruned search forced on): the public traceable core inside a
-    user's own jit, and
-    ``project`` through the wrappers. The stacked projector's indices are checked as data; the
-    projections run on one chain (the right arm) alone: a third of the program to compile."""
+    (``with_search_index``, what ``stack_projectors`` attaches on CUDA GPUs) projects with the
+    Pallas path (Pallas' interpreter here, the pruned search forced on) as one without would:
+    its indices are bit for bit those the pruned searches compute in their trace without them
+    (``prune_index``, the function the trace calls; ``test_search`` checks the searches' answers
+    with and without an index), a projector without them traces both, one with them neither,
+    and the public traceable core inside a user's own jit answers as ``project`` through the
+    wrappers, bit for bit. The projections run on one chain (the right arm) alone: a third of
+    the program to compile; the one without indices is traced, not compiled."""
     import jax.numpy as jnp
 
     from jaxproj._internal.jit import jit
@@ -776,15 +778,21 @@ def test_precomputed_search_index_gives_the_same_projections(chain_model, monkey
     assert p0.human_index is None and p1.human_index is not None
     traced = []  # the pruned searches compute the indices in their trace only without them
     monkeypatch.setattr(knn_pallas, "prune_index", lambda *a: traced.append(1) or index(*a))
+    for name, pts, sq in (("robot_index", p0.robot, p0.robot_sq), ("human_index", p0.human,
+                                                                      p0.human_sq)):  # fmt: skip
+        in_trace = jax.jit(index, static_argnames=("block", "lbt"))(
+            jnp.asarray(pts)[None], jnp.isfinite(jnp.asarray(sq))[None],
+            block=knn_pallas.PRUNE_BLOCK, lbt=knn_pallas.PRUNE_LB_TILE,
+        )  # fmt: skip
+        for a, b in zip(leaves(in_trace), leaves(getattr(p1, name)), strict=True):
+            np.testing.assert_array_equal(np.asarray(a)[0], np.asarray(b))
     h = jnp.asarray(_descriptors([4], actions=[2, 9])[:16][:, np.asarray(lay.inputs[arm])])
     user = jit(lambda p, x: engine.project_batch(p, x, "relaxed", 5, 5, impl="pallas"))
-    r0, v0 = user(p0, h)
+    jax.eval_shape(user, p0, h)
     assert len(traced) == 2  # human and robot landmarks
     r1, v1 = user(p1, h)
     assert len(traced) == 2
-    np.testing.assert_array_equal(np.asarray(r1), np.asarray(r0))
-    np.testing.assert_array_equal(np.asarray(v1), np.asarray(v0))
     r2, v2 = engine.project(p1, np.asarray(h), n_l=5, n_m=5, batch_size=16, impl="pallas")
     assert len(traced) == 2
-    np.testing.assert_array_equal(r2, np.asarray(r0))
-    np.testing.assert_array_equal(v2, np.asarray(v0))
+    np.testing.assert_array_equal(r2, np.asarray(r1))
+    np.testing.assert_array_equal(v2, np.asarray(v1))
