@@ -252,7 +252,11 @@ cost more in the pruned pass than they save in the fallback."""
 
 PRUNE_MIN_LANDMARKS = 4096
 """Smaller sets take the full scan: on the NAO's head (1,010 landmarks) the pruned search was
-no faster (40-85 against 41 ns per pose)."""
+no faster (40-85 against 41 ns per pose on one H100, before
+``PRUNE_TILED``); block by block with blocks of 64, 33 against 41 (2026-11-26,
+``knn_prune_head_h100.json``), not used: one block size serves every set. Lowered to 2,048 the
+G1's five chains all prune (1,022 -> 821 ns per pose, one H100), but that run judged 1 of 300
+checked poses outside the near-tie rule, unexplained: not changed."""
 
 PRUNE_LB_TILE = 32
 """Blocks per tile of the pruned search's lower-bound pass."""
