@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxproj
+from benchmarks import heldout
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.testing import StackedReference
@@ -79,12 +80,7 @@ def main() -> None:
     ap.add_argument("--json")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        cfg = engine.BuildConfig()
-        seqs = datasets.training_sequences(cfg.utkinect_people)
-        model = engine.build(datasets.valid_descriptors(seqs, bones=cfg.bones), cfg)
+    model = heldout.default_model(args.model)
     p = model.projector
     out: dict = {
         "device": jax.devices()[0].device_kind,

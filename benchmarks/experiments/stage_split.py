@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from benchmarks import heldout
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
@@ -152,12 +153,7 @@ def main() -> None:
     ap.add_argument("--json")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        cfg = engine.BuildConfig()
-        seqs = datasets.training_sequences(cfg.utkinect_people)
-        model = engine.build(datasets.valid_descriptors(seqs, bones=cfg.bones), cfg)
+    model = heldout.default_model(args.model)
     p = model.projector
     batch = args.batch or engine.default_batch_size()
     seqs = datasets.msr_action3d(subjects=datasets.TEST_SUBJECTS)
