@@ -99,33 +99,60 @@ def _gathered_d2(xs: list[jax.Array], pf_ref: Any, pidx: jax.Array) -> jax.Array
     return d2
 
 
+def _tiles(
+    ref: Any, width: int, nt: int, total: int, compute: Callable[[Any], jax.Array], fill: Any
+) -> None:
+    """``ref[:, tile] = compute(start)`` for the first ``nt`` of ``total`` tiles of ``width``
+    columns, ``fill`` for the rest (tiles of padding only: nothing computed)."""
+
+    def tile(t: jax.Array, carry: int) -> int:
+        s = pl.multiple_of(t * width, width)
+        ref[:, pl.ds(s, width)] = compute(s)
+        return carry
+
+    def empty(t: jax.Array, carry: int) -> int:
+        s = pl.multiple_of(t * width, width)
+        ref[:, pl.ds(s, width)] = jnp.full((ref.shape[0], width), fill, ref.dtype)
+        return carry
+
+    jax.lax.fori_loop(0, nt, tile, 0)
+    if nt < total:
+        jax.lax.fori_loop(nt, total, empty, 0)
+
+
+def _barrier(sync: bool) -> None:
+    """With ``sync`` (compiled, not interpreted): wait until every thread of the program has
+    written its part of the scratch memory the next step reads."""
+    if sync:
+        from jax.experimental.pallas import triton as plgpu
+
+        plgpu.debug_barrier()
+
+
+def _params(interpret: bool, warps: int) -> dict[str, Any]:
+    """``pallas_call``'s compiler parameters: ``warps`` per program on a GPU."""
+    if interpret:
+        return {}
+    from jax.experimental.pallas import triton as plgpu
+
+    return dict(compiler_params=plgpu.CompilerParams(num_warps=warps))
+
+
 def _kernel(
     x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, n: int, d: int, nb: int, nt: int,
     block: int, tb: int, sync: bool,
 ):  # fmt: skip
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
 
-    def tile(t: jax.Array, carry: int) -> int:
-        s = pl.multiple_of(t * tb, tb)
+    def minima(s: Any) -> jax.Array:  # the block minima of one tile of landmarks
         d2 = jnp.zeros((ROWS, tb, block), jnp.float32)
         for j in range(d):
             diff = xs[j][:, None, None] - p_ref[j, pl.ds(s, tb), :][None]
             d2 = d2 + diff * diff
-        bm_ref[:, pl.ds(s, tb)] = jnp.min(d2, axis=2)
-        return carry
+        return jnp.min(d2, axis=2)
 
-    def empty(t: jax.Array, carry: int) -> int:  # tiles of padding only: no distances
-        s = pl.multiple_of(t * tb, tb)
-        bm_ref[:, pl.ds(s, tb)] = jnp.full((ROWS, tb), EMPTY, jnp.float32)
-        return carry
-
-    jax.lax.fori_loop(0, nt, tile, 0)
-    if nt < nb // tb:
-        jax.lax.fori_loop(nt, nb // tb, empty, 0)
-    if sync:  # the block minima were written by other threads of this program
-        from jax.experimental.pallas import triton as plgpu
-
-        plgpu.debug_barrier()
+    _tiles(bm_ref, tb, nt, nb // tb, minima, EMPTY)
+    _barrier(sync)  # the block minima were written by other threads of this program
     bm = bm_ref[...]  # (ROWS, nb)
     cols = jax.lax.broadcasted_iota(jnp.int32, (ROWS, nb), 1)
     slots = jax.lax.broadcasted_iota(jnp.int32, (ROWS, SLOTS), 1)
@@ -198,11 +225,7 @@ def knn_full(
     kern = functools.partial(
         _kernel, n=n, d=d, nb=nb, nt=nt, block=block, tb=tb, sync=not interpret
     )
-    params: dict[str, Any] = {}
-    if not interpret:
-        from jax.experimental.pallas import triton as plgpu
-
-        params = dict(compiler_params=plgpu.CompilerParams(num_warps=WARPS))
+    params = _params(interpret, WARPS)
     idx, d2, _ = pl.pallas_call(
         kern,
         grid=(c, rp // ROWS),
@@ -342,8 +365,7 @@ def _pruned_kernel(
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
     low = nb - 1  # the key's low bits: the block's column
 
-    def tile(t: jax.Array, carry: int) -> int:
-        s = pl.multiple_of(t * lbt, lbt)
+    def keys(s: Any) -> jax.Array:  # the blocks' lower bounds, with their columns
         lb = jnp.zeros((ROWS, lbt), jnp.float32)
         for j in range(d):
             xj = xs[j][:, None]
@@ -352,21 +374,10 @@ def _pruned_kernel(
             lb = lb + g * g
         cols = s + jax.lax.broadcasted_iota(jnp.int32, (ROWS, lbt), 1)
         bits = jax.lax.bitcast_convert_type(lb, jnp.int32)  # >= 0: ordered as the floats
-        key_ref[:, pl.ds(s, lbt)] = (bits & ~low) | cols  # rounded down: still a lower bound
-        return carry
+        return (bits & ~low) | cols  # rounded down: still a lower bound
 
-    def empty(t: jax.Array, carry: int) -> int:
-        s = pl.multiple_of(t * lbt, lbt)
-        key_ref[:, pl.ds(s, lbt)] = jnp.full((ROWS, lbt), _KEY_MAX, jnp.int32)
-        return carry
-
-    jax.lax.fori_loop(0, nt, tile, 0)
-    if nt < nb // lbt:
-        jax.lax.fori_loop(nt, nb // lbt, empty, 0)
-    if sync:
-        from jax.experimental.pallas import triton as plgpu
-
-        plgpu.debug_barrier()
+    _tiles(key_ref, lbt, nt, nb // lbt, keys, _KEY_MAX)
+    _barrier(sync)
     key = key_ref[...]  # (ROWS, nb): unique per row (the column is in the low bits)
     per = block // sub  # sub-blocks per visited block
     ns = visit * per
@@ -388,10 +399,7 @@ def _pruned_kernel(
         for r, b in enumerate(visited):
             d2 = _gathered_d2(xs, pf_ref, b[:, None, None] * block + sb * sub + member)
             bm_ref[:, pl.ds(r * per, per)] = jnp.min(d2, axis=2)
-        if sync:
-            from jax.experimental.pallas import triton as plgpu
-
-            plgpu.debug_barrier()
+        _barrier(sync)
         bm = bm_ref[...]  # (ROWS, ns)
     else:
         member = jax.lax.broadcasted_iota(jnp.int32, (ROWS, ns, sub), 2)
@@ -528,11 +536,7 @@ def knn_pruned(
     kern = functools.partial(_pruned_kernel, n=n, d=d, nb=nb, nt=nt, block=block, sub=sub,
                              lbt=lbt, visit=visit, sync=not interpret, rows=rows,
                              tiled=PRUNE_TILED)  # fmt: skip
-    params: dict[str, Any] = {}
-    if not interpret:
-        from jax.experimental.pallas import triton as plgpu
-
-        params = dict(compiler_params=plgpu.CompilerParams(num_warps=PRUNE_WARPS))
+    params = _params(interpret, PRUNE_WARPS)
     row = pl.BlockSpec((None, rows, SLOTS), lambda ci, b: (ci, b, 0))
     idx, d2, ok, _, _ = pl.pallas_call(
         kern,
