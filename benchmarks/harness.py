@@ -428,11 +428,19 @@ def get_device(device: str) -> jax.Device:
     return devs[0]
 
 
-def write_json(records: list[dict], path: str | Path) -> None:
-    """Write the records as a JSON list (one record per element), creating folders."""
+def write_json(records: list[dict] | dict, path: str | Path) -> None:
+    """Write the records as a JSON list (one record per element), or one result as a JSON
+    object, creating folders."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(records, indent=1) + "\n")
+
+
+def report(result: dict, path: str | None) -> None:
+    """An experiment's result: printed as JSON, and written to ``path`` (``--json``) if given."""
+    if path:
+        write_json(result, path)
+    print(json.dumps(result, indent=1))
 
 
 # ---------------------------------------------------------------------------------- output

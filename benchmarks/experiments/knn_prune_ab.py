@@ -32,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks.experiments.split_ab import held_out
+from benchmarks.harness import report
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
@@ -165,11 +166,7 @@ def main() -> None:
         for a, v in zip(names, base, strict=True):
             setattr(knn_pallas, a, v)
         out["chains"][name] = res
-    text = json.dumps(out, indent=1)
-    if args.json:
-        with open(args.json, "w") as fh:
-            fh.write(text + "\n")
-    print(text)
+    report(out, args.json)
 
 
 if __name__ == "__main__":

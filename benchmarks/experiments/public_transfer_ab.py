@@ -39,6 +39,7 @@ import numpy as np
 
 import jaxproj
 from benchmarks import heldout
+from benchmarks.harness import report
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.testing import StackedReference
@@ -129,11 +130,7 @@ def main() -> None:
     out["poses_per_s"] = {
         k: round(1 / float(np.median(times[k]))) for k in ("core", "one_transfer", "per_batch")
     }
-    text = json.dumps(out, indent=1)
-    if args.json:
-        with open(args.json, "w") as fh:
-            fh.write(text + "\n")
-    print(text)
+    report(out, args.json)
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxproj
+from benchmarks.harness import report
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
@@ -211,11 +212,7 @@ def main() -> None:
         print(f"{robot}: model ready in {build_s:.0f} s", flush=True)
         result[robot] = {"model_s": round(build_s, 1), **one_robot(model, args)}
         print(json.dumps(result[robot], indent=1), flush=True)
-    text = json.dumps(result, indent=1)
-    if args.json:
-        with open(args.json, "w") as fh:
-            fh.write(text + "\n")
-    print(text)
+    report(result, args.json)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks import heldout
+from benchmarks.harness import report
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
@@ -187,11 +188,7 @@ def main() -> None:
         print(name, json.dumps(out[name]), flush=True)
     out["stages_summed_over_chains"] = stages
     out["stages_sum"] = round(sum(stages.values()), 1)
-    text = json.dumps(out, indent=1)
-    if args.json:
-        with open(args.json, "w") as fh:
-            fh.write(text + "\n")
-    print(text)
+    report(out, args.json)
 
 
 if __name__ == "__main__":
