@@ -182,9 +182,9 @@ def project_batch(
     stacked projector's chains one after another at their own sizes or all at once padded to
     the largest; ``None`` (default): split with the Pallas kernels, not with XLA
     (``relaxed.project_relaxed_rows``). A projector built or loaded on a CUDA GPU carries its
-    robot landmarks' pruning index (``projector.with_search_index``): passed as an argument of
-    the caller's jit (or closed over) it is used; a projector without it gives the same answers,
-    computing it in every call.
+    robot and human landmarks' pruning indices (``projector.with_search_index``): passed as an
+    argument of the caller's jit (or closed over) they are used; a projector without them gives
+    the same answers, computing them in every call.
     """
     impl = resolve_impl(impl)
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0], impl)

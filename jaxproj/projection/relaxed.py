@@ -189,11 +189,12 @@ def relaxed_candidates(
     # the queries lie near the human landmarks (held-out MSR poses: 99.5 % certified on the
     # NAO's arms, one H100): the pruned search as well
     if isinstance(p, StackedProjector):
-        index, robot_index = _one_chain_index(p.human_index), _one_chain_index(p.robot_index)
+        human_index = _one_chain_index(p.human_index)
+        robot_index = _one_chain_index(p.robot_index)
     else:
-        index, robot_index = stack.human_index, stack.robot_index
+        human_index, robot_index = stack.human_index, stack.robot_index
     hidx = search_chains(stack.human, stack.human_sq, x.transpose(1, 0, 2), n_l, sizes, impl,
-                         True, index)  # fmt: skip
+                         True, human_index)  # fmt: skip
 
     def forward(p: Projector, q: jax.Array, idx: jax.Array) -> jax.Array:
         return predict(p.forward, q, idx)  # (L, n), as ``candidates``

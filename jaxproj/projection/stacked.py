@@ -59,8 +59,8 @@ def stack_projectors(
 ) -> StackedProjector:
     """Pad per-chain projectors to the largest and stack them (see ``StackedProjector``).
 
-    ``search_index``: compute each chain's robot-landmark pruning index once, here
-    (``projector.with_search_index``: a model built or loaded carries it); ``None`` (default):
+    ``search_index``: compute each chain's robot- and human-landmark pruning indices once, here
+    (``projector.with_search_index``: a model built or loaded carries them); ``None`` (default):
     where the default backend runs the Pallas kernels (CUDA GPUs; elsewhere the pruned search
     does not run by default).
     """
