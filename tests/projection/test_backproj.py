@@ -99,3 +99,18 @@ def test_chunks_cover_hidden():
         cols = [c for s, w in chunks for c in range(s, s + w)]
         assert cols == list(range(hidden))
         assert all(w & (w - 1) == 0 for _, w in chunks)
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_fast_sigmoid_reaches_the_cuda_kernel(monkeypatch, fast):
+    """``FAST_SIGMOID`` puts the two PTX approximations into the kernel lowered for CUDA (the
+    lowering runs without a GPU; their speed and answers: ``backproj_variants_ab``), and only
+    into it: the interpreter's tests above take ``jax.nn.sigmoid``."""
+    monkeypatch.setattr(_backproj_pallas, "FAST_SIGMOID", fast)
+    bank = _bank(np.random.default_rng(5), 20, 4, 6, 24)
+    r, h = jnp.zeros((16, 4)), jnp.zeros((16, 6))
+    idx = jnp.zeros((16, 4), jnp.int32)
+    fn = jax.jit(lambda b, r, h, i: _backproj_pallas.back_min(b, r, h, i, 4, 6, 24))
+    text = fn.trace(bank, r, h, idx).lower(lowering_platforms=("cuda",)).as_text()
+    for op in ("ex2.approx.ftz.f32", "rcp.approx.ftz.f32"):
+        assert (op in text) == fast
