@@ -262,8 +262,8 @@ def _slice_bank(bank: ELMBank, k: int, d_in: int, d_out: int, hidden: int, kk: i
 
 
 def robot_index_of(p: Projector) -> knn_pallas.PruneIndex | None:
-    """The pruning index of ``p``'s robot landmarks (one set, no leading axis; ``None`` for
-    fewer than ``knn_pallas.PRUNE_MIN_LANDMARKS``), computed by one jitted call of the
+    """The pruning index of ``p``'s robot landmarks (one set, no leading axis; ``None`` for a
+    set the full scan serves: ``knn_pallas.prune_block``), computed by one jitted call of the
     function the pruned search traces otherwise (``knn_pallas.prune_index``), on the same
     arrays: the same index bit for bit."""
     return _index_of(p.robot, p.robot_sq)
@@ -277,11 +277,11 @@ def human_index_of(p: Projector) -> knn_pallas.PruneIndex | None:
 def _index_of(
     points: jax.Array | np.ndarray, sq: jax.Array | np.ndarray
 ) -> knn_pallas.PruneIndex | None:
-    if int(points.shape[0]) < knn_pallas.PRUNE_MIN_LANDMARKS:
+    block = knn_pallas.prune_block(int(points.shape[0]))
+    if block is None:
         return None
     valid = jnp.isfinite(jnp.asarray(sq))[None]
-    idx = _prune_index(jnp.asarray(points)[None], valid, knn_pallas.PRUNE_BLOCK,
-                       knn_pallas.PRUNE_LB_TILE)  # fmt: skip
+    idx = _prune_index(jnp.asarray(points)[None], valid, block, knn_pallas.PRUNE_LB_TILE)
     return jax.tree.map(lambda a: a[0], idx)
 
 

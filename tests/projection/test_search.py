@@ -246,3 +246,32 @@ def test_precomputed_prune_index_gives_the_same_answers(prune_every_set, monkeyp
     assert not pre.fits(2, 1600, 4)
     jax.eval_shape(lambda: _knn_pallas.knn(*args, 10, True, True, pre))
     assert traced == [1]
+
+
+def test_small_sets_prune_with_every_block_visited(monkeypatch):
+    """By default a set of at most ``PRUNE_VISIT * PRUNE_SMALL_BLOCK`` landmarks takes the
+    pruned kernel with blocks of ``PRUNE_SMALL_BLOCK``, which visits every block: every row is
+    certified and exact, the one at the centre of a sphere of landmarks too (``PRUNE_VISIT = 8``
+    above fails it); a set between that and ``PRUNE_MIN_LANDMARKS`` takes the full scan."""
+    pb = _knn_pallas.prune_block
+    cap = _knn_pallas.PRUNE_VISIT * _knn_pallas.PRUNE_SMALL_BLOCK
+    assert pb(cap) == _knn_pallas.PRUNE_SMALL_BLOCK and pb(cap + 1) is None
+    assert pb(_knn_pallas.PRUNE_MIN_LANDMARKS) == _knn_pallas.PRUNE_BLOCK
+    rng = np.random.default_rng(17)
+    pts = rng.normal(size=(2, 1000, 3))
+    pts = (pts / np.linalg.norm(pts, axis=2, keepdims=True)).astype(np.float32)
+    valid = np.ones((2, 1000), bool)
+    valid[1, 300:] = False  # a padded set
+    x = (pts[:, rng.integers(0, 300, 24)] + 0.01 * rng.normal(size=(2, 24, 3))).astype(np.float32)
+    x[:, 5] = 0.0  # the centre: every landmark equally far
+    args = (jnp.asarray(pts), jnp.asarray(valid), jnp.asarray(x), 10, True)
+    idx, d2, ok = (np.asarray(a) for a in _knn_pallas.knn_pruned(*args))
+    assert ok.all()
+    _check_exact(pts, valid, x, idx, d2, 10)
+    calls = []
+    real = _knn_pallas.knn_pruned
+    monkeypatch.setattr(_knn_pallas, "knn_pruned", lambda *a: calls.append(1) or real(*a))
+    jax.eval_shape(lambda: _knn_pallas.knn(*args, prune=True))
+    big = jnp.zeros((1, cap + 1, 3))
+    jax.eval_shape(lambda: _knn_pallas.knn(big, big[..., 0] == 0, big[:, :8], 10, True, True))
+    assert calls == [1]  # the set of 1,000 only

@@ -274,12 +274,31 @@ on both arms (certified 92-93 % of rows); fewer visited landmarks certify too fe
 cost more in the pruned pass than they save in the fallback."""
 
 PRUNE_MIN_LANDMARKS = 4096
-"""Smaller sets take the full scan: on the NAO's head (1,010 landmarks) the pruned search was
-no faster (40-85 against 41 ns per pose on one H100, before
-``PRUNE_TILED``); block by block with blocks of 64, 33 against 41 (2026-11-26,
-``knn_prune_head_h100.json``), not used: one block size serves every set. Lowered to 2,048 the
-G1's five chains all prune (1,022 -> 821 ns per pose, one H100), but that run judged 1 of 300
-checked poses outside the near-tie rule, unexplained: not changed."""
+"""Sets from this size prune with blocks of ``PRUNE_BLOCK``; smaller ones take the full scan,
+except those the pruned kernel covers whole (``PRUNE_SMALL_BLOCK``). On the NAO's head (1,010
+landmarks) pruning with blocks of 128 was no faster (40-85 against 41 ns per pose on one H100,
+before ``PRUNE_TILED``). Lowered to 2,048 the G1's five chains all prune (1,022 -> 821 ns per
+pose, one H100), but that run judged 1 of 300 checked poses outside the near-tie rule,
+unexplained: not changed."""
+
+PRUNE_SMALL_BLOCK = 64
+"""Landmarks per block for a set of at most ``PRUNE_VISIT * PRUNE_SMALL_BLOCK`` landmarks
+(1,024: the NAO's head, the G1's default chains of 1,000): the pruned kernel then visits every
+block, so every row is certified (no fallback runs) and its answers are the full scan's: it
+serves as a faster full scan (the head's robot search 41 -> 33 ns per pose on one H100,
+2026-11-26, ``knn_prune_head_h100.json``: its 8 rows a program, one warp a row, against the
+full scan's 16). Sets between this and ``PRUNE_MIN_LANDMARKS`` take the full scan."""
+
+
+def prune_block(k: int) -> int | None:
+    """Landmarks per block of the pruned search on sets of ``k`` landmarks, ``None`` where the
+    full scan serves them (``PRUNE_MIN_LANDMARKS``, ``PRUNE_SMALL_BLOCK``)."""
+    if k >= PRUNE_MIN_LANDMARKS:
+        return PRUNE_BLOCK
+    if k <= PRUNE_VISIT * PRUNE_SMALL_BLOCK:
+        return PRUNE_SMALL_BLOCK
+    return None
+
 
 PRUNE_LB_TILE = 32
 """Blocks per tile of the pruned search's lower-bound pass."""
@@ -452,7 +471,7 @@ class PruneIndex:
       lo, hi: ``(C, d, nb)`` float32 per block and coordinate the least and greatest landmark
         coordinate (``FAR`` for a block of padding).
       pt: ``(C, d, nb * block)`` float32 the landmarks in the k-d order, ``FAR`` for padding.
-      block: landmarks per block (``PRUNE_BLOCK`` when computed; static).
+      block: landmarks per block (``prune_block`` of the sets' size; static).
       lbt: blocks per tile of the lower-bound pass (``PRUNE_LB_TILE``; static).
     """
 
@@ -465,11 +484,11 @@ class PruneIndex:
 
     def fits(self, c: int, k: int, d: int) -> bool:
         """Whether this is an index of ``c`` sets of ``k`` landmarks of ``d`` coordinates for
-        today's ``PRUNE_BLOCK`` and ``PRUNE_LB_TILE`` (static shapes only: that it was computed
+        today's ``prune_block(k)`` and ``PRUNE_LB_TILE`` (static shapes only: that it was computed
         from the same landmarks is the caller's promise)."""
         nb = max(_pow2(-(-k // self.block)), self.lbt)
         return (
-            self.block == PRUNE_BLOCK
+            self.block == prune_block(k)
             and self.lbt == PRUNE_LB_TILE
             and tuple(self.order.shape) == (c, k)
             and tuple(self.lo.shape) == tuple(self.hi.shape) == (c, d, nb)
@@ -520,7 +539,8 @@ def knn_pruned(
         raise ValueError(f"n={n} must lie in [1, {SLOTS}]")
     c, k, d = points.shape
     r = x.shape[1]
-    block, lbt, sub = PRUNE_BLOCK, PRUNE_LB_TILE, min(PRUNE_SUB, PRUNE_BLOCK)
+    block = prune_block(k) or PRUNE_BLOCK
+    lbt, sub = PRUNE_LB_TILE, min(PRUNE_SUB, block)
     rows = PRUNE_ROWS
     nblk = -(-k // block)
     nb = max(_pow2(nblk), lbt)
@@ -580,9 +600,9 @@ def knn(
 ) -> tuple[jax.Array, jax.Array]:
     """Exact ``n`` nearest landmarks of every row, per landmark set (traceable).
 
-    With ``prune`` (and ``PRUNE``, and at least ``PRUNE_MIN_LANDMARKS`` landmarks a set) the
-    pruned search (``knn_pruned``) answers every row its certificate holds for, and the full
-    scan (``knn_full``) the others: on a capacity of ``rows / FALLBACK_SMALL_SHARE`` or ``rows /
+    With ``prune`` (and ``PRUNE``, and a set size that ``prune_block`` prunes) the pruned search
+    (``knn_pruned``) answers every row its certificate holds for, and the full scan
+    (``knn_full``) the others: on a capacity of ``rows / FALLBACK_SMALL_SHARE`` or ``rows /
     FALLBACK_SHARE`` rows per set (the smaller where it holds them all), on every row where more
     fail. Otherwise the full scan. The same arguments and answers as
     ``knn_full`` (ties at exactly equal distances may resolve to either landmark). Pruning pays
@@ -590,7 +610,7 @@ def knn(
     predicted from the robot landmarks' kernels), not for rows far from them (all fail).
     ``index``: the sets' ``prune_index`` computed beforehand (``knn_pruned``), the same answers.
     """
-    if not (prune and PRUNE and points.shape[1] >= PRUNE_MIN_LANDMARKS):
+    if not (prune and PRUNE and prune_block(points.shape[1]) is not None):
         return knn_full(points, valid, x, n, interpret)
     idx, d2, ok = knn_pruned(points, valid, x, n, interpret, index)
     c, r = ok.shape
