@@ -78,10 +78,9 @@ import numpy as np
 from benchmarks import harness
 from benchmarks.harness import (
     DEFAULT_N,
-    FULL_TOL_DEG,
-    RELAXED_TOL_DEG,
     SYNTHETIC_N,
     Plan,
+    agreement,
     available_bytes,
     frame_latencies,
     get_device,
@@ -212,16 +211,17 @@ def time_reference(
     n_l: int,
     n_m: int,
     full: FullConfig,
-) -> tuple[np.ndarray, float]:
-    """Answers ``(Q, n)`` for queries ``h (Q, m)`` and the median-free mean us per query.
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Answers ``(Q, n)`` and objective values ``(Q,)`` for queries ``h (Q, m)``, and the
+    median-free mean us per query.
 
     The first query is run once untimed (warm-up); then every query once, timed as a whole.
     """
     ref.project(h[0], objective, n_l, n_m, full)
     t0 = time.perf_counter()
-    out = [ref.project(q, objective, n_l, n_m, full)[0] for q in h]
+    out = [ref.project(q, objective, n_l, n_m, full) for q in h]
     us = (time.perf_counter() - t0) / len(h) * 1e6
-    return np.asarray(out), us
+    return np.asarray([o[0] for o in out]), np.asarray([o[1] for o in out]), us
 
 
 # ------------------------------------------------------------------------------ streaming
@@ -292,9 +292,11 @@ def bench_projection(
     full: FullConfig | None = None,
     estimate_us: float | None = None,
     ref: StackedReference | None = None,
+    ref_values: np.ndarray | None = None,
 ) -> dict:
     """One projection record (see the module doc); ``ref_answers`` are the reference's poses
-    for the first rows of ``h_all``; ``ref`` (relaxed) judges them under the near-tie rule."""
+    for the first rows of ``h_all`` and ``ref_values`` their objective values (``agreement``);
+    ``ref`` (relaxed) judges them under the near-tie rule."""
     rec = record(
         "projection",
         objective=objective,
@@ -339,14 +341,12 @@ def bench_projection(
     n = min(len(r), len(ref_answers), max(plan.n_check, batch))
     diff = np.degrees(np.abs(r[:n] - ref_answers[:n]))
     per_query = diff.max(axis=1)
-    tol = RELAXED_TOL_DEG if objective == "relaxed" else FULL_TOL_DEG
+    f_ref = None if ref_values is None else ref_values[:n]
     rec.update(
         n_checked=int(n),
         max_abs_diff_deg=float(per_query.max()),
         median_abs_diff_deg=float(np.median(per_query)),
-        n_disagree=int(np.sum(per_query > tol)),
-        tolerance_deg=tol,
-        agrees=bool(per_query.max() <= tol),
+        **agreement(objective, per_query, v[:n], f_ref, (full or FullConfig()).tie_rtol),
     )
     if objective == "relaxed" and ref is not None:
         rec.update(near_ties(ref, queries(h_all, n), r[:n], n_l, n_m, per_query[:n]))
@@ -374,6 +374,7 @@ def bench_public(
     full: FullConfig | None = None,
     devices: list | None = None,
     ref: StackedReference | None = None,
+    ref_values: np.ndarray | None = None,
 ) -> dict:
     """A ``public`` record: ``jaxproj.project`` as users call it -- a host NumPy array of
     ``n_queries`` descriptors in, host arrays out, default ``batch_size`` -- timed end to end
@@ -395,14 +396,14 @@ def bench_public(
         )  # fmt: skip
 
     t0 = time.perf_counter()
-    r, _ = call()
+    r, v = call()
     rec["first_call_s"] = time.perf_counter() - t0
     n = min(len(ref_answers), len(r))
     per_query = np.degrees(np.abs(r[:n] - ref_answers[:n])).max(axis=1)
-    tol = RELAXED_TOL_DEG if objective == "relaxed" else FULL_TOL_DEG
+    f_ref = None if ref_values is None else ref_values[:n]
     rec.update(
-        n_checked=int(n), max_abs_diff_deg=float(per_query.max()), tolerance_deg=tol,
-        n_disagree=int(np.sum(per_query > tol)), agrees=bool(per_query.max() <= tol),
+        n_checked=int(n), max_abs_diff_deg=float(per_query.max()),
+        **agreement(objective, per_query, v[:n], f_ref, (full or FullConfig()).tie_rtol),
     )  # fmt: skip
     if objective == "relaxed" and ref is not None:
         rec.update(near_ties(ref, h[:n], r[:n], n_l, n_m, per_query))
@@ -537,12 +538,12 @@ def run(
             if max(n_l, n_m) > p.n_landmarks:
                 continue
             nq = max(plan.ref_queries[objective], plan.n_check)
-            ans, ref_us = time_reference(ref, test[:nq], objective, n_l, n_m, full)
+            ans, vals, ref_us = time_reference(ref, test[:nq], objective, n_l, n_m, full)
             log(f"reference {objective} L={n_l} M={n_m} N={n}: {ref_us:.0f} us/query")
             estimate = None
             for batch in sorted(plan.batches):
                 rec = bench_projection(
-                    p, test, objective, n_l, n_m, batch, dev, plan, ans, full, estimate, ref
+                    p, test, objective, n_l, n_m, batch, dev, plan, ans, full, estimate, ref, vals
                 )
                 rec.update(N=n, chains=chains, reference_us_per_projection=ref_us)
                 rec.update(reference_queries=nq)
@@ -580,6 +581,7 @@ def run(
                     full,
                     devices,
                     ref,
+                    vals,
                 )
                 rec.update(N=n, chains=chains, reference_us_per_projection=ref_us)
                 rec["speedup"] = ref_us / rec["us_per_projection"]

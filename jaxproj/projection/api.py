@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from typing import Any, Literal
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
@@ -158,6 +159,15 @@ def search_batch(batch: int, sub: int) -> int:
     return out
 
 
+DESCRIPTOR_BOUND = 1e3
+"""``project_batch`` clips every descriptor entry to ``[-DESCRIPTOR_BOUND, DESCRIPTOR_BOUND]``
+first. Descriptors are unit-vector components (``|x| <= 1``), so no meaningful row changes; a
+finite row far outside (``1e30``, ``-3.4e38``) otherwise overflows the kernels' products to
+``inf`` and, where ``+inf`` meets ``-inf`` in a sum, to NaN angles: found on an AVX-512 CPU,
+whose XLA kernels sum in another order than the AVX2 machines' that had given finite answers.
+Clipped, such a row answers finite angles in the limits and a large value (confidence 0)."""
+
+
 @full_precision
 def project_batch(
     p: AnyProjector,
@@ -184,9 +194,11 @@ def project_batch(
     (``relaxed.project_relaxed_rows``). A projector built or loaded on a CUDA GPU carries its
     robot and human landmarks' pruning indices (``projector.with_search_index``): passed as an
     argument of the caller's jit (or closed over) they are used; a projector without them gives
-    the same answers, computing them in every call.
+    the same answers, computing them in every call. Entries beyond ``DESCRIPTOR_BOUND`` are
+    clipped to it.
     """
     impl = resolve_impl(impl)
+    h = jnp.clip(h, -DESCRIPTOR_BOUND, DESCRIPTOR_BOUND)  # absurd rows: no overflow to NaN
     sub = sub_batch(p, objective, n_l, n_m, h.shape[0], impl)
     if objective == "relaxed":  # batched form: one search call per search batch
         outer = search_batch(h.shape[0], sub)
@@ -396,8 +408,8 @@ def project(
     Returns:
       ``(angles, value)``: ``(B, n)`` float32 driven-joint angles (rad, within limits) and
       ``(B,)`` the objective's value (relaxed: back-projected deviation; full: ``f(w*)``);
-      never NaN (a finite row far outside the unit-vector range, e.g. 1e30, can give ``inf``:
-      confidence 0).
+      never NaN (a finite row far outside the unit-vector range, e.g. 1e30, is clipped to
+      ``DESCRIPTOR_BOUND`` and gives a large value: confidence 0).
 
     Raises:
       ConfigError: a bad objective, ``L`` / ``M``, shape, ``batch_size`` or device list.

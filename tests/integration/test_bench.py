@@ -96,11 +96,16 @@ def test_public_api_records(records):
 
 
 def test_reference_agrees_with_the_engine(records):
+    """Relaxed: within 0.1 deg. Full: every answer within ``FULL_TOL_DEG`` of the reference's
+    or its objective value tied with the reference's optimum (``harness.agreement``: a flat
+    valley, where float32 steps stop apart; one query of the 64 on an AVX-512 CPU, 1.11 deg at
+    0.05 % of the value), and such ties rare: the median answer within 0.1 deg."""
     for r in records:
         if r["kind"] == "projection" and r["objective"] == "relaxed":
             assert r["max_abs_diff_deg"] <= 0.1, r
         if r["kind"] == "projection" and r["objective"] == "full":
-            assert r["max_abs_diff_deg"] <= FULL_TOL_DEG, r
+            assert r["agrees"] and r["n_disagree"] == 0 and r["tolerance_deg"] == FULL_TOL_DEG, r
+            assert r["n_value_ties"] <= 2 and r["median_abs_diff_deg"] <= 0.1, r
 
 
 def test_build_streaming_targets_and_table(run):
