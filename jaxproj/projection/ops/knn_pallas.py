@@ -288,7 +288,7 @@ kernel then visits every block, so every row is certified (no fallback runs) and
 are the full scan's; it serves as a faster full scan (8 rows a program, one warp a row, against
 the full scan's 16). The head's robot search 41 -> 33 ns per pose (one H100, 2026-11-26,
 ``knn_prune_head_h100.json``); in the engine, the head's robot search 44.4 -> 37.2 ns
-(``stage_split_h100.json``, another H100 on 2026-11-27). Sets between this and
+(``stage_split_2026-11-27_h100.json``, another H100, 2026-11-27). Sets between this and
 ``PRUNE_MIN_LANDMARKS`` take the full scan."""
 
 
