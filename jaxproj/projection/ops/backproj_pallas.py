@@ -51,9 +51,9 @@ the back-projection 108.2 -> 97.8 ns per pose, the whole relaxed projection 300.
 of answers bit-identical, the first 500 judged against the float64 reference 498 exact and 2
 near-ties (499 and 1 before). Summing each slot's products over the chunks before one
 cross-thread reduction (instead of one per chunk) was no faster (114.6 alone, 93.0 with the
-fast sigmoid): not kept. What binds the kernel is reading the weights: each (row, kernel)
-pair gathers ``hidden * (d_out + 1)`` floats (5.4 KB for an arm), 1.6 MB per pose over the three
-chains, ~54 ns per pose at the L1's 128 bytes per cycle and SM."""
+fast sigmoid): not kept. Its floor is reading the weights (counted, not profiled): each (row,
+kernel) pair gathers ``hidden * (d_out + 1)`` floats (5.4 KB for an arm), 1.6 MB per pose over
+the three chains, ~54 ns per pose at the L1's 128 bytes per cycle and SM."""
 
 LOG2E = np.float32(1.4426950408889634)
 
