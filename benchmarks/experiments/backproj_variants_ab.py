@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import argparse
 import platform
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from benchmarks import heldout
+from benchmarks.experiments.selection_ab import BATCH, per_pose_ns
 from benchmarks.harness import report
 from jaxproj._internal.jit import jit
 from jaxproj.io import datasets
@@ -38,17 +38,11 @@ from jaxproj.projection.ops import backproj_pallas, resolve_impl
 from jaxproj.testing import StackedReference
 
 L = M = 10
-BATCH = 65536
 
 
 def ns_per_pose(fn, args: tuple, repeats: int) -> float:
-    jax.block_until_ready(fn(*args))  # compile + warm up
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        ts.append(time.perf_counter() - t)
-    return round(float(np.median(ts)) / BATCH * 1e9, 1)
+    """``selection_ab.per_pose_ns`` (compile apart, median of ``repeats``), rounded."""
+    return round(per_pose_ns(fn, *args, repeats=repeats), 1)
 
 
 def main() -> None:
@@ -78,6 +72,7 @@ def main() -> None:
     dims = relaxed.backward_widths(p)
     answers, devs = {}, {}
     names = args.variants.split(",")
+    default = backproj_pallas.FAST_SIGMOID
     for name in names:
         backproj_pallas.FAST_SIGMOID = name == "1"  # read while tracing: programs traced anew
         core = jit(lambda p, h: engine.project_batch(p, h, "relaxed", L, M))
@@ -89,7 +84,7 @@ def main() -> None:
         devs[name] = np.asarray(back(p.stack, x, cand, ridx))  # (B, chains, L)
         out[name] = res
         print(name, res, flush=True)
-    backproj_pallas.FAST_SIGMOID = True
+    backproj_pallas.FAST_SIGMOID = default
     ref = StackedReference(p)
     base = names[0]
     for name in names:
