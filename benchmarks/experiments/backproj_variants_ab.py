@@ -1,9 +1,17 @@
-"""A/B of the fused back-projection's variants on a CUDA GPU (issue 46, item 1), in one run, on
-the same model and queries: ``backproj_pallas.FAST_SIGMOID`` ``0`` (libdevice's ``expf`` and a
-full division) or ``1`` (the PTX approximations ``ex2.approx.ftz.f32`` and
-``rcp.approx.ftz.f32``), named by ``--variants`` (the first is the baseline). The run recorded
-in ``results/backproj_variants_h200.json`` had a second bit, a deferred cross-thread sum
-(``00,10,01,11``), since removed: it was no faster.
+"""A/B of the relaxed engine's GPU variants on a CUDA GPU (issue 46, item 1), in one run, on
+the same model and queries. ``--variants`` names them (the first is the baseline), each a set of
+module flags read when a program is traced (``VARIANTS``):
+
+* ``default``: today's engine;
+* ``exact_sigmoid``: the back-projection's sigmoid by libdevice's ``expf`` and a full division
+  (``backproj_pallas.FAST_SIGMOID = False``; the engine before 2026-11-27);
+* ``knn_8x8``: the pruned search's programs of 8 rows and 8 warps for every set (the engine
+  before 2026-11-27's ``knn_pallas.prune_shape``);
+* ``shared``: the back-projection by ``backproj_shared.back_min_shared`` (one program per query,
+  each distinct kernel read once; a negative result, see there).
+
+The run recorded in ``results/backproj_variants_h200.json`` compared ``FAST_SIGMOID`` 0 / 1 with
+a second bit, a deferred cross-thread sum, since removed: it was no faster.
 
 The default NAO model (built here unless ``--model`` names a file), relaxed L = M = 10, a
 batch of 65,536 held-out MSR descriptors (subjects 2,4,6,8,10, tiled). For each variant
@@ -12,32 +20,59 @@ core (``api.project_batch``'s program, traced afresh) and the back-projection al
 chains) on the batch's real candidate rows; then the least deviations' relative difference
 from the baseline's, how many answers are bit-identical to the baseline's, and the first
 ``--check`` poses judged against the float64 reference under the near-tie rule
-(``testing.StackedReference.judge``).
+(``testing.StackedReference.judge``). With ``--public``, the public ``jaxproj.project`` on
+1,048,576 host poses (median of 3 calls) for the first and the last variant.
 
-    python -m benchmarks.experiments.backproj_variants_ab [--model P.npz] [--variants 0,1]
-        [--check 500] [--json OUT]
+    python -m benchmarks.experiments.backproj_variants_ab [--model P.npz]
+        [--variants knn_8x8,default,shared] [--check 500] [--public] [--json OUT]
 """
 
 from __future__ import annotations
 
 import argparse
 import platform
+import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from benchmarks import heldout
-from benchmarks.experiments.selection_ab import BATCH, per_pose_ns
+from benchmarks.experiments import backproj_shared
+from benchmarks.experiments.selection_ab import BATCH, held_out_queries, per_pose_ns
 from benchmarks.harness import report
 from jaxproj._internal.jit import jit
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.projection import relaxed
-from jaxproj.projection.ops import backproj_pallas, resolve_impl
+from jaxproj.projection.ops import backproj_pallas, knn_pallas, resolve_impl
 from jaxproj.testing import StackedReference
 
 L = M = 10
+
+VARIANTS: dict[str, dict[tuple[object, str], object]] = {
+    "default": {},
+    "exact_sigmoid": {(backproj_pallas, "FAST_SIGMOID"): False},
+    "knn_8x8": {
+        (knn_pallas, "PRUNE_ROWS"): 8,
+        (knn_pallas, "PRUNE_WARPS"): 8,
+        (knn_pallas, "PRUNE_SMALL_ROWS"): 8,
+        (knn_pallas, "PRUNE_SMALL_WARPS"): 8,
+    },
+    "shared": backproj_shared.use(),
+}
+"""Each variant's module flags (``(module, name): value``); the rest keep their defaults."""
+
+
+def public_rate(model: engine.Model, hosts: np.ndarray) -> float:
+    """``jaxproj.project``'s relaxed poses per second on ``hosts`` (compile apart, median of 3)."""
+    engine.project(model, hosts)  # compile
+    ts = []
+    for _ in range(3):
+        t = time.perf_counter()
+        engine.project(model, hosts)
+        ts.append(time.perf_counter() - t)
+    return round(len(hosts) / float(np.median(ts)), 0)
 
 
 def ns_per_pose(fn, args: tuple, repeats: int) -> float:
@@ -50,7 +85,8 @@ def main() -> None:
     ap.add_argument("--model")
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--check", type=int, default=500)
-    ap.add_argument("--variants", default="0,1")
+    ap.add_argument("--variants", default="knn_8x8,default,shared")
+    ap.add_argument("--public", action="store_true")
     ap.add_argument("--json")
     args = ap.parse_args()
     model = heldout.default_model(args.model)
@@ -72,19 +108,28 @@ def main() -> None:
     dims = relaxed.backward_widths(p)
     answers, devs = {}, {}
     names = args.variants.split(",")
-    default = backproj_pallas.FAST_SIGMOID
+    hosts = held_out_queries(2**20) if args.public else None
     for name in names:
-        backproj_pallas.FAST_SIGMOID = name == "1"  # read while tracing: programs traced anew
-        core = jit(lambda p, h: engine.project_batch(p, h, "relaxed", L, M))
-        res: dict = {"whole": ns_per_pose(core, (p, h), args.repeats)}
-        answers[name] = np.asarray(core(p, h)[0])
-        x, cand, ridx = jit(lambda q, h: relaxed.relaxed_candidates(q, h, L, M))(p, h)
-        back = jit(lambda s, x, c, r: relaxed.least_deviations_rows(s, dims, x, c, r, impl))
-        res["back_projection"] = ns_per_pose(back, (p.stack, x, cand, ridx), args.repeats)
-        devs[name] = np.asarray(back(p.stack, x, cand, ridx))  # (B, chains, L)
+        flags = VARIANTS[name]
+        saved = {key: getattr(*key) for key in flags}
+        for (mod, attr), value in flags.items():
+            setattr(mod, attr, value)  # read while tracing: programs traced anew
+        jax.clear_caches()  # the public API's jitted core too
+        try:
+            core = jit(lambda p, h: engine.project_batch(p, h, "relaxed", L, M))
+            res: dict = {"whole": ns_per_pose(core, (p, h), args.repeats)}
+            answers[name] = np.asarray(core(p, h)[0])
+            x, cand, ridx = jit(lambda q, h: relaxed.relaxed_candidates(q, h, L, M))(p, h)
+            back = jit(lambda s, x, c, r: relaxed.least_deviations_rows(s, dims, x, c, r, impl))
+            res["back_projection"] = ns_per_pose(back, (p.stack, x, cand, ridx), args.repeats)
+            devs[name] = np.asarray(back(p.stack, x, cand, ridx))  # (B, chains, L)
+            if hosts is not None and name in (names[0], names[-1]):
+                res["public_poses_per_s"] = public_rate(model, hosts)
+        finally:
+            for (mod, attr), value in saved.items():
+                setattr(mod, attr, value)
         out[name] = res
         print(name, res, flush=True)
-    backproj_pallas.FAST_SIGMOID = default
     ref = StackedReference(p)
     base = names[0]
     for name in names:

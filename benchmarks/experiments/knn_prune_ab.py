@@ -93,6 +93,7 @@ def main() -> None:
     names = ("PRUNE_BLOCK", "PRUNE_VISIT", "PRUNE_ROWS", "PRUNE_WARPS", "PRUNE_SUB", "PRUNE_TILED",
              "FALLBACK_SHARE")  # fmt: skip
     base = tuple(getattr(knn_pallas, a) for a in names)
+    small = (knn_pallas.PRUNE_SMALL_ROWS, knn_pallas.PRUNE_SMALL_WARPS)
     knn_pallas.PRUNE_MIN_LANDMARKS = args.min_landmarks  # default 0: every set, the head too
     for c, cols in enumerate(p.layout.inputs):
         pc = p.chain_slice(c)
@@ -138,6 +139,8 @@ def main() -> None:
             blk, vis, rws, wps, sub, tld, share = point
             for a, v in zip(names, point, strict=True):
                 setattr(knn_pallas, a, bool(v) if a == "PRUNE_TILED" else v)
+            # the grid's shape for every set, the head's too
+            knn_pallas.PRUNE_SMALL_ROWS, knn_pallas.PRUNE_SMALL_WARPS = rws, wps
             where = {"block": blk, "visit": vis, "rows": rws, "warps": wps, "sub": sub,
                      "tiled": bool(tld), "fallback_share": share}  # fmt: skip
             alone = jax.jit(lambda a, v, x: knn_pallas.knn_pruned(a, v, x, M))
@@ -165,6 +168,7 @@ def main() -> None:
                     json.dump(out, fh, indent=1)
         for a, v in zip(names, base, strict=True):
             setattr(knn_pallas, a, v)
+        knn_pallas.PRUNE_SMALL_ROWS, knn_pallas.PRUNE_SMALL_WARPS = small
         out["chains"][name] = res
     report(out, args.json)
 

@@ -7,6 +7,8 @@ padding, ragged row counts) is checked without a GPU. Its Triton lowering and sp
 on a GPU by ``benchmarks/experiments/fused_knn_ab.py``.
 """
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -246,6 +248,22 @@ def test_precomputed_prune_index_gives_the_same_answers(prune_every_set, monkeyp
     assert not pre.fits(2, 1600, 4)
     jax.eval_shape(lambda: _knn_pallas.knn(*args, 10, True, True, pre))
     assert traced == [1]
+
+
+def test_pruned_program_shape_follows_the_block():
+    """``prune_shape``: the pruned pass runs ``PRUNE_SMALL_ROWS`` rows on ``PRUNE_SMALL_WARPS``
+    warps a program on a set it covers whole, ``PRUNE_ROWS`` on ``PRUNE_WARPS`` otherwise, and
+    that is what reaches the kernel lowered for CUDA (no GPU needed to lower it)."""
+    kp = _knn_pallas
+    small = (kp.PRUNE_SMALL_ROWS, kp.PRUNE_SMALL_WARPS)
+    assert kp.prune_shape(kp.PRUNE_SMALL_BLOCK) == small
+    assert kp.prune_shape(kp.PRUNE_BLOCK) == (kp.PRUNE_ROWS, kp.PRUNE_WARPS)
+    for k, (rows, warps) in ((1000, small), (5000, (kp.PRUNE_ROWS, kp.PRUNE_WARPS))):
+        pts = jnp.zeros((1, k, 3))
+        fn = jax.jit(lambda p=pts: _knn_pallas.knn_pruned(p, p[..., 0] == 0, p[:, :8], 10))
+        text = fn.trace().lower(lowering_platforms=("cuda",)).as_text()
+        assert re.findall(r"num_warps = (\d+) : i32", text) == [str(warps)]
+        assert re.findall(r"grid_y = (\d+) : i32", text) == [str(-(-8 // rows))]
 
 
 def test_small_sets_prune_with_every_block_visited(monkeypatch):

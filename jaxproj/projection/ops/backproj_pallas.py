@@ -213,6 +213,7 @@ def back_min(
         out_specs=pl.BlockSpec((ROWS,), lambda b: (b,)),
         out_shape=jax.ShapeDtypeStruct((rp,), jnp.float32),
         interpret=interpret,
+        name="back_min",
         **params,
     )(*args)
     return best[:n_rows]

@@ -245,6 +245,7 @@ def knn_full(
             jax.ShapeDtypeStruct((c, rp, nb), jnp.float32),
         ],
         interpret=interpret,
+        name="knn_full",
         **params,
     )(xp, pt.reshape(c, d, nb, block), pt)
     return idx[:, :r, :n], d2[:, :r, :n]
@@ -305,11 +306,35 @@ def prune_block(k: int) -> int | None:
 PRUNE_LB_TILE = 32
 """Blocks per tile of the pruned search's lower-bound pass."""
 
-PRUNE_ROWS = 8
-"""Query rows per program of the pruned pass (the full scan's are ``ROWS``)."""
+PRUNE_ROWS = 4
+"""Query rows per program of the pruned pass with blocks of ``PRUNE_BLOCK`` (the full scan's are
+``ROWS``; 8 until 2026-11-27). Swept with ``PRUNE_WARPS`` on one H100 (2026-11-27, the pruned pass
+alone on the NAO default model's real robot-search rows of 8,192 held-out poses tiled to
+655,360, ns per pose; rows x warps): right arm 54.1 (8 x 8), 62.6 (8 x 4), **52.0 (4 x 4)**,
+60.5 (4 x 2), 50.9 (2 x 2), 53.8 (2 x 1), 57.6 (1 x 1), 60.5 (16 x 8); left arm 50.4 (8 x 8),
+**46.9 (4 x 4)**, 64.3 (4 x 2), 49.9 (2 x 2), 47.8 (2 x 1), 55.3 (1 x 1); the same certified
+rows and answers in every shape. The compiled kernel of 8 x 8 synchronises the program 138 times
+(Triton spreads a row's selection over several warps), but fewer barriers were not faster by
+themselves (1 warp: 5 barriers, 57.6 / 55.3)."""
 
-PRUNE_WARPS = 8
-"""Warps per program of the pruned pass."""
+PRUNE_WARPS = 4
+"""Warps per program of the pruned pass with blocks of ``PRUNE_BLOCK`` (8 until 2026-11-27)."""
+
+PRUNE_SMALL_ROWS = 2
+"""Query rows per program of the pruned pass on a set it covers whole (blocks of
+``PRUNE_SMALL_BLOCK``: the NAO's head). Same sweep as ``PRUNE_ROWS``, the head's 1,010 robot
+landmarks: 38.4 (8 x 8), 35.6 (4 x 4), 35.9 (2 x 2), **27.6 (2 x 1)**, 41.8 (1 x 1)."""
+
+PRUNE_SMALL_WARPS = 1
+"""Warps per program of the pruned pass on a set it covers whole (``PRUNE_SMALL_ROWS``)."""
+
+
+def prune_shape(block: int) -> tuple[int, int]:
+    """``(rows, warps)`` per program of the pruned pass with blocks of ``block`` landmarks."""
+    if block == PRUNE_SMALL_BLOCK and block != PRUNE_BLOCK:
+        return PRUNE_SMALL_ROWS, PRUNE_SMALL_WARPS
+    return PRUNE_ROWS, PRUNE_WARPS
+
 
 PRUNE_SUB = BLOCK
 """Landmarks per sub-block inside a visited block (the pruned pass's two-stage selection)."""
@@ -382,7 +407,7 @@ def _pruned_kernel(
     nb: int, nt: int, block: int, sub: int, lbt: int, visit: int, sync: bool, rows: int,
     tiled: bool,
 ):  # fmt: skip
-    ROWS = rows  # noqa: N806 - this kernel's rows per program (``PRUNE_ROWS``)
+    ROWS = rows  # noqa: N806 - this kernel's rows per program (``prune_shape``)
     xs = [x_ref[:, j] for j in range(d)]  # (ROWS,) per coordinate
     low = nb - 1  # the key's low bits: the block's column
 
@@ -543,7 +568,7 @@ def knn_pruned(
     r = x.shape[1]
     block = prune_block(k) or PRUNE_BLOCK
     lbt, sub = PRUNE_LB_TILE, min(PRUNE_SUB, block)
-    rows = PRUNE_ROWS
+    rows, warps = prune_shape(block)
     nblk = -(-k // block)
     nb = max(_pow2(nblk), lbt)
     visit = max(min(PRUNE_VISIT, _pow2(nblk)), _pow2(-(-n // (block // sub))))
@@ -558,7 +583,7 @@ def knn_pruned(
     kern = functools.partial(_pruned_kernel, n=n, d=d, nb=nb, nt=nt, block=block, sub=sub,
                              lbt=lbt, visit=visit, sync=not interpret, rows=rows,
                              tiled=PRUNE_TILED)  # fmt: skip
-    params = _params(interpret, PRUNE_WARPS)
+    params = _params(interpret, warps)
     row = pl.BlockSpec((None, rows, SLOTS), lambda ci, b: (ci, b, 0))
     idx, d2, ok, _, _ = pl.pallas_call(
         kern,
@@ -584,6 +609,7 @@ def knn_pruned(
             jax.ShapeDtypeStruct((c, rp, ns if PRUNE_TILED else 1), jnp.float32),
         ],
         interpret=interpret,
+        name="knn_pruned",
         **params,
     )(xp, index.lo, index.hi, index.pt)
     pos = jnp.minimum(idx[:, :r, :n], k - 1)  # a position of padding is no landmark's
