@@ -286,10 +286,11 @@ PRUNE_SMALL_BLOCK = 64
 """Landmarks per block for a set of at most ``PRUNE_VISIT * PRUNE_SMALL_BLOCK`` landmarks
 (1,024: the NAO's head; the G1's default chains, ~4,000 each, are not affected): the pruned
 kernel then visits every block, so every row is certified (no fallback runs) and its answers
-are the full scan's; it serves as a faster full scan (8 rows a program, one warp a row, against
+are the full scan's; it serves as a faster full scan (``PRUNE_SMALL_ROWS`` rows a program, against
 the full scan's 16). The head's robot search 41 -> 33 ns per pose (one H100, 2026-11-26,
-``knn_prune_head_h100.json``); in the engine, the head's robot search 44.4 -> 37.2 ns
-(``stage_split_2026-11-27_h100.json``, another H100, 2026-11-27). Sets between this and
+``knn_prune_head_h100.json``, then 8 rows on 8 warps); in the engine, the head's robot search
+44.4 -> 37.2 ns (``stage_split_2026-11-27_h100.json``, another H100, 2026-11-27), 24.7 with 2
+rows on 1 warp (``prune_shape``; a third H100, the same day). Sets between this and
 ``PRUNE_MIN_LANDMARKS`` take the full scan."""
 
 
