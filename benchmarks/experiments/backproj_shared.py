@@ -62,12 +62,7 @@ def _shared_kernel(
 ):
     rs = [r_ref[:, j] for j in range(d_in)]  # (rows,) per coordinate: the query's candidates
     hs = [h_ref[o] for o in range(d_out)]  # the query (scalars)
-    wx = []  # W r, per chunk of hidden units: (rows, width)
-    for start, width in chunks:
-        acc = jnp.zeros((rows, width), jnp.float32)
-        for j in range(d_in):
-            acc = acc + rs[j][:, None] * w_ref[j, pl.ds(start, width)][None, :]
-        wx.append(acc)
+    wx = backproj_pallas._hidden_inputs(rs, w_ref, rows, chunks)
     tile = idx_ref[...]  # (rows, M): every candidate's kernels, _NONE where no slot
 
     def least(a: jax.Array) -> jax.Array:
@@ -78,17 +73,9 @@ def _shared_kernel(
         # u's weights gathered as (rows, width) tiles of one address per column (one layout
         # with the index tile; a row-vector load broadcast would be converted per sum)
         each = jnp.full((rows,), u, jnp.int32)
-        inv = inv_ref[each]
-        y = [off_ref[each, o] for o in range(d_out)]
-        at = each[:, None]
-        for c, (start, width) in enumerate(chunks):
-            cols = start + jax.lax.broadcasted_iota(jnp.int32, (rows, width), 1)
-            q = backproj_pallas._sigmoid(wx[c] * inv[:, None] + bias_ref[at, cols], fast)
-            for o in range(d_out):
-                y[o] = y[o] + jnp.sum(q * out_ref[at, o, cols], axis=1)
-        dev = (y[0] - hs[0]) ** 2
-        for o in range(1, d_out):
-            dev = dev + (y[o] - hs[o]) ** 2
+        dev = backproj_pallas._deviation(
+            each, wx, hs, inv_ref, bias_ref, out_ref, off_ref, chunks, fast
+        )
         member = jnp.min(jnp.where(tile == u, 0, 1), axis=1) == 0  # candidates with kernel u
         best = jnp.where(member, jnp.minimum(best, dev), best)
         return least(jnp.where(tile > u, tile, _NONE)), best
@@ -128,31 +115,16 @@ def back_min_shared(
       ``(Q, L)`` float32: ``min_k ||kappa^r_{idx[q, l, k]}(r[q, l]) - h[q]||^2``.
     """
     n_q, n_l, n_m = idx.shape
-    kp, hp = backproj_pallas._pow2(bank.inv_scale.shape[0]), backproj_pallas._pow2(hidden)
-    ip, op, lp = (
-        backproj_pallas._pow2(d_in),
-        backproj_pallas._pow2(d_out),
-        backproj_pallas._pow2(n_l),
-    )
-    mp = max(
-        backproj_pallas._pow2(n_m), backproj_pallas.CHUNK
-    )  # the tile as wide as a chunk: one layout for both
-
-    def fit(a: jax.Array | np.ndarray, shape: tuple[int, ...], fill: Any = 0) -> jax.Array:
-        a = a[tuple(slice(0, min(s, t)) for s, t in zip(a.shape, shape, strict=True))]
-        pad = [(0, t - s) for s, t in zip(a.shape, shape, strict=True)]
-        return jnp.pad(a, pad, constant_values=fill)
-
+    pow2, fit = backproj_pallas._pow2, backproj_pallas.fit
+    ip, op, lp = pow2(d_in), pow2(d_out), pow2(n_l)
+    mp = max(pow2(n_m), backproj_pallas.CHUNK)  # the tile as wide as a chunk: one layout
     k_max = bank.inv_scale.shape[0] - 1
+    weights, weight_specs = backproj_pallas.bank_inputs(bank, d_in, d_out, hidden)
     args = (
         fit(r.astype(jnp.float32), (n_q, lp, ip)),
         fit(h.astype(jnp.float32), (n_q, op)),
         fit(jnp.clip(idx.astype(jnp.int32), 0, k_max), (n_q, lp, mp), _NONE),
-        fit(bank.w[:hidden, :d_in].T, (ip, hp)),
-        fit(bank.inv_scale, (kp,)),
-        fit(bank.bias, (kp, hp)),
-        fit(bank.out, (kp, op, hp)),
-        fit(bank.offset, (kp, op)),
+        *weights,
     )
     kern = functools.partial(
         _shared_kernel, d_in=d_in, d_out=d_out, rows=lp, chunks=backproj_pallas._chunks(hidden),
@@ -170,11 +142,7 @@ def back_min_shared(
             pl.BlockSpec((None, lp, ip), lambda b: (b, 0, 0)),
             pl.BlockSpec((None, op), lambda b: (b, 0)),
             pl.BlockSpec((None, lp, mp), lambda b: (b, 0, 0)),
-            pl.BlockSpec((ip, hp), lambda b: (0, 0)),
-            pl.BlockSpec((kp,), lambda b: (0,)),
-            pl.BlockSpec((kp, hp), lambda b: (0, 0)),
-            pl.BlockSpec((kp, op, hp), lambda b: (0, 0, 0)),
-            pl.BlockSpec((kp, op), lambda b: (0, 0)),
+            *weight_specs,
         ],
         out_specs=pl.BlockSpec((None, lp), lambda b: (b, 0)),
         out_shape=jax.ShapeDtypeStruct((n_q, lp), jnp.float32),

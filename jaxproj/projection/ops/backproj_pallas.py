@@ -98,6 +98,48 @@ def _chunks(hidden: int) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
+def _hidden_inputs(
+    rs: list[jax.Array], w_ref: Any, rows: int, chunks: tuple[tuple[int, int], ...]
+) -> list[jax.Array]:
+    """``W r`` of the program's rows (``rs``: ``d_in`` coordinates, ``(rows,)`` each), per chunk
+    of hidden units: ``(rows, width)`` each."""
+    wx = []
+    for start, width in chunks:
+        acc = jnp.zeros((rows, width), jnp.float32)
+        for j, rj in enumerate(rs):
+            acc = acc + rj[:, None] * w_ref[j, pl.ds(start, width)][None, :]
+        wx.append(acc)
+    return wx
+
+
+def _deviation(
+    idx: jax.Array,
+    wx: list[jax.Array],
+    hs: list[Any],
+    inv_ref: Any,
+    bias_ref: Any,
+    out_ref: Any,
+    off_ref: Any,
+    chunks: tuple[tuple[int, int], ...],
+    fast: bool,
+) -> jax.Array:
+    """``||kappa^r_{idx_i}(r_i) - h_i||^2`` of every row ``i`` (``idx``: ``(rows,)`` kernel
+    indices, gathered as ``(rows, width)`` tiles; ``hs``: the ``d_out`` query coordinates)."""
+    rows = idx.shape[0]
+    inv = inv_ref[idx]
+    y = [off_ref[idx, o] for o in range(len(hs))]
+    at = idx[:, None]
+    for c, (start, width) in enumerate(chunks):
+        cols = start + jax.lax.broadcasted_iota(jnp.int32, (rows, width), 1)
+        q = _sigmoid(wx[c] * inv[:, None] + bias_ref[at, cols], fast)
+        for o in range(len(hs)):
+            y[o] = y[o] + jnp.sum(q * out_ref[at, o, cols], axis=1)
+    dev = (y[0] - hs[0]) ** 2
+    for o in range(1, len(hs)):
+        dev = dev + (y[o] - hs[o]) ** 2
+    return dev
+
+
 def _kernel(
     r_ref,
     h_ref,
@@ -117,29 +159,39 @@ def _kernel(
 ):
     rs = [r_ref[:, j] for j in range(d_in)]  # (ROWS,) per coordinate
     hs = [h_ref[:, o] for o in range(d_out)]
-    wx = []  # W r, per chunk of hidden units: (ROWS, width)
-    for start, width in chunks:
-        acc = jnp.zeros((ROWS, width), jnp.float32)
-        for j in range(d_in):
-            acc = acc + rs[j][:, None] * w_ref[j, pl.ds(start, width)][None, :]
-        wx.append(acc)
+    wx = _hidden_inputs(rs, w_ref, ROWS, chunks)
 
     def slot(k: jax.Array, best: jax.Array) -> jax.Array:
         idx = idx_ref[:, k]  # (ROWS,) this slot's kernel of every row
-        inv = inv_ref[idx]
-        y = [off_ref[idx, o] for o in range(d_out)]
-        rows = idx[:, None]
-        for c, (start, width) in enumerate(chunks):
-            cols = start + jax.lax.broadcasted_iota(jnp.int32, (ROWS, width), 1)
-            q = _sigmoid(wx[c] * inv[:, None] + bias_ref[rows, cols], fast)
-            for o in range(d_out):
-                y[o] = y[o] + jnp.sum(q * out_ref[rows, o, cols], axis=1)
-        dev = (y[0] - hs[0]) ** 2
-        for o in range(1, d_out):
-            dev = dev + (y[o] - hs[o]) ** 2
+        dev = _deviation(idx, wx, hs, inv_ref, bias_ref, out_ref, off_ref, chunks, fast)
         return jnp.minimum(best, dev)
 
     best_ref[...] = jax.lax.fori_loop(0, m, slot, jnp.full((ROWS,), jnp.inf, jnp.float32))
+
+
+def fit(a: jax.Array | np.ndarray, shape: tuple[int, ...], fill: Any = 0) -> jax.Array:
+    """``a`` cut to at most ``shape`` and padded with ``fill`` to exactly ``shape``."""
+    a = a[tuple(slice(0, min(s, t)) for s, t in zip(a.shape, shape, strict=True))]
+    pad = [(0, t - s) for s, t in zip(a.shape, shape, strict=True)]
+    return jnp.pad(a, pad, constant_values=fill)
+
+
+def bank_inputs(
+    bank: ELMBank, d_in: int, d_out: int, hidden: int
+) -> tuple[tuple[jax.Array, ...], list[Any]]:
+    """The kernels' weights as the fused kernels read them (``W^T``, ``1 / rho``, ``beta``,
+    ``B^T``, offset; each padded to powers of two) and their whole-array block specs."""
+    kp, hp = _pow2(bank.inv_scale.shape[0]), _pow2(hidden)
+    ip, op = _pow2(d_in), _pow2(d_out)
+    args = (
+        fit(bank.w[:hidden, :d_in].T, (ip, hp)),
+        fit(bank.inv_scale, (kp,)),
+        fit(bank.bias, (kp, hp)),
+        fit(bank.out, (kp, op, hp)),
+        fit(bank.offset, (kp, op)),
+    )
+    specs = [pl.BlockSpec(a.shape, lambda *_, n=a.ndim: (0,) * n) for a in args]
+    return args, specs
 
 
 def back_min(
@@ -168,25 +220,15 @@ def back_min(
       ``(R,)`` float32: the least squared back-projected deviation of each row.
     """
     n_rows, m = idx.shape
-    kp, hp = _pow2(bank.inv_scale.shape[0]), _pow2(hidden)
     ip, op, mp = _pow2(d_in), _pow2(d_out), _pow2(m)
-
-    def fit(a: jax.Array | np.ndarray, shape: tuple[int, ...]) -> jax.Array:
-        """Cut ``a`` to at most ``shape`` and zero-pad it to exactly ``shape``."""
-        a = a[tuple(slice(0, min(s, t)) for s, t in zip(a.shape, shape, strict=True))]
-        return jnp.pad(a, [(0, t - s) for s, t in zip(a.shape, shape, strict=True)])
-
     rp = -(-n_rows // ROWS) * ROWS
     k_max = bank.inv_scale.shape[0] - 1
+    weights, weight_specs = bank_inputs(bank, d_in, d_out, hidden)
     args = (
         fit(r.astype(jnp.float32), (rp, ip)),
         fit(h.astype(jnp.float32), (rp, op)),
         fit(jnp.clip(idx.astype(jnp.int32), 0, k_max), (rp, mp)),
-        fit(bank.w[:hidden, :d_in].T, (ip, hp)),
-        fit(bank.inv_scale, (kp,)),
-        fit(bank.bias, (kp, hp)),
-        fit(bank.out, (kp, op, hp)),
-        fit(bank.offset, (kp, op)),
+        *weights,
     )
     kern = functools.partial(
         _kernel, d_in=d_in, d_out=d_out, m=m, chunks=_chunks(hidden),
@@ -204,11 +246,7 @@ def back_min(
             pl.BlockSpec((ROWS, ip), lambda b: (b, 0)),
             pl.BlockSpec((ROWS, op), lambda b: (b, 0)),
             pl.BlockSpec((ROWS, mp), lambda b: (b, 0)),
-            pl.BlockSpec((ip, hp), lambda b: (0, 0)),
-            pl.BlockSpec((kp,), lambda b: (0,)),
-            pl.BlockSpec((kp, hp), lambda b: (0, 0)),
-            pl.BlockSpec((kp, op, hp), lambda b: (0, 0, 0)),
-            pl.BlockSpec((kp, op), lambda b: (0, 0)),
+            *weight_specs,
         ],
         out_specs=pl.BlockSpec((ROWS,), lambda b: (b,)),
         out_shape=jax.ShapeDtypeStruct((rp,), jnp.float32),
