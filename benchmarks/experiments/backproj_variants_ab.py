@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import platform
-import time
 
 import jax
 import jax.numpy as jnp
@@ -39,7 +38,12 @@ import numpy as np
 
 from benchmarks import heldout
 from benchmarks.experiments import backproj_shared
-from benchmarks.experiments.selection_ab import BATCH, held_out_queries, per_pose_ns
+from benchmarks.experiments.selection_ab import (
+    BATCH,
+    held_out_queries,
+    per_pose_ns,
+    public_rate,
+)
 from benchmarks.harness import report
 from jaxproj._internal.jit import jit
 from jaxproj.io import datasets
@@ -62,17 +66,6 @@ VARIANTS: dict[str, dict[tuple[object, str], object]] = {
     "shared": backproj_shared.use(),
 }
 """Each variant's module flags (``(module, name): value``); the rest keep their defaults."""
-
-
-def public_rate(model: engine.Model, hosts: np.ndarray) -> float:
-    """``jaxproj.project``'s relaxed poses per second on ``hosts`` (compile apart, median of 3)."""
-    engine.project(model, hosts)  # compile
-    ts = []
-    for _ in range(3):
-        t = time.perf_counter()
-        engine.project(model, hosts)
-        ts.append(time.perf_counter() - t)
-    return round(len(hosts) / float(np.median(ts)), 0)
 
 
 def ns_per_pose(fn, args: tuple, repeats: int) -> float:
@@ -124,7 +117,7 @@ def main() -> None:
             res["back_projection"] = ns_per_pose(back, (p.stack, x, cand, ridx), args.repeats)
             devs[name] = np.asarray(back(p.stack, x, cand, ridx))  # (B, chains, L)
             if hosts is not None and name in (names[0], names[-1]):
-                res["public_poses_per_s"] = public_rate(model, hosts)
+                res["public_poses_per_s"] = round(public_rate(model, hosts), 0)
         finally:
             for (mod, attr), value in saved.items():
                 setattr(mod, attr, value)

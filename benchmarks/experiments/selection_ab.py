@@ -49,16 +49,22 @@ def held_out_queries(n: int) -> np.ndarray:
     return np.tile(test, (n // len(test) + 1, 1))[:n]
 
 
-def print_public_rate(model: engine.Model) -> None:
-    """Print ``jaxproj.project``'s relaxed rate on 1 M held-out host poses (default arguments)."""
-    hosts = held_out_queries(2**20)
+def public_rate(model: engine.Model, hosts: np.ndarray) -> float:
+    """``jaxproj.project``'s relaxed poses per second on ``hosts`` (default arguments; compile
+    apart, median of 3 calls)."""
     engine.project(model, hosts)  # compile
     ts = []
     for _ in range(3):
         t = time.perf_counter()
         engine.project(model, hosts)
         ts.append(time.perf_counter() - t)
-    print(f"public jaxproj.project relaxed, 1 M host poses: {2**20 / np.median(ts) / 1e6:.3f} M/s")
+    return len(hosts) / float(np.median(ts))
+
+
+def print_public_rate(model: engine.Model) -> None:
+    """Print ``jaxproj.project``'s relaxed rate on 1 M held-out host poses (default arguments)."""
+    rate = public_rate(model, held_out_queries(2**20))
+    print(f"public jaxproj.project relaxed, 1 M host poses: {rate / 1e6:.3f} M/s")
 
 
 def ab_setup(doc: str, ref_queries: int) -> tuple[argparse.Namespace, engine.Model, jax.Array]:
