@@ -2,9 +2,11 @@
 
 import json
 import re
+import time
 
 import pytest
 
+from jaxproj._internal.progress import Heartbeat
 from jaxproj.errors import ConfigError
 from jaxproj.io import datasets
 from jaxproj.paper import demo, demo_report
@@ -61,9 +63,26 @@ def test_the_report_names_the_training_and_test_people():
 
 
 @pytest.mark.slow
-def test_demo_quick_writes_the_report(tmp_path):
+def test_demo_quick_writes_the_report(tmp_path, monkeypatch):
     out = tmp_path / "report"
+    said: list[tuple[float, str]] = []
+    t0 = time.monotonic()
+
+    def record(text: str) -> None:
+        said.append((time.monotonic(), text))
+
+    monkeypatch.setattr(demo, "Heartbeat", lambda: Heartbeat(emit=record))
     run_demo(out, quick=True)
+    # progress: a line at once, then never 30 s of silence; every stage says where it is, and
+    # from the rollout on (rates measured) its steps carry an estimate of the stage and the rest
+    times = [t0] + [t for t, _ in said]
+    assert said[0][0] - t0 < 10.0 and max(b - a for a, b in zip(times, times[1:])) < 30.0
+    for k in range(1, 6):
+        assert any(line.startswith(f"[{k}/5] ") for _, line in said), k
+    for k in (3, 4):
+        steps = [line for _, line in said if line.startswith(f"[{k}/5] ") and "still" not in line]
+        assert steps and all(" left (estimates;" in x and "stage ~" in x for x in steps[1:]), steps
+    assert re.search(r"\(\d+ s in all: build_per_chain .*experiments .*report ", said[-1][1])
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert len(pngs) >= 3 and "landmark_size.png" in pngs and "error_distributions.png" in pngs
     for p in out.glob("*.png"):
