@@ -21,7 +21,12 @@ def _beat(every: float = 20.0) -> tuple[Heartbeat, Clock, list[str]]:
 
 
 def test_duration_and_rate():
-    assert [duration(x) for x in (0.4, 45, 185, 7260)] == ["0 s", "45 s", "3 min 05 s", "2 h 01 min"]
+    assert [duration(x) for x in (0.4, 45, 185, 7260)] == [
+        "0 s",
+        "45 s",
+        "3 min 05 s",
+        "2 h 01 min",
+    ]
     assert rate_left(30.0, 3, 12) == pytest.approx(90.0)  # 10 s per unit, 9 units left
     assert rate_left(30.0, 0, 12) is None
 
