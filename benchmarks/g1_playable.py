@@ -115,7 +115,8 @@ def flips(motion, bones: np.ndarray, ok: np.ndarray, robot: robots.Robot) -> dic
         for t in np.flatnonzero(f)[:3]:
             j = cols[int(np.argmax(step[t, cols]))]
             worst.append({"step": int(t), "joint": robot.joint_names[j],
-                          "deg": round(float(step[t, j]), 1), "bones_turn": round(float(turn[t]), 1)})  # fmt: skip
+                          "deg": round(float(step[t, j]), 1),
+                          "bones_turn": round(float(turn[t]), 1)})  # fmt: skip
     big = step.max(axis=1)
     return {
         "flip_steps": int(flip.sum()),
@@ -170,7 +171,8 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
         if ok[t] and motion.valid[t]:
             for s in ("left", "right"):
                 for bone, (a, b) in ARM_SITES.items():
-                    v = r_t.T @ (data.site_xpos[site[f"{s}_{b}"]] - data.site_xpos[site[f"{s}_{a}"]])
+                    xs = data.site_xpos
+                    v = r_t.T @ (xs[site[f"{s}_{b}"]] - xs[site[f"{s}_{a}"]])
                     arm_err.append(float(_angle(v, bones[t, BONE_NAMES.index(f"{bone}_{s}")])))
     use = motion.valid & ok
     trunk = positions[:, J["ShoulderCenter"]] - positions[:, J["HipCenter"]]

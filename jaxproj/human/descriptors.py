@@ -15,10 +15,14 @@ from typing import Any
 import jax
 import numpy as np
 
+from jaxproj._internal.buckets import bucket, pad_rows
+from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human import skeletons
-from jaxproj.human.skeleton import descriptor
+from jaxproj.human.skeleton import descriptor, level_body
 from jaxproj.human.skeletons import SkeletonLike
+
+_level_jit = jit(level_body, static_argnames=("bones", "skeleton"))
 
 
 def valid_descriptors(
@@ -27,6 +31,7 @@ def valid_descriptors(
     bones: str | tuple[str, ...] = "upper",
     mirror: bool = False,
     skeleton: SkeletonLike = skeletons.DEFAULT,
+    level: bool = True,
 ) -> np.ndarray:
     """Descriptors of the valid frames of some recordings (e.g. a training set).
 
@@ -37,6 +42,9 @@ def valid_descriptors(
         are ``(T, n_joints, 3)`` in ``skeleton``'s order (20: Kinect v1, the default).
       bones, mirror, skeleton: descriptor options (``skeleton.descriptor``); ignored for
         descriptors.
+      level: each sequence levelled against its own medians (``skeleton.level_body``, as
+        ``retarget`` levels a recording; a no-op for bones without both shins); ignored for
+        arrays.
 
     Returns:
       ``(N, 3 * n_bones)`` float32 descriptors of the frames that are valid both in the sequence
@@ -46,6 +54,7 @@ def valid_descriptors(
       ConfigError: no valid frame, or an array of the wrong shape or with non-finite values.
     """
     n_joints = skeletons.get(skeleton).n_joints
+    lengths: list[int] = []  # per sequence (none for an array: nothing to level)
     if isinstance(sequences_or_points, (np.ndarray, jax.Array)):
         a = np.asarray(sequences_or_points, dtype=np.float32)
         if a.ndim == 2:
@@ -65,8 +74,22 @@ def valid_descriptors(
             raise ConfigError("no sequences given")
         positions = np.concatenate([np.asarray(s.positions, np.float32) for s in seqs])
         valid = np.concatenate([np.asarray(s.valid, bool) for s in seqs])
+        lengths = [len(s.valid) for s in seqs]
     d, ok = descriptor(positions, bones=bones, mirror=mirror, skeleton=skeleton)
     keep = valid & np.asarray(ok)
     if not keep.any():
         raise ConfigError("no valid frame")
-    return np.asarray(d)[keep].astype(np.float32)
+    d = np.asarray(d, np.float32)
+    names = skeletons.get(skeleton).require(bones)
+    if level and lengths and {"shin_left", "shin_right"} <= set(names):
+        start = 0
+        levelled = []
+        for t in lengths:  # each recording on its own medians; padded to few shapes
+            rows = bucket(t)
+            seg = _level_jit(pad_rows(d[start : start + t], rows),
+                             pad_rows(keep[start : start + t], rows, False), bones=names,
+                             skeleton=skeleton)  # fmt: skip
+            levelled.append(np.asarray(seg)[:t])
+            start += t
+        d = np.concatenate(levelled)
+    return d[keep].astype(np.float32)

@@ -18,16 +18,19 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     stand_if_lost       a motion with no valid frame -> the robot's standing posture
     feasible            ``feasible.make_feasible`` on the full configuration (host side: it
                         resamples irregular times on a grid before its own jitted filter)
+    playable_full       after the filter, ``Robot.playable`` once more (``retarget``): the
+                        filter moves joints, and a contact it brings back is pushed apart
 
-``finish`` composes fill -> smooth -> clip -> stand for one motion (the clip to the limits and
-coupled ranges runs on every path through ``finish`` and ``frame``, smoothed or not: no
-output of retarget, evaluate or streaming leaves them), ``motion`` composes the whole
-pipeline for one motion (descriptor -> map -> finish -> all ``n_joints``), ``frame`` is one
-frame of the same stages with the smoother's ``step`` (causal). No function here is jitted: the
-callers jit at their entry points and add the batch axis (``jax.vmap``) where they call it.
-Every stage that needs the robot (limits, posture, IK) takes ``robot`` (a ``Robot``, a static
-argument of the callers' jits; no default: the callers pass the model's or the caller's robot),
-so ``n`` is its ``n_driven``.
+``finish`` composes track -> fill -> smooth -> clip -> stand for one motion (``track``:
+``Robot.continuous``, the robot's continuity pass over the per-frame answers, where it has one; the
+clip to the limits and coupled ranges runs on every path through ``finish`` and ``frame``, smoothed
+or not: no output of retarget, evaluate or streaming leaves them), ``motion`` composes the whole
+pipeline for one motion (descriptor -> map -> finish -> all ``n_joints``), ``frame`` is one frame
+of the same stages with the smoother's ``step`` (causal). No function here is jitted: the callers
+jit at their entry points and add the batch axis (``jax.vmap``) where they call it. Every stage
+that needs the robot (limits, posture, IK) takes ``robot`` (a ``Robot``, a static argument of the
+callers' jits; no default: the callers pass the model's or the caller's robot), so ``n`` is its
+``n_driven``.
 
 The callers, and the options that keep each one's answers as they were measured:
 
@@ -67,6 +70,7 @@ from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import (
     NECK_TILT_REFERENCE,
     descriptor,
+    level_body,
     level_neck,
     recording_neck_tilt,
     resolve_bones,
@@ -122,7 +126,9 @@ def level(
     *,
     bones: str | tuple[str, ...],
 ) -> jax.Array:
-    """One motion's descriptors with the neck levelled (``skeleton.level_neck``): its neutral
+    """One motion's descriptors levelled: for descriptors with legs the body frame and the
+    spine and feet against the motion's own medians (``skeleton.level_body``, with ``neck``
+    ``"recording"`` or ``"given"``), and the neck (``skeleton.level_neck``): its neutral
     tilt moved to ``skeleton.NECK_TILT_REFERENCE``, before the IK or the projection reads it
     (both then see the same levelled descriptor, so they stay consistent, and the IK stays a
     pure function of one descriptor).
@@ -134,7 +140,10 @@ def level(
         ``d`` unchanged (the fixed reference, as before levelling existed).
       bones: the descriptor's bones (no neck bone: ``d`` unchanged).
     """
-    if neck == "off" or "neck" not in resolve_bones(bones):
+    if neck == "off":
+        return d
+    d = level_body(d, ok, bones)
+    if "neck" not in resolve_bones(bones):
         return d
     if neck == "recording":
         neck_neutral = recording_neck_tilt(d, ok, bones)
@@ -234,6 +243,7 @@ def finish(
       ``(filled, out)``, each ``(T, n)``: the filled motion (standing posture included with
       ``"first"``) and the playable one (filled when ``gains`` is ``None``).
     """
+    q = robot.continuous(q, valid)
     q = fill_invalid(q, valid)
     if standing == "first":
         q = stand_if_lost(q, valid, robot)
@@ -345,6 +355,16 @@ def frame(
     new_started = started | ok
     out = clip_to_limits(new_level, robot)
     return out, jnp.where(ok, conf[0], 0.0), (new_level, new_trend, new_started)
+
+
+def playable_full(angles: jax.Array, robot: Robot) -> jax.Array:
+    """``(..., n_joints)`` configurations -> the same with the driven joints made playable
+    (``Robot.playable``: clipped, and out of self-collision where the robot has ``separate``),
+    the others as given: the last stage of ``retarget`` after the feasibility filter, which
+    moves joints and so could bring a contact back."""
+    q = jnp.asarray(angles, jnp.float32)
+    idx = robot.driven_index
+    return q.at[..., idx].set(robot.playable(q[..., idx]))
 
 
 def standing_driven(robot: Robot) -> np.ndarray:

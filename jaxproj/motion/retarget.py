@@ -47,12 +47,14 @@ feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apa
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
+from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError, NoValidFrameError
 from jaxproj.human import skeletons
@@ -129,6 +131,8 @@ def _bucket(t: int) -> int:
     """Padded length of a ``t``-frame motion: the next power of two, at least 64 frames."""
     return max(64, 1 << (int(t) - 1).bit_length())
 
+
+_playable_jit = jit(pipeline.playable_full, static_argnames=("robot",))
 
 _motion_jit = jit(
     pipeline.motion,
@@ -296,6 +300,10 @@ def retarget(
     if feasible is not None:
         unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
+        if spec.separate is not None:  # the filter moved joints: no contact may come back
+            angles = np.asarray(
+                call_bucketed(functools.partial(_playable_jit, robot=spec), angles, 1)
+            )
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
         conf = rescale(conf, spec.deviation_scale or DEVIATION_SCALE, model.confidence_scale)
     conf_t = np.asarray(conf, np.float32)[:t]

@@ -373,6 +373,10 @@ class Robot:
       deviation_scale: the ``projection.confidence`` scale of the robot's default model (the
         p90 of its relaxed deviation on training people it did not see), or ``None``: the
         NAO's ``DEVIATION_SCALE``.
+      track: a traceable ``((T, n_driven) answers, (T,) valid) -> (T, n_driven)`` continuity
+        pass over one motion's per-frame answers (the G1's: ``GenericIK.track``: each frame
+        re-chosen, among poses with the same bone directions, nearest the previous output),
+        applied by ``continuous`` before the smoother; ``None``: no such pass.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -402,6 +406,7 @@ class Robot:
     coupled_limits: tuple[CoupledLimit, ...] = ()
     separate: Callable[[jax.Array], jax.Array] | None = field(default=None, compare=False)
     deviation_scale: float | None = None
+    track: Callable[[jax.Array, jax.Array], jax.Array] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -668,6 +673,11 @@ class Robot:
         if self.separate is None:
             return q
         return self.clip_driven(self.separate(q))
+
+    def continuous(self, q: jax.Array, valid: jax.Array) -> jax.Array:
+        """One motion's ``(T, n_driven)`` per-frame answers made continuous by ``track`` (with
+        ``(T,)`` bool ``valid``), or returned as they are when the robot has no such pass."""
+        return q if self.track is None else self.track(q, valid)
 
     def from_columns(self, names: Sequence[str], columns: np.ndarray) -> np.ndarray:
         """``(T, len(names))`` angle columns placed by joint name into ``(T, n_joints)`` float32

@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -142,7 +142,9 @@ class Correspondence:
         counterpart: x forward, y left, z up).
       pairs: the rows (``BonePair``).
       collision_pairs: pairs of the MJCF's capsule / sphere geoms (names) that must stay apart
-        by ``IKConfig.margin`` (the collision term).
+        by ``IKConfig.margin`` (the collision term), or ``"mjcf"``: every pair of capsule /
+        sphere geoms that the MJCF's own contact filter lets collide (``mjcf_collision_pairs``:
+        what MuJoCo itself would report as a self-contact, boxes and meshes aside).
       ranges: per joint name, a ``(lower, upper)`` range (rad) that narrows the IK's box to the
         range the human counterpart of the joint can take (e.g. an elbow that does not
         over-extend): a robot joint whose range exceeds the human's gives one bone direction
@@ -154,14 +156,18 @@ class Correspondence:
 
     base: str
     pairs: tuple[BonePair, ...]
-    collision_pairs: tuple[tuple[str, str], ...] = ()
+    collision_pairs: tuple[tuple[str, str], ...] | Literal["mjcf"] = ()
     ranges: tuple[tuple[str, float, float], ...] = ()
     source: str = ""
 
     def __post_init__(self) -> None:
         if not self.pairs:
             raise ConfigError("a correspondence needs at least one bone pair")
-        for pair in self.collision_pairs:
+        if isinstance(self.collision_pairs, str) and self.collision_pairs != "mjcf":
+            raise ConfigError(
+                f"collision_pairs: pairs of geoms or 'mjcf', got {self.collision_pairs!r}"
+            )
+        for pair in () if isinstance(self.collision_pairs, str) else self.collision_pairs:
             if len(pair) != 2 or pair[0] == pair[1]:
                 raise ConfigError(f"collision pair {pair!r}: two different geoms")
         for name, lo, hi in self.ranges:
@@ -309,6 +315,11 @@ class GenericIK:
         if model is None:
             model = robot.load_model("fixed")
         rng = np.random.default_rng(config.seed)
+        collision_pairs = (
+            mjcf_collision_pairs(model)
+            if isinstance(correspondence.collision_pairs, str)
+            else correspondence.collision_pairs
+        )
         problems = []
         for chain in chains:
             names: list[Point] = []
@@ -334,11 +345,7 @@ class GenericIK:
             driven = np.array(robot.chain_joints(chain), np.int32)
             lo, hi = correspondence.box(robot, chain.joints)
             # capsules this chain can move, and the pairs among the correspondence's
-            pairs = [
-                pr
-                for pr in correspondence.collision_pairs
-                if set(chain.joints) & _pair_moved_by(model, pr)
-            ]
+            pairs = [pr for pr in collision_pairs if set(chain.joints) & _pair_moved_by(model, pr)]
             used = sorted({n for p in pairs for n in p})
             caps = {n: capsule_points(model, n) for n in used}
             cap_idx = {n: i for i, n in enumerate(used)}
@@ -832,6 +839,47 @@ def _moved_by(model: mujoco.MjModel, geom: str) -> set[str]:
     if gid < 0:
         raise ConfigError(f"the MJCF has no geom named {geom!r}")
     return _body_joints(model, int(model.geom_bodyid[gid]))
+
+
+_CAPSULE_KINDS = (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_SPHERE))
+
+
+def mjcf_collision_pairs(model: mujoco.MjModel) -> tuple[tuple[str, str], ...]:
+    """Every pair of named capsule / sphere geoms of ``model`` that MuJoCo's own contact filter
+    lets collide: their ``contype`` / ``conaffinity`` bits meet, they sit on bodies not welded
+    together, not a parent and its child (MuJoCo's parent filter, on welded bodies) and not a
+    pair of the MJCF's ``<exclude>``. In geom order. Boxes, meshes and planes are left out (the
+    collision term takes segments; a robot whose boxes matter gives capsules along them)."""
+    excluded = {int(x) for x in model.exclude_signature}
+    weld = model.body_weldid
+    named = [
+        g
+        for g in range(model.ngeom)
+        if int(model.geom_type[g]) in _CAPSULE_KINDS
+        and mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+    ]
+    out = []
+    for k, i in enumerate(named):
+        for j in named[k + 1 :]:
+            bits = (model.geom_contype[i] & model.geom_conaffinity[j]) or (
+                model.geom_contype[j] & model.geom_conaffinity[i]
+            )
+            bi, bj = int(model.geom_bodyid[i]), int(model.geom_bodyid[j])
+            wi, wj = int(weld[bi]), int(weld[bj])
+            if not bits or wi == wj:
+                continue
+            if ((bi << 16) + bj) in excluded or ((bj << 16) + bi) in excluded:
+                continue
+            pi, pj = int(weld[model.body_parentid[wi]]), int(weld[model.body_parentid[wj]])
+            if (pi == wj and wj != 0) or (pj == wi and wi != 0):
+                continue
+            out.append(
+                (
+                    str(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, i)),
+                    str(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, j)),
+                )
+            )
+    return tuple(out)
 
 
 def _pair_moved_by(model: mujoco.MjModel, pair: tuple[str, str]) -> set[str]:

@@ -30,12 +30,11 @@ Kinect foot point is the noisiest joint of the skeleton. Not driven: the ankle r
 Kinect v1 bone fixes them) and the wrists (the Kinect hand point, a few cm from the wrist, is
 too noisy to set the wrist's pitch and yaw; not measured yet), held at zero.
 
-Self-collision (``COLLISION_PAIRS``): the IK keeps the hands, wrists and forearms 1 cm
-(``IK_CONFIG.margin``) away from the torso, head, pelvis, hips and thighs and from the other
-arm (its upper arm too), the upper arms from the head, the two legs (thighs, shins, the soles'
-capsules) apart, each lower leg away from the pelvis and the other hip and thigh, the thighs
-from the torso and each foot from its own hip, with the capsules and spheres of
-``unitree_g1.xml``.
+Self-collision (``collision_pairs="mjcf"``): the IK keeps every pair of capsules and spheres
+of ``unitree_g1.xml`` that MuJoCo's own contact filter lets collide (262 pairs: its
+``<exclude>`` list leaves out the adjacent links) ``IK_CONFIG.margin`` (1 cm) apart, so what
+the IK, the continuity pass and ``separate`` keep apart is what MuJoCo reports as a
+self-contact (the sole boxes aside: the soles' capsules stand in for them).
 """
 
 from __future__ import annotations
@@ -79,45 +78,6 @@ FOOT_REST = {"left": (0.965, 0.020, 0.260), "right": (0.968, -0.029, 0.250)}
 standing: the same medians (the Kinect foot point sits 15 deg above the ankle's horizontal)."""
 
 
-_ARM_GEOMS = ("forearm", "wrist", "hand")
-_SOLE = ("inner", "mid", "outer")
-_BODY_GEOMS = ("torso_geom", "head_geom", "pelvis_geom", "left_hip_geom", "right_hip_geom",
-               "left_thigh_geom", "right_thigh_geom")  # fmt: skip
-
-COLLISION_PAIRS: tuple[tuple[str, str], ...] = (
-    *((f"{s}_{a}_geom", b) for s in ("left", "right") for a in _ARM_GEOMS for b in _BODY_GEOMS),
-    *((f"left_{a}_geom", f"right_{b}_geom") for a in _ARM_GEOMS for b in _ARM_GEOMS),
-    ("left_thigh_geom", "right_thigh_geom"),
-    ("left_shin_geom", "right_shin_geom"),
-    ("left_shin_lower_geom", "right_shin_lower_geom"),
-    ("left_thigh_geom", "right_shin_geom"),
-    ("right_thigh_geom", "left_shin_geom"),
-    # the feet: their sole capsules stand in for the sole boxes (the term takes capsules)
-    *((f"left_foot_{a}_geom", f"right_foot_{b}_geom") for a in _SOLE for b in _SOLE),
-    *((f"left_foot_{a}_geom", "right_shin_lower_geom") for a in _SOLE),
-    *(("left_shin_lower_geom", f"right_foot_{a}_geom") for a in _SOLE),
-    # an arm against the other upper arm; a lower leg against the pelvis and the other hip
-    *((f"left_{a}_geom", "right_upper_arm_geom") for a in _ARM_GEOMS),
-    *((f"right_{a}_geom", "left_upper_arm_geom") for a in _ARM_GEOMS),
-    *(
-        (f"{s}_{g}_geom", b)
-        for s, o in (("left", "right"), ("right", "left"))
-        for g in ("shin_lower", *(f"foot_{a}" for a in _SOLE))
-        for b in ("pelvis_geom", f"{o}_hip_geom", f"{o}_thigh_geom")
-    ),
-    # an upper arm across the face; a shin against the other foot and hip; a thigh raised into
-    # the torso; a foot folded up to its own hip
-    *((f"{s}_upper_arm_geom", "head_geom") for s in ("left", "right")),
-    *(
-        (f"{s}_shin_geom", b)
-        for s, o in (("left", "right"), ("right", "left"))
-        for b in (*(f"{o}_foot_{a}_geom" for a in _SOLE), f"{o}_hip_geom")
-    ),
-    *((f"{s}_thigh_geom", "torso_geom") for s in ("left", "right")),
-    *((f"{s}_foot_{a}_geom", f"{s}_hip_geom") for s in ("left", "right") for a in _SOLE),
-)
-"""Geom pairs the IK keeps apart (see the module doc)."""
-
 HUMAN_RANGES: tuple[tuple[str, float, float], ...] = (
     *((f"{s}_elbow_joint", -math.inf, math.pi / 2) for s in ("left", "right")),
     ("left_shoulder_roll_joint", -math.inf, math.pi / 2),
@@ -147,7 +107,7 @@ CORRESPONDENCE = Correspondence(
         *_side_pairs("left"),
         *_side_pairs("right"),
     ),
-    collision_pairs=COLLISION_PAIRS,
+    collision_pairs="mjcf",
     ranges=HUMAN_RANGES,
     source="the project's choice (jaxproj.robots.unitree_g1.spec module doc)",
 )
@@ -259,9 +219,16 @@ def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "full") -> jax.Array:
     return generic_ik().solve(d, bones)
 
 
+def track(q: jax.Array, valid: jax.Array) -> jax.Array:
+    """``Robot.track`` of the G1: ``(T, 21)`` per-frame driven angles and ``(T,)`` valid ->
+    ``(T, 21)``, each frame re-chosen nearest the previous output among the poses with the same
+    bone directions (``GenericIK.track``). Traceable."""
+    return generic_ik().track(q, valid)
+
+
 def separate(q: jax.Array) -> jax.Array:
     """``Robot.separate`` of the G1: ``(..., 21)`` driven angles -> the same with the
-    collision pairs of ``COLLISION_PAIRS`` pushed ``IK_CONFIG.margin`` apart
+    collision pairs (``collision_pairs="mjcf"``) pushed ``IK_CONFIG.margin`` apart
     (``GenericIK.separate``, 8 steps per chain). Traceable."""
     return generic_ik().separate(q)
 
@@ -311,6 +278,7 @@ UNITREE_G1 = Robot(
     mjcf=MJCF,
     traced_ik=traced_ik,
     separate=separate,
+    track=track,
     loose_joints=LOOSE_JOINTS,
     deviation_scale=DEVIATION_SCALE,
 )
