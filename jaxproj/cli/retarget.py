@@ -187,8 +187,9 @@ def run(args: argparse.Namespace) -> int:
     out = options.output_path(args.out, "--out", (".npz", ".csv", ".json"))
     plot = None if args.plot is None else options.output_path(args.plot, "--plot", (".png",))
     rec = read_skeleton(
-        args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale
-    )
+        args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale,
+        rest_frame=args.bvh_rest_frame,
+    )  # fmt: skip
     rec = output_rate(rec, args.rate)
     try:
         result = retarget(
