@@ -5,16 +5,14 @@ skeleton (when ``motion.positions`` is given; a matplotlib 3-D stick figure) on 
 motion's robot (``motion.robot``, e.g. the NAO) playing ``motion.angles`` on the right. Both are
 seen from the same ``Camera`` direction in their own body frame (x forward, y left, z up): the
 human in the body frame built from the skeleton itself (``jaxproj.human.skeleton.body_frame``,
-hips at the origin; the frame the descriptor and the IK use), the robot with its root body (the
-NAO's torso, the G1's pelvis) welded where its MJCF puts it. Each panel is framed on its own
-figure over the frames drawn (``panels.robot_box``: the robot's extent from its MJCF's forward
-kinematics, so any robot stands whole in the picture). Left limbs are orange, right limbs blue
-(the MJCF's colours).
+hips at the origin), the robot with its root body welded where its MJCF puts it, each framed on
+its figure over the frames drawn (``panels.robot_box``: any robot whole in the picture). Left
+limbs are orange, right limbs blue (the MJCF's colours).
 
 Backends of the robot panel (``render_frames(..., backend=)``):
 
 - ``"mujoco"``: MuJoCo's offscreen OpenGL renderer (``mujoco.Renderer``) of the bundled MJCF,
-  torso fixed, seen by a free camera. It needs an OpenGL context, chosen by the environment
+  root body fixed, seen by a free camera. It needs an OpenGL context, chosen by the environment
   variable ``MUJOCO_GL`` *before* ``mujoco`` is first imported (jaxproj never sets it):
   ``MUJOCO_GL=egl`` (headless, NVIDIA driver or Mesa EGL), ``MUJOCO_GL=osmesa`` (software,
   libOSMesa) or the default GLFW, which needs a display. Without one ``RenderError`` says so.
@@ -176,7 +174,8 @@ def _create_renderer(model: Any, width: int, height: int) -> Any:
 
 
 class _MujocoPanel:
-    """A robot rendered by MuJoCo's OpenGL renderer, torso fixed, free camera."""
+    """A robot rendered by MuJoCo's OpenGL renderer, root body fixed, free camera (framed on
+    ``robot_box`` over ``angles`` unless the camera says where)."""
 
     name = "mujoco"
 
@@ -197,8 +196,7 @@ class _MujocoPanel:
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
         cam.lookat[:] = centre if camera.lookat is None else camera.lookat
-        # the cube's inscribed sphere fills the vertical field of view
-        fit = half / math.sin(math.radians(float(vis.fovy)) / 2.0)
+        fit = half / math.sin(math.radians(float(vis.fovy)) / 2.0)  # the cube's sphere fills it
         cam.distance = fit if camera.distance is None else camera.distance
         cam.azimuth = camera.azimuth + 180.0  # MuJoCo: the direction the camera looks along
         cam.elevation = -camera.elevation
