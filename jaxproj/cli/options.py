@@ -105,7 +105,7 @@ def add_bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> Non
             "--bvh-rest-frame",
             default="drop",
             choices=("drop", "keep"),
-            help="BVH input: drop (default) leaves out a first frame that is a converter's "
+            help="BVH input: drop leaves out a first frame that is a converter's "
             "synthetic rest pose (every joint rotation 0 in frame 0 and not in frame 1; some "
             "CMU conversions begin with a T-pose), keep reads it",
         )

@@ -134,8 +134,8 @@ def add_parsers(sub: Any) -> None:
         default="rated",
         choices=("rated", "no-load"),
         help="speed limits of --feasible: rated = 99%% of the robot's rated speeds (at nominal "
-        "torque; NAO: 74-79%% of no-load; 75%% where none is published); no-load = 90%% of its "
-        "no-load speeds (faster, closer to the person; the former default)",
+        "torque, Robot.rated_speeds; 75%% of no-load where none is published); no-load = 90%% "
+        "of its no-load speeds (faster, closer to the person; the former default)",
     )
     pr.add_argument(
         "--joints",
