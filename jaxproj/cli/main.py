@@ -1,7 +1,8 @@
 """The jaxproj command line: thin subcommands over the public API.
 
 Subcommands: ``info`` (versions, devices, robot, bundled data), ``retarget`` (a skeleton
-recording or BVH clip -> a robot-feasible NAO joint trajectory as NPZ, CSV or NAOqi JSON),
+recording or BVH clip -> a robot-feasible joint trajectory of a registered robot as NPZ, CSV or
+the robot's own document),
 ``render`` (a motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch
 evaluation against the IK) and ``demo`` (the main job); one module per group
 (``jaxproj.cli.info``, ``.retarget``, ``.render``, ``.projector``, ``.demo``), their shared
@@ -16,13 +17,14 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from jaxproj import __version__
+from jaxproj import __version__, robots
 from jaxproj.cli import demo, info, options, projector, render, retarget
 from jaxproj.errors import JaxprojError
 
 DESCRIPTION = (
-    "jaxproj: retarget Kinect skeleton recordings to NAO H25 joint angles, build and evaluate "
-    "the learned projector, render motions, and run the paper's demo."
+    "jaxproj: retarget Kinect skeleton recordings to humanoid robot joint angles (robots: "
+    f"{', '.join(robots.names())}; default {robots.DEFAULT}), build and evaluate the learned "
+    "projector, render motions, and run the paper's demo."
 )
 
 

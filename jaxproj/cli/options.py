@@ -102,6 +102,14 @@ def add_bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> Non
     )
     if scale:
         parser.add_argument(
+            "--bvh-rest-frame",
+            default="drop",
+            choices=("drop", "keep"),
+            help="BVH input: drop leaves out a first frame that is a converter's "
+            "synthetic rest pose (every joint rotation 0 in frame 0 and not in frame 1; some "
+            "CMU conversions begin with a T-pose), keep reads it",
+        )
+        parser.add_argument(
             "--bvh-scale",
             default="auto",
             help="BVH input: metres per file unit: auto (CMU units for the CMU maps, else the "

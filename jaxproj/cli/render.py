@@ -1,6 +1,6 @@
 """``jaxproj render``: a robot motion file -> an MP4 / GIF video in real time
-(``jaxproj.viz.render``); prints what it drew (the human beside the NAO only where the file holds
-human positions)."""
+(``jaxproj.viz.render``) of the robot whose joints the file names (``load_motion``); prints what
+it drew (the human beside the robot only where the file holds human positions)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,9 @@ from jaxproj.cli import options
 def add_parsers(sub: Any) -> None:
     p = options.add_parser(sub, "render", "render a robot motion file to an MP4 / GIF video")
     p.add_argument(
-        "motion", help="motion file: .npz, .csv or NAOqi .json (jaxproj.io.motion_files)"
+        "motion",
+        help="motion file: .npz, .csv or a robot's own document (NAOqi .json) of any registered "
+        "robot, found by the file's joint names (jaxproj.io.motion_files)",
     )
     p.add_argument(
         "--out",

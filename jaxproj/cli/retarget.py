@@ -1,9 +1,12 @@
-"""``jaxproj retarget``: a skeleton recording or BVH clip -> a robot-feasible NAO joint
-trajectory as NPZ, CSV or NAOqi JSON (``jaxproj.motion.retarget``), optionally with a plot."""
+"""``jaxproj retarget``: a skeleton recording or BVH clip -> a robot-feasible joint trajectory of
+the robot (``--robot`` or the model's) at a uniform rate (``--rate``), as NPZ, CSV or the
+robot's own document (the NAO's NAOqi JSON) (``jaxproj.motion.retarget``), optionally with a
+plot."""
 
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -15,16 +18,47 @@ from jaxproj.projection.config import FULL_READINGS
 
 METHODS = ("ik", "relaxed", "full")
 
+GAP_S = 1.0
+"""``--rate``: an output frame between two input frames more than this many seconds apart is
+invalid (a gap in the recording is filled by ``retarget``'s rule, not by made-up poses)."""
+
+
+def _joint_counts() -> str:
+    """The registered robots' joint counts, e.g. ``"26 nao_h25, 29 unitree_g1"``."""
+    return ", ".join(f"{robots.get(n).n_joints} {n}" for n in robots.names())
+
+
+def _documents() -> str:
+    """The robots' own documents, e.g. ``".json (naoqi, nao_h25)"``."""
+    robot_list = [robots.get(n) for n in robots.names()]
+    docs = [f"{s} ({e.name}, {r.name})" for r in robot_list for s, e in r.exports.items()]
+    return " or ".join(docs)
+
+
+def parse_rate(text: str) -> float | str:
+    """``--rate``: ``auto``, ``input`` or a frame rate (frames/s, > 0)."""
+    if text in ("auto", "input"):
+        return text
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not auto, input or a number: {text!r}") from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise argparse.ArgumentTypeError(f"a rate must be a number > 0, got {text!r}")
+    return rate
+
 
 def add_parsers(sub: Any) -> None:
-    pr = options.add_parser(sub, "retarget", "retarget a skeleton recording to NAO joint angles")
+    pr = options.add_parser(
+        sub, "retarget", "retarget a skeleton recording to a robot's joint angles"
+    )
     pr.add_argument("input", help=f"recording, one of the formats {', '.join(format_names())}")
     pr.add_argument(
         "--out",
         required=True,
-        help="output: .npz (angles, times, valid, joint_names, positions, meta), .csv (time + 26 "
-        "joints, rad) or .json (NAOqi ALMotion.angleInterpolation arguments); "
-        f"{options.OUTPUT_FOLDER_RULE}",
+        help="output: .npz (angles, times, valid, joint_names, positions, confidence, meta), "
+        f".csv (time + the robot's joints in its SDK order, rad: {_joint_counts()}; no other "
+        f"column) or the robot's own document: {_documents()}; {options.OUTPUT_FOLDER_RULE}",
     )
     pr.add_argument(
         "--format",
@@ -78,6 +112,17 @@ def add_parsers(sub: Any) -> None:
         "(linear interpolation of joint positions), e.g. 30; None keeps the clip's rate",
     )
     pr.add_argument(
+        "--rate",
+        type=parse_rate,
+        default="auto",
+        help="frame rate of the output, frames/s: the recording is resampled onto the uniform "
+        "grid k / RATE (joint positions interpolated linearly; a frame inside a gap of more "
+        f"than {GAP_S:g} s is invalid, filled as lost frames are) before it is retargeted, so "
+        "the feasibility filter runs on the output's own frames; auto: the input's median rate "
+        "(UTKinect: 7.5; a uniform input is kept as it is); input: the input's own frame "
+        "times, uneven where the tracker dropped frames",
+    )
+    pr.add_argument(
         "--feasible",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -88,22 +133,22 @@ def add_parsers(sub: Any) -> None:
         "--speeds",
         default="rated",
         choices=("rated", "no-load"),
-        help="speed limits of --feasible: rated = 99%% of the NAO's rated speeds (at nominal "
-        "torque, 74-79%% of no-load); no-load = 90%% of its no-load speeds (faster, closer to "
-        "the person; the former default)",
+        help="speed limits of --feasible: rated = 99%% of the robot's rated speeds (at nominal "
+        "torque, Robot.rated_speeds; 75%% of no-load where none is published); no-load = 90%% "
+        "of its no-load speeds (faster, closer to the person; the former default)",
     )
     pr.add_argument(
         "--joints",
         default="upper",
         choices=("upper", "body"),
-        help="joints in a .json output: upper = NAOqi's Head, LArm, RArm chains (the legs stay "
-        "with the robot's own balance); body = all 26",
+        help="joints in a .json output (NAOqi): upper = NAOqi's Head, LArm, RArm chains (the "
+        "legs stay with the robot's own balance); body = all of the robot's joints",
     )
     pr.add_argument(
         "--plot",
         default=None,
-        help="also write a PNG: human and NAO at key frames, the 10 driven joints over time "
-        "against the per-frame IK (the demo report's motion figure)",
+        help="also write a PNG: human and robot at key frames, the robot's driven joints over "
+        "time against the per-frame IK (the demo report's motion figure)",
     )
     pr.set_defaults(func=run)
 
@@ -139,14 +184,13 @@ def run(args: argparse.Namespace) -> int:
                     f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
                 )
         bones, mirror, robot = model.config.bones, model.config.mirror, model.robot
-    if args.plot is not None and robot.name != robots.DEFAULT:
-        raise ConfigError(f"--plot draws the {robots.DEFAULT} only; the robot here is "
-                          f"{robot.name}: leave --plot out")  # fmt: skip
     out = options.output_path(args.out, "--out", (".npz", ".csv", ".json"))
     plot = None if args.plot is None else options.output_path(args.plot, "--plot", (".png",))
     rec = read_skeleton(
-        args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale
-    )
+        args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale,
+        rest_frame=args.bvh_rest_frame,
+    )  # fmt: skip
+    rec = output_rate(rec, args.rate)
     try:
         result = retarget(
             rec.positions,
@@ -181,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
         "source": str(args.input),
         "time_source": rec.time_source,
         "fps": round(rec.fps, 6),
+        "rate": args.rate if isinstance(args.rate, str) else round(float(args.rate), 6),
         "format": rec.format,
         "skeleton": rec.skeleton,
     }
@@ -217,6 +262,22 @@ def run(args: argparse.Namespace) -> int:
     if plot is not None:
         _plot(plot, args, rec, angles, result, bones, mirror, robot)
     return 0
+
+
+def output_rate(rec: Any, rate: float | str) -> Any:
+    """``--rate``: the recording on the uniform grid the output is written at (``resample``,
+    gaps over ``GAP_S`` invalid); ``"auto"``: the input's median rate (a recording already
+    uniform at it is returned as it is); ``"input"``: unchanged."""
+    import numpy as np
+
+    from jaxproj.io.recording import resample
+
+    if rate == "input" or len(rec.times) < 2:
+        return rec
+    hz = rec.fps if rate == "auto" else float(rate)
+    if np.allclose(np.diff(rec.times), 1.0 / hz, rtol=1e-6, atol=0.0):
+        return rec
+    return resample(rec, hz, max_gap=GAP_S)
 
 
 EXPECTED_LOW_SHARE = 0.10

@@ -2,8 +2,11 @@
 document (``Robot.exports``; the NAO H25's is NAOqi JSON, the ``naoqi`` module of its package).
 
 ``save_motion(path, motion)`` picks the format from the extension; ``load_motion(path)`` reads any
-of them back (the robot: ``motion.robot`` / ``load_motion(path, robot=...)``, a ``Robot`` or a
-registered name; ``None``, the default: the registry's default robot, ``jaxproj.robots.get()``):
+of them back. The robot: ``motion.robot`` when writing; when reading, ``load_motion(path,
+robot=...)`` (a ``Robot`` or a registered name) or, by default (``None``), the registered robot
+whose joints the file names (``jaxproj.robots.for_joints``: the NPZ's ``joint_names``, the CSV's
+header; the default robot when it has them all), and for a robot's own document the robot that
+exports that suffix (the default robot first):
 
 - ``.npz`` (lossless, everything): ``angles`` ``(T, n_joints)`` float32 rad, ``times`` ``(T,)``
   float64 s, ``valid`` ``(T,)`` bool, ``joint_names`` ``(n_joints,)`` str (``robot.joint_names``),
@@ -11,11 +14,15 @@ registered name; ``None``, the default: the registry's default robot, ``jaxproj.
   the motion has it) and ``meta`` (a 0-d str array holding a JSON object). ``load_motion``
   also reads the ``.npz`` of ``jaxproj retarget`` (no ``times``: frames are taken
   ``1 / DEFAULT_FPS`` s apart; its ``method`` / ``smoothed`` become ``meta``).
-- ``.csv``: a plain CSV, header ``time,<the robot's joint names in order>``, one row per
-  frame, times in s and angles in rad, written so that parsing each value with ``float`` gives
-  the float32 angle bit-exactly and the float64 time exactly; a last column ``confidence``
-  when the motion has one. There is no validity column: loading a CSV marks every frame valid
-  (and it has no positions and no meta).
+- ``.csv`` (for the robot's tools): header ``time,<the robot's joint names in its SDK order>``
+  (``robot.joint_names``: 26 columns for the NAO, 29 for the Unitree G1), one row per frame,
+  times in s and angles in rad, written so that parsing each value with ``float`` gives the
+  float32 angle bit-exactly and the float64 time exactly. Nothing else: no validity and no
+  confidence column (they are the NPZ's; write both files, or ``save_motion`` the ``.csv`` from
+  ``load_motion`` of the ``.npz``). Loading a CSV marks every frame valid (and it has no
+  positions and no meta); a last ``confidence`` column, as jaxproj 0.2.0 wrote, is still
+  read. ``jaxproj retarget`` writes its motions at a uniform rate (``--rate``), so its CSV
+  rows are evenly spaced in time.
 - the robot's exports (NAO: ``.json``, NAOqi's ``angleInterpolation`` arguments; ``joints`` and
   ``lead_in`` of ``save_motion`` are its options): see the NAO's ``naoqi`` module.
 
@@ -58,7 +65,9 @@ from jaxproj._internal.atomic import atomic_write, check_folder, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import N_JOINTS as N_HUMAN_JOINTS
 from jaxproj.robots import Robot, clip_coupled
+from jaxproj.robots import for_joints as robot_for_joints
 from jaxproj.robots import get as get_robot
+from jaxproj.robots import names as robot_names
 from jaxproj.robots.export import MetaValue, check_meta, check_times
 
 __all__ = ["DEFAULT_FPS", "EXPORT_MARGIN", "FORMATS", "MetaValue", "Motion", "exact_strings",
@@ -206,14 +215,40 @@ def formats(robot: Robot | str | None = None) -> tuple[str, ...]:
     return (*FORMATS, *get_robot(robot).exports)
 
 
-def _check_format(path: Path, robot: Robot) -> str:
+def _check_format(path: Path, robot: Robot | None) -> str:
+    """The extension of ``path``, checked against ``robot``'s formats (``None``: any registered
+    robot's)."""
     ext = path.suffix.lower()
-    if ext not in formats(robot):
+    known = formats(robot) if robot is not None else _all_formats()
+    if ext not in known:
         raise ConfigError(
             f"{path}: unsupported motion file extension {path.suffix!r}; use one of "
-            f"{', '.join(formats(robot))}"
+            f"{', '.join(known)}"
         )
     return ext
+
+
+def _all_formats() -> tuple[str, ...]:
+    exports = (s for name in robot_names() for s in get_robot(name).exports)
+    return tuple(dict.fromkeys((*formats(), *exports)))
+
+
+def _robot_of_export(ext: str) -> Robot:
+    """The robot whose own document has the suffix ``ext`` (the default robot first)."""
+    default = get_robot()
+    if ext in default.exports:
+        return default
+    return next(r for r in map(get_robot, robot_names()) if ext in r.exports)
+
+
+def _robot_of_names(path: Path, robot: Robot | None, names: Sequence[str]) -> Robot:
+    """``robot``, or the registered robot whose joints ``names`` are (``InputError`` if none)."""
+    if robot is not None:
+        return robot
+    try:
+        return robot_for_joints(names)
+    except ConfigError as e:
+        raise InputError(path, str(e)) from None
 
 
 # --- writing ---------------------------------------------------------------------------------
@@ -350,11 +385,9 @@ def exact_strings(values: np.ndarray) -> list[str]:
 def _write_csv(tmp: Path, motion: Motion, angles: np.ndarray) -> None:
     cells = exact_strings(angles)
     n = motion.robot.n_joints
-    conf = [] if motion.confidence is None else exact_strings(motion.confidence)
-    extra = ["confidence"] if conf else []
-    lines = [",".join(("time", *motion.robot.joint_names, *extra))]
+    lines = [",".join(("time", *motion.robot.joint_names))]
     for t, time in enumerate(motion.times.tolist()):
-        lines.append(",".join((repr(time), *cells[t * n : (t + 1) * n], *conf[t : t + 1])))
+        lines.append(",".join((repr(time), *cells[t * n : (t + 1) * n])))
     _write_text(tmp, "\n".join(lines) + "\n")
 
 
@@ -367,8 +400,10 @@ def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) 
     Args:
       path: ``.npz``, ``.csv`` or one of ``robot.exports`` (NAO: ``.json``); the format follows
         the extension.
-      robot: the robot the motion is for: a ``Robot`` or a registered name (``None``, the
-        default: the default robot, ``jaxproj.robots.get()``).
+      robot: the robot the motion is for: a ``Robot`` or a registered name; ``None`` (the
+        default): the registered robot whose joints the file names (``jaxproj.robots.for_joints``:
+        the default robot when it has them all), for a robot's own document the robot that
+        exports its suffix.
 
     Returns:
       The ``Motion``. Joints the file does not name take ``robot.standing``. CSV: every frame
@@ -377,19 +412,21 @@ def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) 
     Raises:
       ConfigError: an unsupported extension.
       InputError: the file is missing or malformed (missing keys, wrong shapes, unknown or
-        repeated joint names, non-numeric or non-finite values, ragged lists, times not strictly
-        increasing); the message names the file and the problem.
+        repeated joint names, joint names of no registered robot, non-numeric or non-finite
+        values, ragged lists, times not strictly increasing); the message names the file and the
+        problem.
     """
     path = Path(path)
-    robot = get_robot(robot)
-    ext = _check_format(path, robot)
+    given = None if robot is None else get_robot(robot)
+    ext = _check_format(path, given)
     if not path.is_file():
         raise InputError(path, "no such file" if not path.exists() else "not a file")
     try:
         if ext == ".npz":
-            return _read_npz(path, robot)
+            return _read_npz(path, given)
         if ext == ".csv":
-            return _read_csv(path, robot)
+            return _read_csv(path, given)
+        robot = given if given is not None else _robot_of_export(ext)
         angles, times, valid, meta, conf = robot.exports[ext].read(robot, path)
         return Motion(angles=angles, times=times, valid=valid, meta=meta, robot=robot,
                       confidence=conf)  # fmt: skip
@@ -403,7 +440,7 @@ def _check_finite_angles(path: Path, angles: np.ndarray) -> None:
         raise InputError(path, "angles must be finite", frame=int(np.flatnonzero(~ok.all(1))[0]))
 
 
-def _read_npz(path: Path, robot: Robot) -> Motion:
+def _read_npz(path: Path, robot: Robot | None) -> Motion:
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
@@ -429,6 +466,7 @@ def _read_npz(path: Path, robot: Robot) -> Motion:
         raise InputError(path, "no frames")
     columns = raw.astype(np.float32)
     _check_finite_angles(path, columns)
+    robot = _robot_of_names(path, robot, [str(s) for s in names])
     angles = robot.from_columns([str(s) for s in names], columns)
     if "times" in data:
         times = data["times"]
@@ -486,7 +524,7 @@ def _read_npz(path: Path, robot: Robot) -> Motion:
     )  # fmt: skip
 
 
-def _read_csv(path: Path, robot: Robot) -> Motion:
+def _read_csv(path: Path, robot: Robot | None) -> Motion:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
@@ -504,9 +542,10 @@ def _read_csv(path: Path, robot: Robot) -> Motion:
             path, f"line 1: the header must be 'time,<joint names>', got {lines[0][:60]!r}"
         )
     names = header[1:]
-    has_conf = names[-1] == "confidence"
+    has_conf = names[-1] == "confidence"  # as jaxproj 0.2.0 wrote it
     if has_conf:
         names = names[:-1]
+    robot = _robot_of_names(path, robot, names)
     if len(lines) < 2:
         raise InputError(path, "no frames (only a header)")
     width = len(header)

@@ -92,6 +92,7 @@ def read_skeleton(
     scale: float | str = "auto",
     up: str = "y",
     body: BodyChoice = "first",
+    rest_frame: str = "drop",
 ) -> Recording:
     """Read a skeleton file into a ``Recording`` (``(T, 20, 3)`` float32 positions, SDK order).
 
@@ -107,6 +108,9 @@ def read_skeleton(
         a JSON / TOML file or a dict of Kinect joint -> BVH joint (``jaxproj.io.formats.bvh``).
       scale: BVH only: metres per file unit, a unit name (``jaxproj.io.formats.bvh.UNITS``) or
         ``"auto"``.
+      rest_frame: BVH only: ``"drop"`` (default) leaves out a first frame that is a converter's
+        synthetic rest pose (every joint rotation 0: ``bvh.rest_pose_first``), ``"keep"``
+        reads it.
       up: NPZ only: the axis that points up in the file, ``"y"`` (SMPL's own frame, the Kinect
         camera's; kept as it is) or ``"z"`` (AMASS, most mocap: turned -90 degrees about x,
         ``(x, y, z) -> (x, z, -y)``). The descriptor is the same either way (it is read in the
@@ -136,7 +140,9 @@ def read_skeleton(
     data = read_bytes(path)
     if format == "auto":
         format = _detect_file(path, data)
-    return get_format(format).read(path, data, fps, bvh_map=bvh_map, scale=scale, body=body, up=up)
+    return get_format(format).read(
+        path, data, fps, bvh_map=bvh_map, scale=scale, body=body, up=up, rest_frame=rest_frame
+    )
 
 
 def _detect_file(path: str | os.PathLike[str], data: bytes) -> str:

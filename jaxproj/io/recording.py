@@ -188,18 +188,22 @@ def timed_recording(
     return dataclasses.replace(rec, times=times, time_source=source)
 
 
-def resample(rec: Recording, fps: float) -> Recording:
+def resample(rec: Recording, fps: float, max_gap: float | None = None) -> Recording:
     """The recording on a uniform grid of ``fps`` frames per second (linear interpolation).
 
     The grid is ``k / fps`` for every ``k`` with ``k / fps`` within the recording's time span
     (at least one frame). Each new frame interpolates joint positions linearly between the two
-    recorded frames around it; it is invalid (zeros) if either of them is. Positions of a
+    recorded frames around it; it is invalid (zeros) if either of them is, or, with
+    ``max_gap``, if they lie more than ``max_gap`` s apart (a gap in the recording is not
+    bridged by made-up poses: ``retarget`` fills invalid frames by its own rule). A new frame
+    within 1e-6 of a step from a recorded frame is that frame (its validity alone). Positions of a
     rotating bone shorten slightly between frames (by ``1 - cos(a / 2)`` for a turn ``a`` in one
     frame step; a 10 degree step: 0.4 %); the descriptor uses directions only.
 
     Args:
       rec: any ``Recording`` (``(T, 20, 3)`` positions).
       fps: the new rate, frames/s, within ``FPS_RANGE``.
+      max_gap: seconds; ``None``: no limit.
 
     Returns:
       A ``Recording`` with ``(N, 20, 3)`` positions, ``times = arange(N) / fps`` and
@@ -220,10 +224,13 @@ def resample(rec: Recording, fps: float) -> Recording:
     step = t[hi] - t[lo]
     w = np.where(step > 0, (grid - (t[lo] - t[0])) / np.where(step > 0, step, 1.0), 1.0)
     w = np.clip(w, 0.0, 1.0)
+    w = np.where(np.abs(w - np.round(w)) < 1e-6, np.round(w), w)  # on a recorded frame
     pos = rec.positions.astype(np.float64)
     out = (1.0 - w)[:, None, None] * pos[lo] + w[:, None, None] * pos[hi]
     exact_lo, exact_hi = w <= 0.0, w >= 1.0
     valid = (rec.valid[lo] | exact_hi) & (rec.valid[hi] | exact_lo)
+    if max_gap is not None:
+        valid &= exact_lo | exact_hi | (step <= max_gap)
     out = out.astype(np.float32)
     out[~valid] = 0.0
     source = f"{rec.time_source}, resampled to {fps:g} fps (linear)"

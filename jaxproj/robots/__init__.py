@@ -10,10 +10,14 @@ as a required argument; the public entry points take the robot from what they ar
 ``robots/`` imports ``nao_h25`` or binds ``NAO_H25``.
 
 ``register(robot)`` adds a robot under ``robot.name``; ``get(name)`` returns it; ``names()``
-lists them; ``DEFAULT`` is the name of the default robot (``"nao_h25"``).
+lists them; ``for_joints(joint_names)`` finds the robot a file's joint names belong to (how
+``load_motion`` and ``jaxproj render`` know a motion's robot); ``DEFAULT`` is the name of the
+default robot (``"nao_h25"``).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 from jaxproj.errors import ConfigError
 from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_coupled
@@ -21,7 +25,7 @@ from jaxproj.robots.nao_h25.spec import NAO_H25
 from jaxproj.robots.unitree_g1.spec import UNITREE_G1
 
 __all__ = ["DEFAULT", "NAO_H25", "UNITREE_G1", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot",
-           "clip_coupled", "get", "names", "register", "unregister"]  # fmt: skip
+           "clip_coupled", "for_joints", "get", "names", "register", "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""
@@ -70,6 +74,41 @@ def get(name: str | Robot | None = None) -> Robot:
 def names() -> tuple[str, ...]:
     """Names of the registered robots, sorted."""
     return tuple(sorted(_REGISTRY))
+
+
+def for_joints(joint_names: Sequence[str]) -> Robot:
+    """The registered robot whose joints ``joint_names`` are (a motion file's columns).
+
+    Args:
+      joint_names: joint names, in any order; a subset of one robot's ``joint_names`` is enough
+        (a file may leave joints out: they take the robot's standing posture).
+
+    Returns:
+      The robot whose ``joint_names`` hold every name: the default robot when it does, else the
+      one robot that does (when several do, the one with exactly these joints, if one has).
+
+    Raises:
+      ConfigError: no registered robot has all the names (the message lists the unknown ones,
+        against the default robot, and the registered robots), or several do equally well.
+    """
+    wanted = [str(n) for n in joint_names]
+    fits = [r for r in _REGISTRY.values() if all(r.has_joint(n) for n in wanted)]
+    if not fits:
+        default = _REGISTRY[DEFAULT]
+        unknown = [n for n in wanted if not default.has_joint(n)]
+        raise ConfigError(
+            f"unknown joint names {unknown[:6]}{' ...' if len(unknown) > 6 else ''}: they are "
+            f"no registered robot's joints (registered robots: {', '.join(names())})"
+        )
+    if any(r.name == DEFAULT for r in fits):
+        return _REGISTRY[DEFAULT]
+    exact = [r for r in fits if set(r.joint_names) == set(wanted)]
+    if len(fits) == 1 or len(exact) == 1:
+        return fits[0] if len(fits) == 1 else exact[0]
+    raise ConfigError(
+        f"joint names {wanted[:4]} ... fit several robots ({', '.join(r.name for r in fits)}): "
+        "name the robot (robot=...)"
+    )
 
 
 register(NAO_H25)

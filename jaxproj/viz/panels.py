@@ -1,7 +1,14 @@
 """The matplotlib panels of ``jaxproj.viz.render``: the human skeleton and the robot's stick
 figure (MuJoCo CPU kinematics, no OpenGL; drawn as ``robot.mjcf.figure`` says), each a 3-D axes on
 an Agg canvas of exact pixel size, and the ``Camera`` both panels (and the MuJoCo one) are seen
-from; ``robot_qpos`` / ``kinematics``, a robot's configuration in its MuJoCo model."""
+from; ``robot_qpos`` / ``kinematics``, a robot's configuration in its MuJoCo model;
+``robot_box``, the part of space a robot panel shows.
+
+Framing: each panel shows a cube that holds its figure over the frames drawn, like the person's
+(``_HumanPanel``: the skeleton over the motion's valid frames, 10 % spare). The robot's comes
+from the robot's own geometry (``robot_box``): the forward kinematics of its MJCF (body origins,
+sites, geom centres) in the standing posture and in every drawn frame, so any robot (a 0.6 m
+NAO, a 1.3 m G1) stands whole in the picture, at the size the person has beside it."""
 
 from __future__ import annotations
 
@@ -23,10 +30,11 @@ CENTRE_COLOR = (0.25, 0.25, 0.3)
 
 _DPI = 100
 
-# the robot panel's fixed box (torso frame, m), sized for the NAO: it spans z -0.333 (soles,
-# standing straight) .. +0.33 (hands up), |x|, |y| < 0.33 with the arms out
-_ROBOT_CENTRE = np.array([0.0, 0.0, -0.02])
-_ROBOT_HALF = 0.34
+BOX_SPARE = 1.1
+"""How much larger than its figure's extent (over the frames drawn) a panel's cube is."""
+
+MAX_BOX_FRAMES = 2000
+"""``robot_box`` reads at most this many frames, evenly spread (the drawn frames' extent)."""
 
 
 def robot_label(robot: Robot) -> str:
@@ -107,30 +115,72 @@ class Camera:
         (0, on +x) towards the figure's left (+90, on +y). The default, 30, sees the figure from
         the front, a little from its left side (its left arm appears on the viewer's right).
       elevation: degrees above the horizontal (-90 < elevation < 90).
-      distance: m, camera to ``lookat`` (MuJoCo panel; the matplotlib panels fit a fixed box).
-      lookat: the point looked at, torso frame, m (MuJoCo panel).
+      distance: m, camera to ``lookat`` (MuJoCo panel), or ``None`` (default): far enough that
+        the robot's cube (``robot_box``) fills the picture. The matplotlib panels always fit
+        their cube.
+      lookat: the point looked at, in the robot model's world frame (its root welded where its
+        MJCF puts it), m (MuJoCo panel), or ``None`` (default): the centre of the robot's cube.
     """
 
     azimuth: float = 30.0
     elevation: float = 12.0
-    distance: float = 1.1
-    lookat: tuple[float, float, float] = (0.0, 0.0, -0.02)
+    distance: float | None = None
+    lookat: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         try:
-            lookat = tuple(float(v) for v in self.lookat)
-            values = (float(self.azimuth), float(self.elevation), float(self.distance), *lookat)
+            lookat = None if self.lookat is None else tuple(float(v) for v in self.lookat)
+            dist = () if self.distance is None else (float(self.distance),)
+            values = (float(self.azimuth), float(self.elevation), *dist, *(lookat or ()))
         except (TypeError, ValueError):
             values, lookat = (math.nan,), ()
-        if len(lookat) != 3 or not all(math.isfinite(v) for v in values):
+        if (lookat is not None and len(lookat) != 3) or not all(math.isfinite(v) for v in values):
             raise ConfigError(f"camera values must be finite numbers, lookat 3 of them: {self}")
         object.__setattr__(self, "lookat", lookat)
         if not -90.0 < self.elevation < 90.0:
             raise ConfigError(
                 f"camera elevation must lie in (-90, 90) degrees, got {self.elevation}"
             )
-        if self.distance <= 0:
+        if self.distance is not None and self.distance <= 0:
             raise ConfigError(f"camera distance must be > 0 m, got {self.distance}")
+
+
+def robot_box(
+    robot: Robot, model: Any, angles: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
+    """The cube a robot panel shows: it holds the robot in its standing posture and in every
+    configuration of ``angles``, with ``BOX_SPARE`` to spare.
+
+    The robot's extent is read from its own MJCF by CPU forward kinematics (``mj_kinematics``):
+    every body origin, site and geom centre, in ``model``'s world frame (the frame the panels
+    draw in). No robot's size is assumed.
+
+    Args:
+      model: ``robot.load_model("fixed")``.
+      angles: ``(N, n_joints)`` configurations drawn, rad (``robot.joint_names`` order), or
+        ``None``: the standing posture only. At most ``MAX_BOX_FRAMES`` of them are read,
+        evenly spread.
+
+    Returns:
+      ``(centre, half)``: ``(3,)`` float64 m, the cube's centre, and its half side, m.
+    """
+    import mujoco
+
+    q = np.asarray(robot.standing, np.float64)[None]
+    if angles is not None and len(angles):
+        a = np.asarray(angles, np.float64).reshape(-1, robot.n_joints)
+        if len(a) > MAX_BOX_FRAMES:
+            a = a[np.linspace(0, len(a) - 1, MAX_BOX_FRAMES).round().astype(int)]
+        q = np.concatenate([q, a])
+    data = mujoco.MjData(model)
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for row in q:
+        data.qpos[:] = robot_qpos(robot, model, row)
+        mujoco.mj_kinematics(model, data)
+        pts = np.concatenate([data.xpos[1:], data.site_xpos, data.geom_xpos])
+        lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
+    half = max(float((hi - lo).max()) / 2.0 * BOX_SPARE, 0.05)
+    return (lo + hi) / 2.0, half
 
 
 # --- matplotlib panels ----------------------------------------------------------------------
@@ -187,10 +237,13 @@ class _Canvas:
         self.fig.clear()
 
 
-def _side_color(name: str) -> tuple[float, float, float]:
-    if "Left" in name or name.startswith(("L", "l_")):
+def side_color(name: str) -> tuple[float, float, float]:
+    """The house colour of a body, site or bone named ``name``: left limbs orange (``Left...``,
+    ``L...``, ``l_...``, ``left_...``), right limbs blue (the same with right), the rest dark
+    grey."""
+    if "Left" in name or name.startswith(("L", "l_", "left_")):
         return LEFT_COLOR
-    if "Right" in name or name.startswith(("R", "r_")):
+    if "Right" in name or name.startswith(("R", "r_", "right_")):
         return RIGHT_COLOR
     return CENTRE_COLOR
 
@@ -221,7 +274,7 @@ class _HumanPanel:
         self.canvas = _Canvas(size, camera, centre, half)
         self.canvas.floor(floor, centre, half)
         self.pairs = [(J[a], J[b]) for a, b in BONES]
-        self.colors = [_side_color(b) for _, b in BONES]
+        self.colors = [side_color(b) for _, b in BONES]
 
     def draw(self, t: int, label: str) -> np.ndarray:
         if not self.ok[t]:
@@ -236,11 +289,18 @@ class _HumanPanel:
 
 class _StickRobotPanel:
     """A robot as a stick figure from MuJoCo CPU kinematics (no OpenGL), matplotlib: body origins
-    joined parent -> child, its feet and head marker (``robot.mjcf.figure``)."""
+    joined parent -> child, its feet and head marker (``robot.mjcf.figure``), in the cube of
+    ``robot_box`` over ``angles`` (``(N, n_joints)``, the frames to be drawn)."""
 
     name = "matplotlib"
 
-    def __init__(self, robot: Robot, size: tuple[int, int], camera: Camera):
+    def __init__(
+        self,
+        robot: Robot,
+        size: tuple[int, int],
+        camera: Camera,
+        angles: np.ndarray | None = None,
+    ):
         import mujoco
 
         self._mj = mujoco
@@ -253,35 +313,43 @@ class _StickRobotPanel:
         site = {m.site(s).name: s for s in range(m.nsite)}
         self.data.qpos[:] = robot_qpos(robot, m, robot.standing)
         mujoco.mj_kinematics(m, self.data)
-        # parent -> child body origins; bodies at their parent's origin draw nothing
-        # (figure.parents: the NAO's shoulders hang from the neck)
-        parent = {b: int(m.body_parentid[b]) for b in range(1, m.nbody)}
-        for child, new in figure.parents.items():
-            parent[body[child]] = body[new]
-        self.body_pairs = [
-            (parent[b], b)
-            for b in range(1, m.nbody)
-            if parent[b] != 0 and np.linalg.norm(m.body_pos[b]) > 1e-9
-        ]
-        self.site_pairs = [(body[b], site[s]) for b, s in figure.feet]
-        self.colors = [_side_color(m.body(b).name) for _, b in self.body_pairs]
-        self.colors += [_side_color(s) for _, s in figure.feet]
+        # the figure's site links (as the report's sketch draws them), or else parent -> child
+        # body origins (bodies at their parent's origin draw nothing; figure.parents: re-hung)
+        ends = mj_site_ids(m, [n for link in figure.links for n in link])
+        self.link_pairs = list(zip(ends[::2], ends[1::2], strict=True))
+        self.colors = [side_color(b) for _, b in figure.links]
+        self.body_pairs: list[tuple[int, int]] = []
+        if not self.link_pairs:
+            parent = {b: int(m.body_parentid[b]) for b in range(1, m.nbody)}
+            for child, new in figure.parents.items():
+                parent[body[child]] = body[new]
+            self.body_pairs = [
+                (parent[b], b)
+                for b in range(1, m.nbody)
+                if parent[b] != 0 and np.linalg.norm(m.body_pos[b]) > 1e-9
+            ]
+        self.colors += [side_color(m.body(b).name) for _, b in self.body_pairs]
+        # ankle -> sole lines where the links do not draw the feet themselves
+        self.site_pairs = [] if self.link_pairs else [(body[b], site[s]) for b, s in figure.feet]
+        self.colors += [side_color(m.site(s).name) for _, s in self.site_pairs]
         self.head_geom = (
             None
             if figure.head_geom is None
             else mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, figure.head_geom)
         )
-        soles = [s for _, s in self.site_pairs]
+        soles = [site[s] for _, s in figure.feet] or [b for _, b in self.link_pairs]
         lowest = self.data.site_xpos[soles, 2] if soles else self.data.xpos[1:, 2]
         floor = float(lowest.min())
-        self.canvas = _Canvas(size, camera, _ROBOT_CENTRE, _ROBOT_HALF)
-        self.canvas.floor(floor, _ROBOT_CENTRE, _ROBOT_HALF)
+        centre, half = robot_box(robot, m, angles)  # after the standing kinematics above
+        self.canvas = _Canvas(size, camera, centre, half)
+        self.canvas.floor(floor, centre, half)
 
     def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
         d = self.data
         d.qpos[:] = robot_qpos(self.robot, self.model, angles)
         self._mj.mj_kinematics(self.model, d)
-        segments = [d.xpos[[a, b]].copy() for a, b in self.body_pairs]
+        segments = [d.site_xpos[[a, b]].copy() for a, b in self.link_pairs]
+        segments += [d.xpos[[a, b]].copy() for a, b in self.body_pairs]
         segments += [np.stack([d.xpos[b], d.site_xpos[s]]) for b, s in self.site_pairs]
         head = None if self.head_geom is None else d.geom_xpos[self.head_geom].copy()
         return self.canvas.draw(segments, self.colors, head, label)

@@ -5,13 +5,14 @@ skeleton (when ``motion.positions`` is given; a matplotlib 3-D stick figure) on 
 motion's robot (``motion.robot``, e.g. the NAO) playing ``motion.angles`` on the right. Both are
 seen from the same ``Camera`` direction in their own body frame (x forward, y left, z up): the
 human in the body frame built from the skeleton itself (``jaxproj.human.skeleton.body_frame``,
-hips at the origin; the frame the descriptor and the IK use), the robot in its torso frame. Left
+hips at the origin), the robot with its root body welded where its MJCF puts it, each framed on
+its figure over the frames drawn (``panels.robot_box``: any robot whole in the picture). Left
 limbs are orange, right limbs blue (the MJCF's colours).
 
 Backends of the robot panel (``render_frames(..., backend=)``):
 
 - ``"mujoco"``: MuJoCo's offscreen OpenGL renderer (``mujoco.Renderer``) of the bundled MJCF,
-  torso fixed, seen by a free camera. It needs an OpenGL context, chosen by the environment
+  root body fixed, seen by a free camera. It needs an OpenGL context, chosen by the environment
   variable ``MUJOCO_GL`` *before* ``mujoco`` is first imported (jaxproj never sets it):
   ``MUJOCO_GL=egl`` (headless, NVIDIA driver or Mesa EGL), ``MUJOCO_GL=osmesa`` (software,
   libOSMesa) or the default GLFW, which needs a display. Without one ``RenderError`` says so.
@@ -57,6 +58,7 @@ from jaxproj.viz.panels import (
     Camera,
     _HumanPanel,
     _StickRobotPanel,
+    robot_box,
     robot_label,
     robot_qpos,
 )
@@ -172,11 +174,14 @@ def _create_renderer(model: Any, width: int, height: int) -> Any:
 
 
 class _MujocoPanel:
-    """A robot rendered by MuJoCo's OpenGL renderer, torso fixed, free camera."""
+    """A robot rendered by MuJoCo's OpenGL renderer, root body fixed, free camera (framed on
+    ``robot_box`` over ``angles`` unless the camera says where)."""
 
     name = "mujoco"
 
-    def __init__(self, robot: Robot, size: tuple[int, int], camera: Camera):
+    def __init__(
+        self, robot: Robot, size: tuple[int, int], camera: Camera, angles: np.ndarray | None = None
+    ):
         import mujoco
 
         self._mj = mujoco
@@ -187,10 +192,12 @@ class _MujocoPanel:
         vis.offwidth, vis.offheight = max(vis.offwidth, width), max(vis.offheight, height)
         self.renderer = _create_renderer(self.model, width, height)
         self.data = mujoco.MjData(self.model)
+        centre, half = robot_box(robot, self.model, angles)
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        cam.lookat[:] = camera.lookat
-        cam.distance = camera.distance
+        cam.lookat[:] = centre if camera.lookat is None else camera.lookat
+        fit = half / math.sin(math.radians(float(vis.fovy)) / 2.0)  # the cube's sphere fills it
+        cam.distance = fit if camera.distance is None else camera.distance
         cam.azimuth = camera.azimuth + 180.0  # MuJoCo: the direction the camera looks along
         cam.elevation = -camera.elevation
         self.camera = cam
@@ -207,12 +214,17 @@ class _MujocoPanel:
 
 
 def _robot_panel(
-    robot: Robot, backend: str, size: tuple[int, int], camera: Camera
+    robot: Robot,
+    backend: str,
+    size: tuple[int, int],
+    camera: Camera,
+    angles: np.ndarray | None = None,
 ) -> _MujocoPanel | _StickRobotPanel:
+    """The robot panel of ``backend``, framed on ``robot`` in ``angles`` ``(N, n_joints)``."""
     if backend == "matplotlib":
-        return _StickRobotPanel(robot, size, camera)
+        return _StickRobotPanel(robot, size, camera, angles)
     try:
-        return _MujocoPanel(robot, size, camera)
+        return _MujocoPanel(robot, size, camera, angles)
     except RenderError:
         if backend == "mujoco":
             raise
@@ -222,7 +234,7 @@ def _robot_panel(
             file=sys.stderr,
             flush=True,
         )
-        return _StickRobotPanel(robot, size, camera)
+        return _StickRobotPanel(robot, size, camera, angles)
 
 
 # --- frames ---------------------------------------------------------------------------------
@@ -243,7 +255,7 @@ class _Frames:
     ):
         self.motion = motion
         self.index = np.asarray(index)
-        self.robot = _robot_panel(motion.robot, backend, size, camera)
+        self.robot = _robot_panel(motion.robot, backend, size, camera, motion.angles[self.index])
         self.label = robot_label(motion.robot)
         self.backend = self.robot.name
         self.human = None

@@ -119,15 +119,11 @@ def robot_points(robot: Robot, model: Any, angles: np.ndarray) -> dict[str, np.n
 
 
 def _side(name: str) -> tuple[float, float, float]:
-    """The house colour rule (``viz.panels``, as ``render`` draws): left limbs orange, right
-    limbs blue, the rest dark grey."""
-    from jaxproj.viz.panels import CENTRE_COLOR, LEFT_COLOR, RIGHT_COLOR
+    """The house colour rule (``viz.panels.side_color``, as ``render`` draws): left limbs
+    orange, right limbs blue, the rest dark grey."""
+    from jaxproj.viz.panels import side_color
 
-    if "Left" in name or name.startswith("l_"):
-        return LEFT_COLOR
-    if "Right" in name or name.startswith("r_"):
-        return RIGHT_COLOR
-    return CENTRE_COLOR
+    return side_color(name)
 
 
 def _draw_human(ax, pts: np.ndarray, axes: tuple[int, int]) -> None:

@@ -1,3 +1,4 @@
+import argparse
 import json
 from pathlib import Path
 
@@ -110,34 +111,65 @@ def test_retarget_utkinect_to_robot_files_with_time_and_no_speed_violation(tmp_p
     src.write_text(_utk_text(seq.positions[:n], seq.frame_numbers[:n]))
     want_t = (seq.frame_numbers[:n] - seq.frame_numbers[0]) / 30.0
     raw = tmp_path / "raw.npz"
-    assert _run(capsys, "retarget", str(src), "--out", str(raw), "--no-feasible")[0] == 0
+    args = ("--no-feasible", "--rate", "input")  # the file's own (uneven) frame times
+    assert _run(capsys, "retarget", str(src), "--out", str(raw), *args)[0] == 0
     raw_m = load_motion(raw)
     np.testing.assert_allclose(raw_m.times, want_t, rtol=0, atol=1e-9)
     assert (
         feasibility_report(raw_m.angles, raw_m.times, robot=NAO_H25)["speed_violation_frames"] > 0
     )
+    rate = 1.0 / np.median(np.diff(want_t))  # --rate auto: the input's median rate
+    grid = np.arange(int(want_t[-1] * rate + 1e-9) + 1) / rate
+    assert len(np.unique(np.round(np.diff(want_t), 6))) > 1  # the input's steps are uneven
     for ext in ("csv", "json", "npz"):
         out = tmp_path / f"motion.{ext}"
         code, stdout, _ = _run(capsys, "retarget", str(src), "--out", str(out))
         assert code == 0 and "speed-limit frames" in stdout and "[feasible]" in stdout
         m = load_motion(out)
-        np.testing.assert_allclose(m.times, want_t, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(m.times, grid, rtol=0, atol=1e-6)  # one step, every frame
         rep = feasibility_report(m.angles, m.times, robot=NAO_H25)
         assert rep["speed_violation_frames"] == 0 and rep["limit_violation_frames"] == 0
     doc = json.loads((tmp_path / "motion.json").read_text())
     assert set(doc) >= {"names", "angleLists", "timeLists", "isAbsolute"}
     assert doc["isAbsolute"] is True and len(doc["names"]) == 14
-    assert all(len(a) == n for a in doc["angleLists"]) and doc["timeLists"][0][0] > 0
+    assert all(len(a) == len(grid) for a in doc["angleLists"]) and doc["timeLists"][0][0] > 0
     header = (tmp_path / "motion.csv").read_text().splitlines()[0].split(",")
-    assert header == ["time", *robot.JOINT_NAMES, "confidence"]  # per frame, in every output
-    assert len(doc["jaxproj"]["confidence"]) == n
-    np.testing.assert_array_equal(load_motion(tmp_path / "motion.npz").confidence, raw_m.confidence)
+    assert header == ["time", *robot.JOINT_NAMES]  # what a robot's tool reads, nothing else
+    assert len(doc["jaxproj"]["confidence"]) == len(grid)
+    npz = load_motion(tmp_path / "motion.npz")  # validity and confidence: in the NPZ
+    assert npz.confidence is not None and npz.positions.shape == (len(grid), 20, 3)
+    assert npz.meta["rate"] == "auto" and "resampled to" in str(npz.meta["time_source"])
     # --fps replaces the file's timing
     fast = tmp_path / "fast.npz"
     assert _run(capsys, "retarget", str(src), "--out", str(fast), "--fps", "60")[0] == 0
     np.testing.assert_allclose(load_motion(fast).times, np.arange(n) / 60.0, atol=1e-9)
     code, _, err = _run(capsys, "retarget", str(src), "--out", str(tmp_path / "x.txt"))
     assert code == 2 and ".npz, .csv or .json" in err
+
+
+def test_output_rate_puts_the_recording_on_a_uniform_grid():
+    """--rate: auto is the input's median rate, an input already uniform at it is kept as it is,
+    a frame inside a gap of more than GAP_S is invalid, input keeps the file's times."""
+    from jaxproj.cli.retarget import GAP_S, output_rate, parse_rate
+    from jaxproj.io.recording import Recording
+
+    times = np.array([0.0, 0.1, 0.2, 0.4, 0.5, 0.6, 2.0, 2.1])  # steps 0.1, 0.2 and a 1.4 s gap
+    pos = np.arange(len(times), dtype=np.float32)[:, None, None] * np.ones((1, 20, 3), np.float32)
+    rec = Recording(pos, np.ones(len(times), bool), "x", "csv", times, "file")
+    out = output_rate(rec, "auto")
+    np.testing.assert_allclose(out.times, np.arange(22) / 10.0, atol=1e-12)
+    gap = (out.times > 0.6 + 1e-9) & (out.times < 2.0 - 1e-9)
+    want = np.interp(out.times, times, pos[:, 0, 0])
+    np.testing.assert_allclose(out.positions[~gap, 0, 0], want[~gap], atol=1e-6)
+    assert GAP_S < 1.4 and not out.valid[gap].any() and out.valid[~gap].all()
+    assert (out.positions[gap] == 0).all()  # invalid frames are zeros, as readers write them
+    assert output_rate(rec, "input") is rec
+    assert output_rate(out, "auto") is out  # uniform already
+    assert len(output_rate(rec, 20.0).times) == 43
+    assert parse_rate("auto") == "auto" and parse_rate("12.5") == 12.5
+    for bad in ("0", "-1", "nan", "fast"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_rate(bad)
 
 
 def test_retarget_csv_and_no_valid_frame(tmp_path, capsys):

@@ -145,7 +145,7 @@ def test_cli_retarget_takes_the_robot_from_the_model(
     assert main(["retarget", str(src), "--method", "relaxed", "--model", str(path),
                  "--out", str(out)]) == 0  # fmt: skip
     header = out.read_text().splitlines()[0].split(",")
-    assert header == ["time", *JOINTS, "confidence"]
+    assert header == ["time", *JOINTS]  # the robot's joints, nothing else
     assert main(["retarget", str(src), "--method", "relaxed", "--model", str(path), "--robot",
                  robots.DEFAULT, "--out", str(tmp_path / "x.csv")]) == 2  # fmt: skip
     assert "conflicts with the model" in capsys.readouterr().err

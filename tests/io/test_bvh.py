@@ -311,6 +311,33 @@ def test_resampling_keeps_or_changes_the_rate(clips, tmp_path):
         read_skeleton(DATA / CLIPS[0], fps=0.0)
 
 
+def test_a_converters_rest_frame_is_dropped_by_default(clips, tmp_path):
+    """Frame 0 of every joint rotation 0 (the hierarchy's rest pose, as some CMU conversions
+    begin) is left out unless kept; the bundled clips start with motion and lose nothing."""
+    for name, rec in clips.items():
+        assert not bvh.rest_pose_first(bvh.parse_bvh(DATA / name))
+        assert len(rec.times) == bvh.parse_bvh(DATA / name).n_frames
+        assert "dropped" not in rec.time_source
+    lines = (DATA / CLIPS[0]).read_bytes().split(b"\n")
+    m = next(i for i, line in enumerate(lines) if line.strip() == b"MOTION")
+    first = lines[m + 3].split()
+    rest = b" ".join(first[:6] + [b"0.0000"] * (len(first) - 6))  # the root kept, rotations 0
+    n = int(lines[m + 1].split()[1])
+    path = tmp_path / "with_rest.bvh"
+    path.write_bytes(b"\n".join([*lines[: m + 1], b"Frames: %d" % (n + 1), lines[m + 2], rest,
+                                  *lines[m + 3 :]]))  # fmt: skip
+    assert bvh.rest_pose_first(bvh.parse_bvh(path))
+    rec, orig = read_skeleton(path), clips[CLIPS[0]]
+    np.testing.assert_array_equal(rec.positions, orig.positions)  # frame 1 of the file at t = 0
+    np.testing.assert_array_equal(rec.times, orig.times)
+    assert "frame 0 (the hierarchy's rest pose, all rotations 0) dropped" in rec.time_source
+    kept = read_skeleton(path, rest_frame="keep")
+    assert len(kept.times) == n + 1 and "dropped" not in kept.time_source
+    np.testing.assert_array_equal(kept.positions[1:], orig.positions)
+    with pytest.raises(ConfigError, match="rest_frame"):
+        bvh.read_bvh(path, rest_frame="auto")
+
+
 def _mb_text() -> str:
     """The 131_03 excerpt with the MotionBuilder-friendly release's joint names."""
     rename = {

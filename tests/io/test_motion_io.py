@@ -371,7 +371,7 @@ def test_load_rejects_an_unknown_extension(tmp_path):
         load_motion(tmp_path / "m.bvh")
 
 
-@pytest.mark.parametrize("ext", [".npz", ".csv", ".json"])
+@pytest.mark.parametrize("ext", [".npz", ".json"])
 def test_confidence_round_trips(tmp_path, ext):
     n = 6
     angles = np.tile(robot.STANDING_POSTURE, (n, 1)).astype(np.float32)
@@ -383,3 +383,53 @@ def test_confidence_round_trips(tmp_path, ext):
     assert plain.confidence is None
     with pytest.raises(ConfigError, match=r"confidence must lie in \[0, 1\]; frame 2"):
         Motion(angles, m.times, m.valid, confidence=np.array([0, 1, 1.5, 0, 0, 0], np.float32))
+
+
+def test_the_csv_is_time_and_the_robots_joints_only(tmp_path):
+    """A robot's tool reads the CSV: time + every joint in the robot's SDK order, nothing else;
+    a CSV with the confidence column jaxproj 0.2.0 wrote still reads."""
+    n = 4
+    angles = np.tile(robot.STANDING_POSTURE, (n, 1)).astype(np.float32)
+    conf = np.array([0.0, 0.5, 1.0, 0.25], np.float32)
+    m = Motion(angles, np.arange(n) / 15.0, np.ones(n, bool), confidence=conf)
+    path = save_motion(tmp_path / "m.csv", m, margin=None)
+    lines = path.read_text().splitlines()
+    assert lines[0].split(",") == ["time", *robot.JOINT_NAMES] and len(lines) == n + 1
+    assert all(len(line.split(",")) == 1 + robot.N_JOINTS for line in lines)
+    assert load_motion(path).confidence is None
+    legacy = tmp_path / "old.csv"
+    rows = [f"{row},{c}" for row, c in zip(lines[1:], conf, strict=True)]
+    legacy.write_text("\n".join([lines[0] + ",confidence", *rows]))
+    back = load_motion(legacy)
+    np.testing.assert_array_equal(back.confidence, conf)
+    np.testing.assert_array_equal(back.angles, angles)
+
+
+@pytest.mark.parametrize("ext", [".npz", ".csv"])
+def test_load_motion_finds_the_robot_by_its_joint_names(tmp_path, ext):
+    """Without robot=, a file's joint names say whose motion it is (a G1 file reads as the G1,
+    the NAO's and a subset of its joints as the NAO); names of no robot are an InputError."""
+    from jaxproj import robots
+
+    for r in map(robots.get, robots.names()):
+        q = np.tile(r.standing, (3, 1)).astype(np.float32)
+        q[1] = np.clip(q[1] + 0.1, r.lower + 1e-3, r.upper - 1e-3)
+        m = Motion(q, np.arange(3) / 30.0, np.ones(3, bool), robot=r)
+        back = load_motion(save_motion(tmp_path / f"{r.name}{ext}", m, margin=None))
+        assert back.robot is r
+        np.testing.assert_array_equal(back.angles, q)
+    head = tmp_path / f"head{ext}"  # two of the default robot's joints: the others standing
+    cols = ["HeadYaw", "HeadPitch"]
+    if ext == ".csv":
+        head.write_text("time,HeadYaw,HeadPitch\n0.0,0.1,0.2\n")
+    else:
+        np.savez(head, angles=np.array([[0.1, 0.2]], np.float32), joint_names=np.array(cols))
+    assert load_motion(head).robot is robots.get()
+    bad = tmp_path / f"bad{ext}"
+    if ext == ".csv":
+        bad.write_text("time,left_knee_joint,HeadYaw\n0.0,0.1,0.2\n")
+    else:
+        np.savez(bad, angles=np.zeros((1, 2), np.float32),
+                 joint_names=np.array(["left_knee_joint", "HeadYaw"]))  # fmt: skip
+    with pytest.raises(InputError, match=r"unknown joint names \['left_knee_joint'\]"):
+        load_motion(bad)

@@ -228,8 +228,9 @@ def test_toy_motion_files(toy: Robot, tmp_path: Path) -> None:
         save_motion(tmp_path / "m.json", m)  # the toy has no controller document
     with pytest.raises(ConfigError, match=r"\(T, 9\)"):
         Motion(np.zeros((2, 26), np.float32), np.arange(2.0), np.ones(2, bool), robot=toy)
+    assert load_motion(tmp_path / "m.csv").robot is toy  # registered: found by its joint names
     with pytest.raises(InputError, match="unknown joint names"):
-        load_motion(tmp_path / "m.npz")  # read as a NAO motion: the toy's names are unknown
+        load_motion(tmp_path / "m.npz", robot="nao_h25")  # the toy's names are not the NAO's
 
 
 def test_toy_metrics(toy: Robot) -> None:

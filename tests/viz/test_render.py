@@ -16,12 +16,14 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
+from jaxproj import robots
 from jaxproj.cli import main
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import J
 from jaxproj.io.motion_files import Motion, save_motion
 from jaxproj.robots.nao_h25 import robot
 from jaxproj.viz import render
+from jaxproj.viz.panels import _StickRobotPanel
 from jaxproj.viz.render import RenderError, render_frames, render_motion, save_video, show
 
 SIZE = (120, 90)  # one panel, (width, height)
@@ -413,6 +415,58 @@ def test_cli_render(tmp_path, capsys, no_sigint_fork):
     assert "the NAO only (the motion holds no human positions" in stdout  # what it drew
     assert "human skeleton" not in stdout
     assert _read_mp4(mp4)[:2] == (2, (48, 64, 3))
+
+
+def _robot_ink_box(img: np.ndarray) -> tuple[int, int, int, int]:
+    """(top, bottom, left, right) pixel rows / columns of a robot's lines on a matplotlib panel
+    (darker than the faint floor square)."""
+    ink = img.astype(int).sum(axis=-1) < 3 * 170
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    assert rows.size and cols.size, "nothing drawn"
+    return int(rows[0]), int(rows[-1]), int(cols[0]), int(cols[-1])
+
+
+@pytest.mark.parametrize("name", robots.names())
+def test_every_robot_stands_whole_in_its_panel(name):
+    """The robot panel is framed on the robot's own geometry (panels.robot_box): standing and
+    in two random configurations within its limits, every robot (a 0.6 m NAO, a 1.3 m G1) is
+    inside the picture, touching no edge, and standing it fills a good part of its height."""
+    r = robots.get(name)
+    rng = np.random.default_rng(3)
+    q = np.stack([r.standing, *rng.uniform(r.lower, r.upper, (2, r.n_joints))]).astype(np.float32)
+    w, h = 120, 160
+    panel = _StickRobotPanel(r, (w, h), render.Camera(), q)
+    try:
+        for k, pose in enumerate(q):
+            top, bottom, left, right = _robot_ink_box(panel.draw(pose, ""))
+            assert 0 < top and bottom < h - 1 and 0 < left and right < w - 1, (k, top, bottom)
+            if k == 0:
+                assert bottom - top > 0.4 * h  # standing: not a speck in a corner
+    finally:
+        panel.close()
+    # the video's frames: the person beside the robot, the robot's pixels below its caption
+    m = Motion(q[:2], np.arange(2) / 15.0, np.ones(2, bool),
+               np.stack([_skeleton(), _skeleton(0.3)]), robot=r)  # fmt: skip
+    frames = render_frames(m, backend="matplotlib", size=(w, h))
+    assert frames.shape == (2, h, 2 * w, 3)
+    assert _changed(frames[0, LABEL_ROWS:, w:], frames[1, LABEL_ROWS:, w:]) > 40
+
+
+def test_cli_renders_a_g1_motion_from_npz_and_csv(tmp_path, capsys, no_sigint_fork):
+    """`jaxproj render` takes the robot from the file's joint names (no robot named above
+    jaxproj.robots): a G1 NPZ (with the person) and its CSV (the robot alone)."""
+    g1 = robots.get("unitree_g1")
+    q = np.tile(g1.standing, (2, 1))
+    q[1, g1.index("left_shoulder_pitch_joint")] = -2.0
+    m = Motion(q, np.arange(2) / 15.0, np.ones(2, bool), np.stack([_skeleton(), _skeleton(0.3)]),
+               robot=g1)  # fmt: skip
+    for ext, who in ((".npz", "human skeleton (left) and G1 (right)"), (".csv", "the G1 only")):
+        src = save_motion(tmp_path / f"g1{ext}", m)
+        out = tmp_path / f"g1{ext}.gif"
+        code, stdout, err = _cli(capsys, "render", str(src), "--out", str(out), "--backend",
+                                 "matplotlib", "--size", "64x64")  # fmt: skip
+        assert code == 0, err
+        assert who in stdout and "2 motion frames drawn" in stdout
 
 
 @pytest.mark.parametrize(

@@ -91,3 +91,33 @@ def test_long_titles_are_wrapped_inside_the_figure(figures):
     assert text.get_text().replace("\n", " ") == title  # wrapped at spaces, nothing lost
     short = report.suptitle(fig, "short")
     assert short.get_text() == "short"
+
+
+def test_retarget_plot_draws_the_g1_in_its_own_colours(monkeypatch, tmp_path):
+    """`retarget --plot` for any robot: the G1's key frames are its figure's links (sites of
+    its MJCF), left limbs orange and right limbs blue, one row of angles per chain. (The
+    person's side is the CLI's test: here its points are drawn as given, the figure not saved.)"""
+    from jaxproj import robots
+    from jaxproj.viz.panels import LEFT_COLOR, RIGHT_COLOR
+
+    figures = []
+    monkeypatch.setattr(report, "_save", lambda plt, fig, path: figures.append(fig))
+    monkeypatch.setattr(report, "human_points", lambda p: p)
+
+    g1 = robots.get("unitree_g1")
+    n = 6
+    q = np.tile(g1.standing[g1.driven_index], (n, 1)).astype(np.float32)
+    q[:, g1.driven_joints.index("left_shoulder_pitch_joint")] = np.linspace(0.0, -1.5, n)
+    pos = np.zeros((n, 20, 3), np.float32)
+    report.plot_retarget(tmp_path / "g1.png", "G1", pos, np.ones(n, bool), np.arange(n) / 30.0,
+                         q, q, label="ik", key_frames=2, robot=g1)  # fmt: skip
+    (fig,) = figures
+    assert len(fig.axes) == 2 * 2 * 2 + len(g1.chains)  # (human, robot) x views x frames
+    robot_ax = fig.axes[1]
+    assert "G1" in robot_ax.get_title()
+    colours = {tuple(np.round(line.get_color(), 2)) for line in robot_ax.get_lines()}
+    assert {tuple(np.round(LEFT_COLOR, 2)), tuple(np.round(RIGHT_COLOR, 2))} <= colours
+    assert len(robot_ax.get_lines()) >= 2 * len(g1.mjcf.figure.links)  # output and IK
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)

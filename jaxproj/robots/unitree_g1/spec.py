@@ -50,7 +50,7 @@ from jax.typing import ArrayLike
 from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
-from jaxproj.robots.base import Chain, Mjcf, Robot
+from jaxproj.robots.base import Chain, Figure, Mjcf, Robot
 from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
 from jaxproj.robots.unitree_g1 import robot
 
@@ -252,6 +252,35 @@ def solve_driven(d: ArrayLike, bones: str | tuple[str, ...] = "full") -> jax.Arr
     return call_bucketed(fn, x, 1)
 
 
+FIGURE = Figure(
+    label="G1",
+    links=(
+        *(
+            link
+            for side in ("left", "right")
+            for link in (
+                ("neck_site", f"{side}_shoulder_site"),
+                (f"{side}_shoulder_site", f"{side}_elbow_site"),
+                (f"{side}_elbow_site", f"{side}_wrist_site"),
+                (f"{side}_wrist_site", f"{side}_hand_site"),
+                ("pelvis_site", f"{side}_hip_site"),
+                (f"{side}_hip_site", f"{side}_knee_site"),
+                (f"{side}_knee_site", f"{side}_ankle_site"),
+                (f"{side}_ankle_site", f"{side}_toe_site"),
+            )
+        ),
+        ("torso_site", "neck_site"),
+        ("pelvis_site", "torso_site"),
+        ("neck_site", "head_site"),
+    ),
+    head=("head_link", 0.0),
+    feet=(("left_ankle_roll_link", "left_toe_site"), ("right_ankle_roll_link", "right_toe_site")),
+    head_geom="head_geom",
+)
+"""How ``jaxproj.viz`` draws the G1 (the report's sketch and the render's stick panel): the
+MJCF's sites joined neck -> shoulder -> elbow -> wrist -> palm, pelvis -> hip -> knee -> ankle
+-> toe, pelvis -> waist pivot -> neck -> head centre; the floor at the soles."""
+
 MJCF = Mjcf(
     path=robot.mjcf_path(),
     load=robot.load_model,
@@ -262,6 +291,7 @@ MJCF = Mjcf(
     },
     fk_without=robot.LEG_ROOTS,
     hand_sites=("left_hand_site", "right_hand_site"),
+    figure=FIGURE,
 )
 
 UNITREE_G1 = Robot(

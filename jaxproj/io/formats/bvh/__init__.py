@@ -57,6 +57,12 @@ A map naming a BVH joint the hierarchy lacks, or leaving out a required Kinect j
 ``InputError`` that lists every such Kinect joint. Kinect "Left" is the performer's left: the map
 pairs names, it never mirrors (``--mirror`` does that, downstream).
 
+A converter's rest frame (``rest_frame=``, CLI ``--bvh-rest-frame``): some converted files
+(CMU's MotionBuilder and 3ds Max releases, in part) begin with a synthetic reference pose, every
+joint rotation 0, before the motion. By default (``"drop"``) ``read_bvh`` leaves such a frame 0
+out (``rest_pose_first`` detects it: every non-root rotation channel 0 in frame 0 and not in
+frame 1), so the motion starts with the file's frame 1 at time 0; ``"keep"`` reads it.
+
 Units (``scale=``, CLI ``--bvh-scale``): metres = file units x scale. ``"auto"`` (default):
 ``CMU_SCALE`` for the CMU presets (CMU's documented unit, (1 / 0.45) x 2.54 cm = 0.05644 m: the
 converted skeletons keep the ASF lengths). With it the bundled subject 131 has its hip joints
@@ -110,9 +116,11 @@ from jaxproj.io.formats.bvh.reader import (
     CMU_SCALE,
     FORMAT,
     REFERENCE_HEIGHT_M,
+    REST_FRAMES,
     UNITS,
     auto_scale,
     read_bvh,
+    rest_pose_first,
 )
 
 __all__ = [
@@ -124,6 +132,7 @@ __all__ = [
     "JOINT_MAPS",
     "REFERENCE_HEIGHT_M",
     "REQUIRED_JOINTS",
+    "REST_FRAMES",
     "TARGET_SKELETON",
     "UNITS",
     "BvhClip",
@@ -135,4 +144,5 @@ __all__ = [
     "parse_bvh",
     "read_bvh",
     "resolve_joint_map",
+    "rest_pose_first",
 ]

@@ -36,6 +36,43 @@ skeleton without a preset (an adult's ~1.7 m stature less the head top and the f
 
 _PRESET_SCALE = {"cmu": CMU_SCALE, "cmu-mb": CMU_SCALE}
 
+REST_FRAMES: tuple[str, ...] = ("drop", "keep")
+"""``rest_frame=`` of ``read_bvh`` (CLI ``--bvh-rest-frame``): what to do with a first frame that
+is the hierarchy's rest pose (``rest_pose_first``)."""
+
+REST_TOLERANCE_DEG = 1e-4
+"""A rotation channel within this many degrees of 0 counts as zero (files write 4 decimals)."""
+
+
+def rest_pose_first(clip: BvhClip) -> bool:
+    """Whether the clip's frame 0 is a converter's synthetic rest pose rather than motion.
+
+    Converters that write a reference pose before the motion (the CMU releases made for
+    MotionBuilder and 3ds Max insert a T-pose as frame 0 in some files) write it as every joint
+    rotation 0: the hierarchy's own rest pose (its ``OFFSET``s). Frame 0 counts as such a frame
+    when every rotation channel of every joint but the root is within ``REST_TOLERANCE_DEG`` of
+    0 and frame 1's are not all so (captured motion never holds every joint exactly at 0). The
+    root's rotation and position are not read (a converter may place the pose anywhere). The two
+    bundled CMU clips (``tests/data/cmu_bvh``) start with motion: nothing is dropped there.
+
+    Args:
+      clip: the parsed file.
+
+    Returns:
+      True for a clip of at least two frames whose frame 0 is such a rest pose.
+    """
+    if clip.n_frames < 2:
+        return False
+    cols, start = [], 0
+    for j, names in enumerate(clip.channels):
+        if clip.parents[j] >= 0:
+            cols += [start + k for k, c in enumerate(names) if c.lower().endswith("rotation")]
+        start += len(names)
+    if not cols:
+        return False
+    zero = np.abs(clip.motion[:2, cols]) <= REST_TOLERANCE_DEG
+    return bool(zero[0].all() and not zero[1].all())
+
 
 def auto_scale(clip: BvhClip, map_name: str, table: Mapping[str, str]) -> tuple[float, str]:
     """``(metres per file unit, how it was chosen)`` for ``scale="auto"`` (module docstring)."""
@@ -86,6 +123,7 @@ def read_bvh(
     fps: float | None = None,
     *,
     data: bytes | None = None,
+    rest_frame: str = "drop",
 ) -> Recording:
     """Read a BVH file into a ``Recording`` (``(T, 20, 3)`` float32 metres, Kinect order).
 
@@ -96,18 +134,27 @@ def read_bvh(
       scale: ``"auto"``, a unit name of ``UNITS`` or metres per file unit.
       fps: ``None`` keeps the clip's frames (``Frame Time``); a rate resamples the clip to it.
       data: the file's bytes, if already read.
+      rest_frame: ``"drop"`` (default): leave out frame 0 when it is a converter's synthetic
+        rest pose (``rest_pose_first``; the recording then starts, at time 0, with the file's
+        frame 1); ``"keep"``: read every frame.
 
     Returns:
       ``Recording`` with ``format="bvh"``, ``times`` from ``Frame Time`` (or the resampled grid)
-      and ``time_source`` saying which map, scale and rate were used.
+      and ``time_source`` saying which map, scale and rate were used, and whether a rest frame
+      was dropped.
 
     Raises:
       InputError: a malformed file or a map that does not fit it (one line, file and line).
-      ConfigError: a bad ``scale``, ``fps`` or map dict.
+      ConfigError: a bad ``scale``, ``fps``, ``rest_frame`` or map dict.
     """
     if fps is not None:
         check_fps(fps)
+    if rest_frame not in REST_FRAMES:
+        raise ConfigError(f"rest_frame must be one of {REST_FRAMES}, got {rest_frame!r}")
     clip = parse_bvh(path, data)
+    dropped = rest_frame == "drop" and rest_pose_first(clip)
+    if dropped:
+        clip = dataclasses.replace(clip, motion=clip.motion[1:], lines=clip.lines[1:])
     map_name, table = resolve_joint_map(clip, bvh_map)
     metres, scale_note = _scale(clip, scale, map_name, table)
     positions = kinect_positions(clip, table, metres)
@@ -121,6 +168,8 @@ def read_bvh(
     rec = make_recording(positions, None, str(path), "bvh")
     note = (f"BVH Frame Time {clip.frame_time:g} s ({clip.fps:.6g} fps); map {map_name}; "
             f"scale {scale_note}")  # fmt: skip
+    if dropped:
+        note += "; frame 0 (the hierarchy's rest pose, all rotations 0) dropped"
     rec = dataclasses.replace(rec, times=times, time_source=note, nominal_fps=clip.fps)
     if fps is not None:
         rec = resample(rec, fps)
@@ -142,10 +191,11 @@ def read(
     *,
     bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
     scale: float | str = "auto",
+    rest_frame: str = "drop",
     **options: Any,
 ) -> Recording:
     """``read_bvh`` as a format's reader (``Format.read``)."""
-    return read_bvh(path, bvh_map, scale, fps, data=data)
+    return read_bvh(path, bvh_map, scale, fps, data=data, rest_frame=rest_frame)
 
 
 FORMAT = Format(
