@@ -61,13 +61,16 @@ _REPO = Path(__file__).resolve().parent.parent
 _SHARED = _REPO.parent / "shared" / "data"
 
 
-def default_files() -> list[Path]:
-    """The held-out recordings (module doc)."""
+def default_files(folder: Path | None = None) -> list[Path]:
+    """The held-out recordings (module doc), from ``folder`` (all in one) or ``../shared``."""
     utk = [f"joints_s{p:02d}_e{e:02d}.txt" for p in (7, 9) for e in (1, 2)]
+    bvh = [f"131_0{i}.bvh" for i in (1, 3)]
+    if folder is not None:
+        return [folder / f for f in utk + bvh]
     if (_SHARED / "utkinect_action3d").is_dir():
         files = [_SHARED / "utkinect_action3d" / f for f in utk]
-        return files + [_SHARED / "cmu_bvh" / f"131_0{i}.bvh" for i in (1, 3)]
-    raise SystemExit(f"{_SHARED} is missing: pass the recordings as arguments")
+        return files + [_SHARED / "cmu_bvh" / f for f in bvh]
+    raise SystemExit(f"{_SHARED} is missing: pass the recordings or --data FOLDER")
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -221,9 +224,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--method", default="ik", choices=("ik", "relaxed", "full"))
     p.add_argument("--model", default=None)
     p.add_argument("--json", default=None)
+    p.add_argument("--data", type=Path, default=None, help="a folder holding the six files")
+    p.add_argument("--extra", default="", help="more retarget options, one string")
     a = p.parse_args(argv)
-    extra = ["--method", a.method] + (["--model", a.model] if a.model else [])
-    files = a.files or default_files()
+    extra = ["--method", a.method] + (["--model", a.model] if a.model else []) + a.extra.split()
+    files = a.files or default_files(a.data)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for f in files:
