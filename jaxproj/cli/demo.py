@@ -15,8 +15,10 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--out",
         default="jaxproj-report",
-        help="report folder, created if missing (its parent folder must exist)",
+        help="report folder, created if missing (its parent folder must exist); one that "
+        "holds an earlier report is refused without --force",
     )
+    options.add_force_option(p, "report of an earlier run in --out (files of other names stay)")
     p.add_argument(
         "--quick",
         action="store_true",
@@ -31,17 +33,17 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj._internal.mjx import import_mjx
 
     import_mjx()  # before jaxproj.eval imports it: without Warp's notice
-    from jaxproj.paper.demo import run_demo
+    from jaxproj.paper.demo import check_report_folder, run_demo
     from jaxproj.paper.demo_report import stdout_summary
 
     out_dir = Path(args.out)
-    if not out_dir.parent.is_dir():
-        raise ConfigError(
-            f"--out {out_dir}: folder {out_dir.parent} does not exist (the report folder is "
-            "created, its parent is not: create it first)"
-        )
+    try:
+        check_report_folder(out_dir, args.force)
+    except ConfigError as e:
+        message = str(e).replace("--force (CLI) / overwrite=True (Python)", "--force")
+        raise ConfigError(f"--out {message}") from None
     devices = options.devices(args.devices)
-    out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices)
+    out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices, overwrite=args.force)
     print(stdout_summary(out))
     t = out["timings"]
     print(f"report: {out_dir / 'report.md'} ({t['total_s']:.0f} s)")
