@@ -8,7 +8,7 @@ import argparse
 import math
 import os
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -49,48 +49,52 @@ def _number_text(x: float) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)
 
 
-def bounded(
-    kind: type[int] | type[float], lo: float, hi: float | None = None, *, open_lo: bool = False
-) -> Callable[[str], Any]:
+class Bounded:
     """An argparse ``type=``: a number of ``kind`` in ``[lo, hi]`` (``(lo, hi]`` with
     ``open_lo``; no upper end for ``hi=None``), finite, else a one-line error naming the range
-    (argparse adds the option's name). ``RANGE`` of the returned parser says it in words, for
-    the help."""
-    lo_text = f"{'>' if open_lo else '>='} {_number_text(lo)}"
-    words = lo_text if hi is None else f"{_number_text(lo)}..{_number_text(hi)}"
-    if hi is not None and open_lo:
-        words = f"{lo_text} and <= {_number_text(hi)}"
-    noun = "a whole number" if kind is int else "a number"
+    (argparse adds the option's name); ``many``: comma-separated values, each in the range
+    (``--landmarks 400,1644,1644``), as a list. ``RANGE`` says the range in words, for the
+    help."""
 
-    def parse(text: str) -> Any:
+    def __init__(
+        self,
+        kind: type[int] | type[float],
+        lo: float,
+        hi: float | None = None,
+        *,
+        open_lo: bool = False,
+        many: bool = False,
+    ) -> None:
+        self.kind, self.lo, self.hi, self.open_lo, self.many = kind, lo, hi, open_lo, many
+        lo_text = f"{'>' if open_lo else '>='} {_number_text(lo)}"
+        if hi is None:
+            self.RANGE = lo_text
+        elif open_lo:
+            self.RANGE = f"{lo_text} and <= {_number_text(hi)}"
+        else:
+            self.RANGE = f"{_number_text(lo)}..{_number_text(hi)}"
+        self.__name__ = kind.__name__  # what argparse calls the type in its own messages
+
+    def one(self, text: str) -> Any:
+        noun = "a whole number" if self.kind is int else "a number"
         try:
-            value = kind(text)
+            value = self.kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {noun} {words}, got {text!r}") from None
-        low_ok = value > lo if open_lo else value >= lo
-        if not (math.isfinite(value) and low_ok and (hi is None or value <= hi)):
-            raise argparse.ArgumentTypeError(f"{text} is out of range: use {noun} {words}")
+            raise argparse.ArgumentTypeError(
+                f"expected {noun} {self.RANGE}, got {text!r}"
+            ) from None
+        low_ok = value > self.lo if self.open_lo else value >= self.lo
+        if not (math.isfinite(value) and low_ok and (self.hi is None or value <= self.hi)):
+            raise argparse.ArgumentTypeError(f"{text} is out of range: use {noun} {self.RANGE}")
         return value
 
-    parse.__name__ = kind.__name__  # argparse's "invalid int value" wording, if ever used
-    parse.RANGE = words  # type: ignore[attr-defined]
-    return parse
-
-
-def bounded_list(
-    kind: type[int] | type[float], lo: float, hi: float | None = None, *, open_lo: bool = False
-) -> Callable[[str], list]:
-    """``bounded`` for comma-separated values (``--landmarks 400,1644,1644``)."""
-    one = bounded(kind, lo, hi, open_lo=open_lo)
-
-    def parse(text: str) -> list:
-        values = [one(t.strip()) for t in text.split(",") if t.strip()]
+    def __call__(self, text: str) -> Any:
+        if not self.many:
+            return self.one(text)
+        values = [self.one(t.strip()) for t in text.split(",") if t.strip()]
         if not values:
             raise argparse.ArgumentTypeError(f"expected comma-separated values, got {text!r}")
         return values
-
-    parse.RANGE = one.RANGE  # type: ignore[attr-defined]
-    return parse
 
 
 def parse_ints(text: str) -> list[int]:
@@ -251,13 +255,13 @@ def add_data_options(
     add_bvh_options(parser)
 
 
-NEIGHBOURS = bounded(int, 1, 200)
+NEIGHBOURS = Bounded(int, 1, 200)
 """``--L`` / ``--M``: 1..200 (the paper's sweep is 5..50; the search's cost grows with L x M; a
 model also caps both at its smallest chain's landmark count)."""
 
 
 def add_neighbour_options(parser: argparse.ArgumentParser) -> None:
-    rule = f"{NEIGHBOURS.RANGE} (and at most the model's smallest chain's landmark count)"  # type: ignore[attr-defined]
+    rule = f"{NEIGHBOURS.RANGE} (and at most the model's smallest chain's landmark count)"
     parser.add_argument(
         "--L", type=NEIGHBOURS, default=10, help=f"human-landmark neighbours (candidates): {rule}"
     )

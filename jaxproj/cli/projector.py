@@ -17,19 +17,19 @@ from jaxproj.projection.api import HEAD_BANDWIDTH
 BUILD_STAGES = ("descriptors", "landmarks and kernels", "save")
 """The steps of ``jaxproj build`` its progress bar counts (on a terminal only)."""
 
-LANDMARKS = options.bounded_list(int, 2, 100_000)
+LANDMARKS = options.Bounded(int, 2, 100_000, many=True)
 """``build --landmarks``: 2..100,000 per chain (``BuildConfig`` needs >= 2; the bundled training
 set holds ~30,000 frames)."""
-BANDWIDTH = options.bounded_list(float, 0.0, 10.0, open_lo=True)
+BANDWIDTH = options.Bounded(float, 0.0, 10.0, open_lo=True, many=True)
 """``build --bandwidth``: > 0 and <= 10 (descriptor distances between unit bone directions
 stay under 2 per bone: a larger bandwidth makes one landmark)."""
-K = options.bounded(int, 2, 4096)
+K = options.Bounded(int, 2, 4096)
 """``build --k``: 2..4096 training neighbours per kernel (tuned: 96)."""
-HIDDEN = options.bounded(int, 2, 4096)
+HIDDEN = options.Bounded(int, 2, 4096)
 """``build --hidden``: 2..4096 hidden units (tuned: 96 / 192)."""
-POSITIVE = options.bounded(float, 0.0, None, open_lo=True)
+POSITIVE = options.Bounded(float, 0.0, None, open_lo=True)
 """``build --lam`` / ``--input-scale``: finite and > 0."""
-SEED = options.bounded(int, 0, 2**32 - 1)
+SEED = options.Bounded(int, 0, 2**32 - 1)
 """``build --seed``: a uint32, as ``jax.random.PRNGKey`` takes."""
 
 

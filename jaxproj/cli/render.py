@@ -9,10 +9,10 @@ from typing import Any
 
 from jaxproj.cli import options
 
-STRIDE = options.bounded(int, 1, 1000)
+STRIDE = options.Bounded(int, 1, 1000)
 """``--stride``: 1..1000 motion frames per drawn frame."""
 
-VIDEO_FPS = options.bounded(float, 1.0, 240.0)
+VIDEO_FPS = options.Bounded(float, 1.0, 240.0)
 """``--fps``: 1..240 video frames/s (a slide show to the fastest common displays)."""
 
 

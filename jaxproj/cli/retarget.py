@@ -15,7 +15,7 @@ from jaxproj.projection.config import FULL_READINGS
 
 METHODS = ("ik", "relaxed", "full")
 
-FPS = options.bounded(float, 1.0, 1000.0)
+FPS = options.Bounded(float, 1.0, 1000.0)
 """``--fps``: 1..1000 frames/s. Above ~1 kHz the feasibility filter's acceleration bound cannot
 be told from float32 round-off: one unit in the last place of an angle (~1.2e-7 rad near 1 rad)
 over the squared step is 0.12 rad/s^2 at 1 kHz but 1,200 at 100 kHz (``--fps 1e5`` wrote
