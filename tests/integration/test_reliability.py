@@ -593,6 +593,7 @@ class TestOutputs:
         against them before the recording is read or the model's arrays loaded (here a file
         whose metadata says G1: its arrays, the NAO's, are never read)."""
         src = _msr(tmp_path)
+
         def to_g1(arrays, meta):
             meta["config"].update(robot="unitree_g1", bones="full")
 
