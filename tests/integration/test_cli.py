@@ -167,11 +167,12 @@ def test_retarget_csv_and_no_valid_frame(tmp_path, capsys):
         "warns at: the others hold or bridge the valid poses around them (valid = false in the "
         "output); check the recording (lost tracking, units)"
     ]
-    # half the frames valid: no warning
+    # half the frames valid: no warning (--force: the motion of the last run is replaced)
     rows[0] = seq.positions[1].reshape(-1)
     np.savetxt(src, rows, delimiter=",")
-    code, _, err = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth")
+    code, _, err = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth", "--force")
     assert code == 0 and err == ""
+    np.testing.assert_array_equal(np.load(out)["valid"], [True, False, True, False])
 
 
 @pytest.mark.parametrize(
@@ -312,9 +313,10 @@ def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):
     report = tmp_path / "r.json"
     argv_eval = ["evaluate", "--model", str(model), "--data", str(folder), "--subjects", "2"]
     argv_eval += ["--objective", "relaxed", "--json", str(report)]
-    # more neighbours than the smallest chain's landmarks: refused, naming the chain
-    code, out, err = _run(capsys, *argv_eval, "--L", "999")
-    assert code == 2 and "chain has" in err and "L=999" in err
+    # more neighbours than the smallest chain's landmarks (within --L's 1..200): refused, naming
+    # the chain
+    code, out, err = _run(capsys, *argv_eval, "--L", "150")
+    assert code == 2 and "chain has" in err and "L=150" in err
     code, out, _ = _run(capsys, *argv_eval, "--L", "5", "--M", "5")
     assert code == 0
     r = json.loads(report.read_text())
