@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,13 @@ def add_parsers(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # the first line, before MuJoCo, the plots and the first compile (minutes of silence else)
+    print(
+        f"jaxproj demo{' --quick' if args.quick else ''}: 5 stages (build, evaluate, roll out, "
+        "the paper's experiments, report), a progress line with estimates at least every 30 s",
+        file=sys.stderr,
+        flush=True,
+    )
     from jaxproj._internal.mjx import import_mjx
 
     import_mjx()  # before jaxproj.eval imports it: without Warp's notice

@@ -227,7 +227,8 @@ def run(args: argparse.Namespace) -> int:
             "(lost tracking, units)"
         )
     if args.method != "ik":
-        for line in confidence_lines(args.method, result.low_confidence_valid_share):
+        calibrated = model is None or model.deviation_scale is not None
+        for line in confidence_lines(args.method, result.low_confidence_valid_share, calibrated):
             print(line)
     if plot is not None:
         _plot(plot, args, rec, angles, result, bones, mirror, robot)
@@ -272,11 +273,24 @@ UNLIKE_FACTOR = 1.5
 recording unlike the training people, with what to do about it."""
 
 
-def confidence_lines(method: str, share: float) -> list[str]:
+UNCALIBRATED = (
+    "  this model file predates per-model calibration: its cut-off is the default model's, and "
+    "a smaller model flags more frames; rebuild it (jaxproj build) for its own"
+)
+"""The line after the share for a model file without its own scale (``Model.deviation_scale``)."""
+
+
+def confidence_lines(method: str, share: float, calibrated: bool = True) -> list[str]:
     """What ``jaxproj retarget`` prints about the low-confidence share of the valid frames
     (``RetargetResult.low_confidence_valid_share``) of ``method`` (relaxed / full): the share,
     what it means against the held-out training people the cut-off was calibrated on, and what
-    to do when it is well above their tenth."""
+    to do when it is well above their tenth. ``calibrated`` False: the model has no scale of its
+    own (an old file), and a line says so."""
+    lines = _confidence_lines(method, share)
+    return lines if calibrated else [lines[0], UNCALIBRATED, *lines[1:]]
+
+
+def _confidence_lines(method: str, share: float) -> list[str]:
     from jaxproj.projection.confidence import LOW_CONFIDENCE
 
     head = (

@@ -543,7 +543,7 @@ def evaluate(
         out["wall_s"][f"{method}_us_per_frame"] = 1e6 * wall / max(len(h), 1)
         m_max, m_avg = frame_errors(pred, truth_v)
         if value is not None:  # the projection's own error against its confidence
-            conf = np.asarray(confidence(jnp.asarray(value), spec.deviation_scale))
+            conf = np.asarray(confidence(jnp.asarray(value), model.confidence_scale))
             out["confidence"][method] = metrics.confidence_deciles(conf, m_max, m_avg)
         scored_points = metrics.arm_points(pred, robot=spec)  # the scored FK, used twice below
         out["unsmoothed"][method] = summarize_errors(

@@ -65,7 +65,7 @@ from jaxproj.motion.offline import OFFLINE_SMOOTHING
 from jaxproj.motion.pipeline import fill_invalid  # noqa: F401 - re-exported (its old home)
 from jaxproj.motion.smoothing import Smoothing, frame_gains, smoother_kind
 from jaxproj.projection.api import Model, check_neighbours
-from jaxproj.projection.confidence import LOW_CONFIDENCE
+from jaxproj.projection.confidence import DEVIATION_SCALE, LOW_CONFIDENCE, rescale
 from jaxproj.projection.config import FullConfig
 from jaxproj.robots import Robot, get
 
@@ -296,6 +296,8 @@ def retarget(
     if feasible is not None:
         unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
+    if model is not None:  # the compiled call used the robot's scale: the model's own instead
+        conf = rescale(conf, spec.deviation_scale or DEVIATION_SCALE, model.confidence_scale)
     conf_t = np.asarray(conf, np.float32)[:t]
     return RetargetResult(angles, ok_t, stamps, unfiltered, conf_t)
 

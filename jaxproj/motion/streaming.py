@@ -44,6 +44,7 @@ from jaxproj.motion import pipeline
 from jaxproj.motion.pipeline import AnyProjector
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams
 from jaxproj.projection.api import Model, check_neighbours
+from jaxproj.projection.confidence import DEVIATION_SCALE, rescale
 from jaxproj.projection.projector import Projector, StackedProjector
 from jaxproj.robots import Robot, get
 
@@ -210,7 +211,12 @@ def update(
     if positions.shape != (N_JOINTS, 3):
         raise ConfigError(f"positions must be one frame ({N_JOINTS}, 3), got {positions.shape}")
     gains = np.asarray((smoothing.alpha, smoothing.gamma, smoothing.eta), np.float32)
-    return _update_jit(
+    angles, new = _update_jit(
         p, state, positions, gains, n_l=int(n_l), n_m=int(n_m), bones=bones, mirror=mirror,
         robot=spec,
     )  # fmt: skip
+    if isinstance(model, Model) and model.deviation_scale is not None:  # the model's own scale
+        conf = rescale(new.confidence, spec.deviation_scale or DEVIATION_SCALE,
+                       model.deviation_scale)  # fmt: skip
+        new = new._replace(confidence=conf)
+    return angles, new

@@ -17,6 +17,7 @@ Shapes: human descriptors ``(B, m)`` (``m = 15`` for the default upper-body bone
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any, Literal
 
 import jax
@@ -26,13 +27,14 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError, NonFiniteRowsError
+from jaxproj.projection import build as _build
 from jaxproj.projection.build import (
     Model,
-    build,
     build_from_landmarks,
     check_training_data,
     from_landmarks,
 )
+from jaxproj.projection.confidence import CALIBRATION_FRAMES, HELD_OUT_RATIO
 from jaxproj.projection.config import (
     DEFAULTS,
     HEAD_BANDWIDTH,
@@ -69,6 +71,7 @@ __all__ = [
     "StackedProjector",
     "build",
     "build_from_landmarks",
+    "calibrated",
     "check_neighbours",
     "check_training_data",
     "default_batch_size",
@@ -466,6 +469,26 @@ def project(
     r = np.concatenate([np.asarray(o[0]) for o in outs])
     v = np.concatenate([np.asarray(o[1]) for o in outs])
     return r[:cut], v[:cut]
+
+
+def build(
+    descriptors: np.ndarray,
+    config: BuildConfig = BuildConfig(),  # noqa: B008 - frozen, hashable
+    **mean_shift: Any,
+) -> Model:
+    """``projection.build.build`` (same arguments), then ``calibrated`` on the same frames."""
+    return calibrated(_build.build(descriptors, config, **mean_shift), descriptors)
+
+
+def calibrated(model: Model, descriptors: np.ndarray) -> Model:
+    """``model`` with its confidence scale ``Model.deviation_scale``: the p90 of the relaxed
+    deviation (L = M = 10 at most) of ``CALIBRATION_FRAMES`` evenly spaced ones of ``(N, m)``
+    valid training descriptors, times ``HELD_OUT_RATIO`` (``projection.confidence``)."""
+    d, k = np.asarray(descriptors, np.float32), min(10, model.n_landmarks)
+    rows = np.linspace(0, len(d) - 1, min(CALIBRATION_FRAMES, len(d))).round().astype(int)
+    _, v = project(model, d[rows], "relaxed", n_l=k, n_m=k, batch_size=CALIBRATION_FRAMES)
+    return replace(model, deviation_scale=max(float(np.percentile(np.asarray(v), 90)), 1e-6)
+                   * HELD_OUT_RATIO)  # fmt: skip
 
 
 def _padding_query(p: AnyProjector) -> np.ndarray:

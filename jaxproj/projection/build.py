@@ -23,6 +23,7 @@ import numpy as np
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import resolve_bones
 from jaxproj.projection import landmarks
+from jaxproj.projection.confidence import DEVIATION_SCALE
 from jaxproj.projection.config import BuildConfig, ChainConfig
 from jaxproj.projection.elm import train_bank
 from jaxproj.projection.projector import Projector, StackedProjector, make_projector
@@ -50,6 +51,8 @@ class Model:
       bandwidth: per chain, the mean-shift bandwidth used.
       counts: per chain, ``(K_c,)`` training frames per landmark.
       n_train: training frames (valid descriptors) the landmarks came from.
+      deviation_scale: the model's own confidence scale (``projection.confidence``: calibrated
+        by ``api.build``), or ``None`` (a model file from before: its robot's scale is used).
     """
 
     projector: StackedProjector
@@ -57,11 +60,21 @@ class Model:
     bandwidth: tuple[float, ...]
     counts: tuple[np.ndarray, ...]
     n_train: int
+    deviation_scale: float | None = None
 
     @property
     def robot(self) -> Robot:
         """The robot the model was built for (``config.robot``, from the registry)."""
         return self.config.robot_spec
+
+    @property
+    def confidence_scale(self) -> float:
+        """The scale of this model's confidence: its own (``deviation_scale``), else its
+        robot's, else ``confidence.DEVIATION_SCALE`` (the NAO's default model's)."""
+        from_robot = self.robot.deviation_scale
+        if self.deviation_scale is not None:
+            return self.deviation_scale
+        return DEVIATION_SCALE if from_robot is None else from_robot
 
     @property
     def n_landmarks(self) -> int:

@@ -87,6 +87,7 @@ def save(model: Model, path: str | Path, *, overwrite: bool = True) -> None:
         "chains": {"names": list(lay.names), "inputs": lay.inputs, "outputs": lay.outputs},
         "bandwidth": list(model.bandwidth),
         "n_train": model.n_train,
+        "deviation_scale": model.deviation_scale,
         "driven_joints": list(spec.driven_joints),
         "ik": dict(spec.ik_constants),
     }
@@ -118,6 +119,11 @@ def load(path: str | Path) -> Model:
     try:
         bandwidth = tuple(float(b) for b in meta["bandwidth"])
         n_train = int(meta["n_train"])
+        # a file written before models were calibrated has none: its robot's scale is used
+        scale = meta.get("deviation_scale")
+        scale = None if scale is None else float(scale)
+        if scale is not None and not (np.isfinite(scale) and scale > 0):
+            raise ValueError(f"deviation_scale {scale} is not finite and > 0")
         if len(bandwidth) != len(chains):
             raise ValueError(f"{len(bandwidth)} bandwidths for {len(chains)} chains")
     except (KeyError, TypeError, ValueError) as e:
@@ -152,7 +158,7 @@ def load(path: str | Path) -> Model:
         stacked = stack_projectors(projectors, layout_of(config, projectors))
     except (TypeError, ValueError) as e:
         raise InputError(path, f"inconsistent model file ({_one_line(e)})") from None
-    return Model(stacked, config, bandwidth, tuple(counts), n_train)
+    return Model(stacked, config, bandwidth, tuple(counts), n_train, scale)
 
 
 def read_config(path: str | Path) -> BuildConfig:

@@ -222,6 +222,31 @@ class IKConfig:
                 raise ConfigError(f"IKConfig.{name} must be finite and >= 0, got {v}")
 
 
+@dataclass(frozen=True)
+class TrackConfig:
+    """Settings of ``GenericIK.track`` (the continuity pass).
+
+    Attributes:
+      continuity: ``c``, the weight of ``|x - y|^2`` (rad^-2, in units of the squared direction
+        residual): a step of ``s`` rad costs as much as a direction error of ``sqrt(c) * s``
+        rad, so with 0.05 a half turn of a loose joint (3.1 rad) is taken only where it fits
+        the directions better by about 0.7 rad (40 deg) of error, while following a limb that
+        turns costs a lag of about ``c`` (5 %) of one frame's step.
+      iterations: Levenberg-Marquardt iterations per start.
+    """
+
+    continuity: float = 0.05
+    iterations: int = 12
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.continuity) and self.continuity > 0):
+            raise ConfigError(
+                f"TrackConfig.continuity must be finite and > 0, got {self.continuity}"
+            )
+        if self.iterations < 1:
+            raise ConfigError("TrackConfig.iterations must be >= 1")
+
+
 class IKInfo(NamedTuple):
     """Per-pose diagnostics of ``GenericIK.solve_info``: ``(..., n_chains)`` each."""
 
@@ -238,6 +263,8 @@ class _ChainProblem:
     hi: np.ndarray
     rows: tuple[BonePair, ...]
     fk: TreeFK  # the chain's points
+    fk_move: TreeFK  # the points the chain's joints move in the base frame
+    move_idx: np.ndarray  # (n_move,) their indices among fk's points
     row_points: np.ndarray  # (n_rows, 2) indices into the FK's points
     weights: np.ndarray  # (n_rows,)
     rest_rotations: tuple[np.ndarray | None, ...]  # per row: (3, 3) human rest -> robot rest
@@ -310,7 +337,7 @@ class GenericIK:
             pairs = [
                 pr
                 for pr in correspondence.collision_pairs
-                if any(set(chain.joints) & _moved_by(model, g) for g in pr)
+                if set(chain.joints) & _pair_moved_by(model, pr)
             ]
             used = sorted({n for p in pairs for n in p})
             caps = {n: capsule_points(model, n) for n in used}
@@ -325,6 +352,18 @@ class GenericIK:
                 [[point(caps[n][0]), point(caps[n][1])] for n in used], np.int32
             ).reshape(len(used), 2)
             fk = TreeFK.from_model(model, robot.joint_names, names, correspondence.base)
+            # the points whose place in the base frame the chain's joints change: only
+            # these are recomputed inside the solver's loop (the others are constants of
+            # the solve, computed once: a smaller program, compiled faster)
+            base_joints = _body_joints(model, _point(model, correspondence.base)[0])
+            move_idx = np.array(
+                [i for i, n in enumerate(names)
+                 if set(chain.joints) & (_body_joints(model, _point(model, n)[0]) ^ base_joints)],
+                np.int32,
+            )  # fmt: skip
+            fk_move = TreeFK.from_model(
+                model, robot.joint_names, [names[i] for i in move_idx], correspondence.base
+            )
             with jax.ensure_compile_time_eval():  # a build inside a caller's trace too
                 at_rest = np.asarray(fk.points(robot.standing), np.float64)
             rest_rotations = tuple(
@@ -342,6 +381,8 @@ class GenericIK:
                     hi=hi,
                     rows=rows,
                     fk=fk,
+                    fk_move=fk_move,
+                    move_idx=move_idx,
                     row_points=row_points,
                     weights=np.array([r.weight for r in rows], np.float32),
                     rest_rotations=rest_rotations,
@@ -384,6 +425,21 @@ class GenericIK:
         t, ok = jnp.stack(ts, axis=-2), jnp.stack(oks, axis=-1)
         return t, jnp.where(ok, jnp.asarray(prob.weights), 0.0)
 
+    @staticmethod
+    def _chain_points(
+        x: jax.Array, q_full: jax.Array, p_static: jax.Array, prob: _ChainProblem
+    ) -> tuple[jax.Array, jax.Array]:
+        """The chain's FK points ``(P, 3)`` at chain angles ``x`` and their derivative ``(P, 3,
+        n)``: the points the chain moves computed (``fk_move``), the others taken from
+        ``p_static`` (``prob.fk.points`` at any angles of the chain: they do not depend on
+        them)."""
+        q = q_full.at[prob.joints].set(x)
+        n = len(prob.joints)
+        pm, dpm = prob.fk_move.jacobian(q, tuple(int(j) for j in prob.joints))
+        p = p_static.at[prob.move_idx].set(pm)
+        dp = jnp.zeros((*p_static.shape, n), jnp.float32).at[prob.move_idx].set(dpm)
+        return p, dp
+
     def _residual(
         self,
         x: jax.Array,
@@ -391,38 +447,32 @@ class GenericIK:
         t: jax.Array,
         w: jax.Array,
         prob: _ChainProblem,
-        jacobian: bool = True,
-    ) -> tuple[jax.Array, jax.Array | None]:
-        """The chain's residual vector at chain angles ``x`` (one pose) and, with ``jacobian``,
-        its derivative ``(n_res, n)`` (analytic: ``TreeFK.jacobian``)."""
-        q = q_full.at[prob.joints].set(x)
+        p_static: jax.Array,
+    ) -> tuple[jax.Array, jax.Array]:
+        """The chain's residual vector at chain angles ``x`` (one pose) and its derivative
+        ``(n_res, n)`` (analytic: ``TreeFK.jacobian``); ``p_static``: ``prob.fk.points(q_full)``
+        (``_chain_points``)."""
         n = len(prob.joints)
-        if jacobian:
-            p, dp = prob.fk.jacobian(q, tuple(int(j) for j in prob.joints))
-        else:
-            p, dp = prob.fk.points(q), None
+        p, dp = self._chain_points(x, q_full, p_static, prob)
         sw = jnp.sqrt(w)
         s_i, e_i = prob.row_points[:, 0], prob.row_points[:, 1]
         seg = p[e_i] - p[s_i]
         length = jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
         u = seg / length
         parts = [(sw[:, None] * (u - t)).reshape(-1)]
-        jacs = []
-        if dp is not None:
-            dseg = dp[e_i] - dp[s_i]  # (R, 3, n)
-            proj = jnp.eye(3, dtype=jnp.float32)[None] - u[:, :, None] * u[:, None, :]
-            du = jnp.einsum("rij,rjk->rik", proj, dseg, precision=_HIGHEST) / length[:, :, None]
-            jacs.append((sw[:, None, None] * du).reshape(-1, n))
+        dseg = dp[e_i] - dp[s_i]  # (R, 3, n)
+        proj = jnp.eye(3, dtype=jnp.float32)[None] - u[:, :, None] * u[:, None, :]
+        du = jnp.einsum("rij,rjk->rik", proj, dseg, precision=_HIGHEST) / length[:, :, None]
+        jacs = [(sw[:, None, None] * du).reshape(-1, n)]
         lam = np.float32(math.sqrt(self.config.neutral))
         parts.append(lam * (x - jnp.asarray(prob.starts[0])))
         jacs.append(lam * jnp.eye(n, dtype=jnp.float32))
         if self.config.collision > 0 and len(prob.collide):
             pen, dpen = self._collision_terms(p, dp, prob)
+            assert dpen is not None
             parts.append(pen)
-            if dpen is not None:
-                jacs.append(dpen)
-        r = jnp.concatenate(parts)
-        return r, (jnp.concatenate(jacs, axis=0) if dp is not None else None)
+            jacs.append(dpen)
+        return jnp.concatenate(parts), jnp.concatenate(jacs, axis=0)
 
     def _collision_terms(
         self, p: jax.Array, dp: jax.Array | None, prob: _ChainProblem
@@ -455,10 +505,10 @@ class GenericIK:
         """One pose, one chain: ``(x, objective, stationary)``."""
         lo, hi = jnp.asarray(prob.lo), jnp.asarray(prob.hi)
 
+        p_static = prob.fk.points(q_full)
+
         def res_jac(x: jax.Array) -> tuple[jax.Array, jax.Array]:
-            r, jac = self._residual(x, q_full, t, w, prob)
-            assert jac is not None
-            return r, jac
+            return self._residual(x, q_full, t, w, prob, p_static)
 
         def run(x0: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
             x, r, jac = _levenberg_marquardt(
@@ -550,13 +600,13 @@ class GenericIK:
                 lo = jnp.asarray(lower[prob.joints], jnp.float32)
                 hi = jnp.asarray(upper[prob.joints], jnp.float32)
                 x_in = jnp.clip(q_full[prob.joints], lo, hi)
+                p_static = prob.fk.points(q_full)
 
                 def res_jac(
                     x: jax.Array, q_full: jax.Array = q_full, x_in: jax.Array = x_in,
-                    prob: _ChainProblem = prob,
+                    prob: _ChainProblem = prob, p_static: jax.Array = p_static,
                 ) -> tuple[jax.Array, jax.Array]:  # fmt: skip
-                    qx = q_full.at[prob.joints].set(x)
-                    p, dp = prob.fk.jacobian(qx, tuple(int(j) for j in prob.joints))
+                    p, dp = self._chain_points(x, q_full, p_static, prob)
                     pen, dpen = self._collision_terms(p, dp, prob)
                     assert dpen is not None
                     eye = jnp.eye(len(prob.joints), dtype=jnp.float32)
@@ -575,6 +625,111 @@ class GenericIK:
         lo_d, hi_d = self.robot.lower_driven[None], self.robot.upper_driven[None]
         out = jnp.where(jnp.isfinite(out), out, jnp.clip(flat, lo_d, hi_d))
         return out.reshape(*batch, n_driven)
+
+    @full_precision
+    def track(
+        self,
+        q: jax.typing.ArrayLike,
+        valid: jax.typing.ArrayLike,
+        config: TrackConfig | None = None,
+    ) -> jax.Array:
+        """One motion's per-frame answers made continuous: each frame's pose re-chosen, among
+        the poses with the same bone directions, as the one nearest the previous output.
+
+        A per-frame answer (the IK's or a projection's) fixes the directions of the
+        correspondence rows, not the joints that turn a limb about its own axis (a straight
+        arm's shoulder yaw, a straight leg's hip yaw) nor which of two branches reaches a
+        direction; frame by frame it can jump between them while the person hardly moves. This
+        pass runs through the frames in order (``lax.scan``), carrying the last output ``y``;
+        per chain, in chain order, it solves from two starts (``y``'s angles and the frame's
+        own answer ``q_t``) by the IK's Levenberg-Marquardt::
+
+            minimise   sum_k w_k |dir_k(x) - dir_k(q_t)|^2  +  c * |x - y|^2
+                       +  lam * |x - x_0|^2  +  collision(x)          x in the IK's box
+
+        (``dir_k(q_t)``: the chain's row directions at the frame's answer, base frame; ``c``:
+        ``TrackConfig.continuity``; ``lam``, ``collision``: the IK's) and keeps the start with
+        the least objective. Turning a loose joint or changing branch then has to buy its
+        ``c * step^2`` with a better fit of the directions. A frame that is not valid, and
+        frames before the first valid one, output the frame's answer (``fill_invalid`` replaces
+        them later) and leave ``y`` as it was. Causal: frame ``t``'s output depends on frames
+        ``<= t`` only (streaming can run it frame by frame: ``track_step``). Traceable.
+
+        Args:
+          q: ``(T, n_driven)`` per-frame answers, rad (``Robot.driven_joints`` order).
+          valid: ``(T,)`` bool.
+          config: ``TrackConfig()`` by default.
+
+        Returns:
+          ``(T, n_driven)`` float32, within the IK's box.
+        """
+        cfg = TrackConfig() if config is None else config
+        q = jnp.asarray(q, jnp.float32)
+        n_driven = self.robot.n_driven
+        if q.ndim != 2 or q.shape[-1] != n_driven:
+            raise ConfigError(f"track: answers must be (T, {n_driven}), got {q.shape}")
+        valid = jnp.asarray(valid, bool)
+
+        def body(
+            carry: tuple[jax.Array, jax.Array], xs: tuple[jax.Array, jax.Array]
+        ) -> tuple[tuple[jax.Array, jax.Array], jax.Array]:
+            y, started = carry
+            q_t, ok = xs
+            out = self.track_step(y, q_t, cfg)
+            out = jnp.where(started & ok, out, q_t)
+            y_next = jnp.where(ok, out, y)
+            return (y_next, started | ok), out
+
+        init = (jnp.asarray(self.robot.standing_driven, jnp.float32), jnp.asarray(False))
+        _, out = jax.lax.scan(body, init, (q, valid))
+        return out
+
+    def track_step(
+        self, y: jax.Array, q_t: jax.Array, config: TrackConfig | None = None
+    ) -> jax.Array:
+        """One frame of ``track``: ``(n_driven,)`` last output ``y`` and this frame's answer
+        ``q_t`` -> ``(n_driven,)`` this frame's output. Traceable (one pose; vmap for many)."""
+        cfg = TrackConfig() if config is None else config
+        standing = jnp.asarray(self.robot.standing)
+        didx = self.robot.driven_index
+        q_full = standing.at[didx].set(q_t)
+        y_full = standing.at[didx].set(y)
+        out = y_full
+        sc = np.float32(math.sqrt(cfg.continuity))
+        for prob in self.problems:
+            p_t = prob.fk.points(q_full)
+            s_i, e_i = prob.row_points[:, 0], prob.row_points[:, 1]
+            seg = p_t[e_i] - p_t[s_i]
+            t = seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
+            w = jnp.asarray(prob.weights)
+            anchor = y_full[prob.joints]
+            lo, hi = jnp.asarray(prob.lo), jnp.asarray(prob.hi)
+
+            p_static = prob.fk.points(out)
+
+            def res_jac(
+                x: jax.Array, out: jax.Array = out, t: jax.Array = t, w: jax.Array = w,
+                anchor: jax.Array = anchor, prob: _ChainProblem = prob,
+                p_static: jax.Array = p_static,
+            ) -> tuple[jax.Array, jax.Array]:  # fmt: skip
+                r, jac = self._residual(x, out, t, w, prob, p_static)
+                eye = jnp.eye(len(prob.joints), dtype=jnp.float32)
+                return (
+                    jnp.concatenate([r, sc * (x - anchor)]),
+                    jnp.concatenate([jac, sc * eye], axis=0),
+                )
+
+            def run(x0: jax.Array, res_jac=res_jac, lo=lo, hi=hi) -> tuple[jax.Array, jax.Array]:
+                x, r, _ = _levenberg_marquardt(
+                    res_jac, x0, lo, hi, cfg.iterations, self.config.damping
+                )
+                return x, jnp.sum(r * r)
+
+            starts = jnp.stack([jnp.clip(anchor, lo, hi), jnp.clip(q_full[prob.joints], lo, hi)])
+            xs, fs = jax.vmap(run)(starts)
+            out = out.at[prob.joints].set(xs[jnp.argmin(fs)])
+        res = out[didx]
+        return jnp.where(jnp.isfinite(res), res, q_t)
 
     def solve(self, d: jax.typing.ArrayLike, bones: str | tuple[str, ...] = "upper") -> jax.Array:
         """``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` float32 angles, rad, within
@@ -677,6 +832,12 @@ def _moved_by(model: mujoco.MjModel, geom: str) -> set[str]:
     if gid < 0:
         raise ConfigError(f"the MJCF has no geom named {geom!r}")
     return _body_joints(model, int(model.geom_bodyid[gid]))
+
+
+def _pair_moved_by(model: mujoco.MjModel, pair: tuple[str, str]) -> set[str]:
+    """Names of the joints that move geom ``pair[0]`` relative to geom ``pair[1]``: those on
+    the path between their bodies (a joint above both moves them together)."""
+    return _moved_by(model, pair[0]) ^ _moved_by(model, pair[1])
 
 
 def _row_moved_by(model: mujoco.MjModel, row: BonePair) -> set[str]:

@@ -20,6 +20,7 @@ Shapes: ``q`` ``(..., n_joints)`` float32 radians; points ``(..., n_points, 3)``
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -174,50 +175,59 @@ class TreeFK:
         """Number of points ``points`` returns."""
         return len(self.point_names)
 
-    def _forward(
-        self, q: jax.Array
-    ) -> tuple[list[jax.Array], list[jax.Array], dict[int, tuple[int, jax.Array, jax.Array]]]:
-        """World rotations and origins of ``bodies``, and per joint (``q`` index) its body slot,
-        world axis and world anchor."""
+    @functools.cached_property
+    def _levels(self) -> _Levels:
+        """The bodies as one-hinge frames grouped by depth (``_Levels``), built once."""
+        return _Levels.of(self.bodies)
+
+    def _forward(self, q: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """``((..., F, 3, 3) world rotations, (..., F, 3) origins)`` of the frames of
+        ``_levels`` (``F`` frames: each body's joints one frame each, the world last)."""
         if q.shape[-1] != len(self.joint_names):
             raise ConfigError(
                 f"configurations must be (..., {len(self.joint_names)}), got {q.shape}"
             )
+        lv = self._levels
         batch = q.shape[:-1]
-        eye = jnp.broadcast_to(jnp.eye(3, dtype=jnp.float32), (*batch, 3, 3))
-        zero = jnp.zeros((*batch, 3), jnp.float32)
-        rots: list[jax.Array] = []
-        poss: list[jax.Array] = []
-        axes: dict[int, tuple[int, jax.Array, jax.Array]] = {}
-        for slot, body in enumerate(self.bodies):
-            r_p, p_p = (eye, zero) if body.parent < 0 else (rots[body.parent], poss[body.parent])
-            pos = p_p + _apply(r_p, body.pos)
-            rot = _matmul(r_p, jnp.asarray(body.rot, jnp.float32))
-            for qi, axis, anchor, qpos0 in body.joints:
-                world_anchor = pos + _apply(rot, anchor)
-                axes[qi] = (slot, _apply(rot, axis / np.linalg.norm(axis)), world_anchor)
-                rot = _matmul(rot, _axis_rotation(axis, q[..., qi] - np.float32(qpos0)))
-                pos = world_anchor - _apply(rot, anchor)
-            rots.append(rot)
-            poss.append(pos)
-        return rots, poss, axes
+        n = lv.n_frames
+        rots = jnp.broadcast_to(jnp.eye(3, dtype=jnp.float32), (*batch, n + 1, 3, 3))
+        poss = jnp.zeros((*batch, n + 1, 3), jnp.float32)
+        for lev in lv.levels:  # all frames of one depth at once: a small program per depth
+            r_p, p_p = rots[..., lev.parent, :, :], poss[..., lev.parent, :]
+            pos = p_p + jnp.einsum("...lij,lj->...li", r_p, lev.pos, precision=_HIGHEST)
+            rot = jnp.einsum("...lij,ljk->...lik", r_p, lev.rot, precision=_HIGHEST)
+            lead = (1,) * len(batch)  # explicit ranks (jax_numpy_rank_promotion='raise')
+            angle = (q[..., lev.joint] - lev.qpos0.reshape(*lead, -1)) * lev.hinge.reshape(
+                *lead, -1
+            )  # 0 without a hinge: the identity
+            turn = _axis_rotations(
+                lev.kx.reshape(*lead, *lev.kx.shape), lev.kk.reshape(*lead, *lev.kk.shape), angle
+            )
+            anchor = pos + jnp.einsum("...lij,lj->...li", rot, lev.anchor, precision=_HIGHEST)
+            rot = jnp.einsum("...lij,...ljk->...lik", rot, turn, precision=_HIGHEST)
+            pos = anchor - jnp.einsum("...lij,lj->...li", rot, lev.anchor, precision=_HIGHEST)
+            rots = rots.at[..., lev.frames, :, :].set(rot)
+            poss = poss.at[..., lev.frames, :].set(pos)
+        return rots, poss
 
-    def _world_points(self, rots: list[jax.Array], poss: list[jax.Array]) -> jax.Array:
-        return jnp.stack(
-            [
-                poss[b] + _apply(rots[b], off)
-                for b, off in zip(self.point_body, self.point_offset, strict=True)
-            ],
-            axis=-2,
+    def _world_points(self, rots: jax.Array, poss: jax.Array) -> jax.Array:
+        frames = self._levels.body_frame[np.asarray(self.point_body, np.int32)]
+        off = np.asarray(self.point_offset, np.float32)
+        return poss[..., frames, :] + jnp.einsum(
+            "...pij,pj->...pi", rots[..., frames, :, :], off, precision=_HIGHEST
         )
+
+    def _base(self, rots: jax.Array, poss: jax.Array) -> tuple[jax.Array, jax.Array]:
+        b = int(self._levels.body_frame[self.base_body])
+        return rots[..., b, :, :], poss[..., b, :]
 
     def points(self, q: jax.typing.ArrayLike) -> jax.Array:
         """``(..., n_joints)`` configurations -> ``(..., n_points, 3)`` float32 positions, m, in
         the ``base`` body's frame. Traceable; matrix products at full float32 precision."""
         q = jnp.asarray(q, jnp.float32)
-        rots, poss, _ = self._forward(q)
+        rots, poss = self._forward(q)
         pts = self._world_points(rots, poss)
-        r_b, p_b = rots[self.base_body], poss[self.base_body]
+        r_b, p_b = self._base(rots, poss)
         # world -> base frame: R_b^T (p - p_b)
         return jnp.einsum("...ji,...pj->...pi", r_b, pts - p_b[..., None, :], precision=_HIGHEST)
 
@@ -235,24 +245,34 @@ class TreeFK:
           base frame (a joint not on the way to any point, or not a hinge here: zeros).
         """
         q = jnp.asarray(q, jnp.float32)
-        rots, poss, axes = self._forward(q)
+        rots, poss = self._forward(q)
         pts = self._world_points(rots, poss)
-        r_b, p_b = rots[self.base_body], poss[self.base_body]
-        rel = pts - p_b[..., None, :]
-        local = jnp.einsum("...ji,...pj->...pi", r_b, rel, precision=_HIGHEST)
-        cols = []
-        for qi in columns:
-            if qi not in axes:
-                cols.append(jnp.zeros_like(local))
-                continue
-            slot, w, a = axes[qi]
-            sign = self._moves(slot, self.point_body) - float(
-                self._moves(slot, (self.base_body,))[0]
-            )
-            v = jnp.cross(jnp.broadcast_to(w[..., None, :], pts.shape), pts - a[..., None, :])
-            v = v * sign.reshape((1,) * (v.ndim - 2) + (-1, 1))
-            cols.append(jnp.einsum("...ji,...pj->...pi", r_b, v, precision=_HIGHEST))
-        return local, jnp.stack(cols, axis=-1)
+        r_b, p_b = self._base(rots, poss)
+        local = jnp.einsum("...ji,...pj->...pi", r_b, pts - p_b[..., None, :], precision=_HIGHEST)
+        lv = self._levels
+        cols = list(columns)
+        frame = np.array([lv.joint_frame.get(qi, lv.n_frames) for qi in cols], np.int32)
+        axis = np.stack([lv.joint_axis.get(qi, np.zeros(3, np.float32)) for qi in cols])
+        anchor = np.stack([lv.joint_anchor.get(qi, np.zeros(3, np.float32)) for qi in cols])
+        sign = np.stack(
+            [
+                self._moves(lv.joint_body[qi], self.point_body)
+                - float(self._moves(lv.joint_body[qi], (self.base_body,))[0])
+                if qi in lv.joint_frame
+                else np.zeros(len(self.point_body), np.float32)
+                for qi in cols
+            ]
+        ).reshape(len(cols), len(self.point_body))  # (c, P)
+        r_j, p_j = rots[..., frame, :, :], poss[..., frame, :]
+        w = jnp.einsum("...cij,cj->...ci", r_j, axis, precision=_HIGHEST)  # (..., c, 3)
+        a = p_j + jnp.einsum("...cij,cj->...ci", r_j, anchor, precision=_HIGHEST)
+        rel = pts[..., None, :, :] - a[..., :, None, :]  # (..., c, P, 3)
+        lead = (1,) * (rel.ndim - 3)
+        v = jnp.cross(jnp.broadcast_to(w[..., :, None, :], rel.shape), rel) * sign.reshape(
+            *lead, *sign.shape, 1
+        )
+        dv = jnp.einsum("...ji,...cpj->...pic", r_b, v, precision=_HIGHEST)
+        return local, dv
 
     def _moves(self, slot: int, bodies: Sequence[int]) -> np.ndarray:
         """``(len(bodies),)`` float32: 1 where body ``slot`` is ``b`` or one of its ancestors."""
@@ -266,27 +286,115 @@ class TreeFK:
         return out
 
 
-def _apply(rot: jax.Array, v: np.ndarray) -> jax.Array:
-    """``rot @ v`` for a constant vector ``v``: ``(..., 3, 3)`` -> ``(..., 3)``."""
-    v32 = np.asarray(v, np.float32)
-    return rot[..., 0] * v32[0] + rot[..., 1] * v32[1] + rot[..., 2] * v32[2]
-
-
-def _matmul(a: jax.Array, b: jax.Array) -> jax.Array:
-    """``(..., 3, 3) @ (..., 3, 3)`` at full float32 precision."""
-    return jnp.matmul(a, b, precision=_HIGHEST)
-
-
-def _axis_rotation(axis: np.ndarray, angle: jax.Array) -> jax.Array:
-    """Rotation by ``angle`` (``(...,)``) about the constant unit ``axis``: Rodrigues."""
-    k = np.asarray(axis, np.float64)
-    k = (k / np.linalg.norm(k)).astype(np.float32)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]], np.float32)
-    kk = (kx @ kx).astype(np.float32)
+def _axis_rotations(kx: np.ndarray, kk: np.ndarray, angle: jax.Array) -> jax.Array:
+    """Rotations by ``angle`` ``(..., l)`` about constant unit axes (Rodrigues): ``kx`` ``(l, 3,
+    3)`` each axis's cross-product matrix, ``kk = kx @ kx``; returns ``(..., l, 3, 3)``."""
     s, c = jnp.sin(angle)[..., None, None], jnp.cos(angle)[..., None, None]
-    shape = (*jnp.shape(angle), 3, 3)
-    eye, kx_b, kk_b = (jnp.broadcast_to(m, shape) for m in (np.eye(3, dtype=np.float32), kx, kk))
-    return eye + s * kx_b + (1.0 - c) * kk_b
+    eye = np.broadcast_to(np.eye(3, dtype=np.float32), kx.shape)
+    return eye + s * kx + (1.0 - c) * kk
+
+
+@dataclass(frozen=True, eq=False)
+class _Level:
+    """The frames of one depth: indices and constants, ``l`` frames."""
+
+    frames: np.ndarray  # (l,) their indices
+    parent: np.ndarray  # (l,) their parents' indices (the world: n_frames)
+    pos: np.ndarray  # (l, 3) offset in the parent
+    rot: np.ndarray  # (l, 3, 3) rotation in the parent
+    joint: np.ndarray  # (l,) q index of the hinge (0 where none)
+    hinge: np.ndarray  # (l,) 1 where a hinge turns the frame, else 0
+    qpos0: np.ndarray  # (l,)
+    anchor: np.ndarray  # (l, 3) the hinge's anchor in the frame
+    kx: np.ndarray  # (l, 3, 3) cross-product matrix of the hinge's unit axis
+    kk: np.ndarray  # (l, 3, 3) kx @ kx
+
+
+@dataclass(frozen=True, eq=False)
+class _Levels:
+    """``TreeFK``'s bodies as frames of at most one hinge each (a body with ``k`` hinges is
+    ``k`` frames, the first with the body's offset, the others at its origin), grouped by depth
+    in the tree: the forward pass computes one depth at a time, every frame of it at once."""
+
+    n_frames: int
+    levels: tuple[_Level, ...]
+    body_frame: np.ndarray  # (n_bodies,) each body's last frame
+    joint_frame: dict[int, int]  # q index -> its frame
+    joint_body: dict[int, int]  # q index -> its body slot
+    joint_axis: dict[int, np.ndarray]  # q index -> unit axis in its frame
+    joint_anchor: dict[int, np.ndarray]  # q index -> anchor in its frame
+
+    @classmethod
+    def of(cls, bodies: Sequence[_Body]) -> _Levels:
+        rows: list[dict] = []
+        body_frame: list[int] = []
+        depth: list[int] = []
+        joint_frame: dict[int, int] = {}
+        joint_body: dict[int, int] = {}
+        joint_axis: dict[int, np.ndarray] = {}
+        joint_anchor: dict[int, np.ndarray] = {}
+        for slot, body in enumerate(bodies):
+            parent = -1 if body.parent < 0 else body_frame[body.parent]
+            hinges = body.joints or ((None, np.zeros(3), np.zeros(3), 0.0),)
+            for k, (qi, axis, anchor, qpos0) in enumerate(hinges):
+                unit = np.asarray(axis, np.float64)
+                unit = unit / np.linalg.norm(unit) if qi is not None else np.array([0.0, 0, 1])
+                frame = len(rows)
+                rows.append(
+                    {
+                        "parent": parent,
+                        "pos": body.pos if k == 0 else np.zeros(3),
+                        "rot": body.rot if k == 0 else np.eye(3),
+                        "joint": 0 if qi is None else qi,
+                        "hinge": 0.0 if qi is None else 1.0,
+                        "qpos0": qpos0,
+                        "anchor": np.asarray(anchor, np.float64),
+                        "axis": unit,
+                    }
+                )
+                depth.append(0 if parent < 0 else depth[parent] + 1)
+                if qi is not None:
+                    joint_frame[qi] = frame
+                    joint_body[qi] = slot
+                    joint_axis[qi] = unit.astype(np.float32)
+                    joint_anchor[qi] = np.asarray(anchor, np.float32)
+                parent = frame
+            body_frame.append(len(rows) - 1)
+        n = len(rows)
+        levels = []
+        for d in range(max(depth) + 1 if depth else 0):
+            idx = [i for i in range(n) if depth[i] == d]
+            pick = [rows[i] for i in idx]
+            axes = np.stack([r["axis"] for r in pick])
+            kx = np.zeros((len(pick), 3, 3))
+            kx[:, 0, 1], kx[:, 0, 2] = -axes[:, 2], axes[:, 1]
+            kx[:, 1, 0], kx[:, 1, 2] = axes[:, 2], -axes[:, 0]
+            kx[:, 2, 0], kx[:, 2, 1] = -axes[:, 1], axes[:, 0]
+            levels.append(
+                _Level(
+                    frames=np.array(idx, np.int32),
+                    parent=np.array(
+                        [n if r["parent"] < 0 else r["parent"] for r in pick], np.int32
+                    ),
+                    pos=np.stack([r["pos"] for r in pick]).astype(np.float32),
+                    rot=np.stack([r["rot"] for r in pick]).astype(np.float32),
+                    joint=np.array([r["joint"] for r in pick], np.int32),
+                    hinge=np.array([r["hinge"] for r in pick], np.float32),
+                    qpos0=np.array([r["qpos0"] for r in pick], np.float32),
+                    anchor=np.stack([r["anchor"] for r in pick]).astype(np.float32),
+                    kx=kx.astype(np.float32),
+                    kk=(kx @ kx).astype(np.float32),
+                )
+            )
+        return cls(
+            n_frames=n,
+            levels=tuple(levels),
+            body_frame=np.array(body_frame, np.int32),
+            joint_frame=joint_frame,
+            joint_body=joint_body,
+            joint_axis=joint_axis,
+            joint_anchor=joint_anchor,
+        )
 
 
 def points_named(fk: TreeFK, q: jax.typing.ArrayLike) -> Mapping[Point, jax.Array]:

@@ -282,6 +282,10 @@ def test_the_confidence_line_says_what_the_share_means_and_what_to_do():
     full = confidence_lines("full", 0.25)
     assert len(full) == 1 and "25.0 % of the valid frames" in full[0]
     assert "calibrated on --method relaxed" in full[0] and "unlike" not in full[0]
+    old = confidence_lines("relaxed", 0.25, calibrated=False)  # a model file without a scale
+    assert (
+        old[0] == unlike[0] and "predates per-model calibration" in old[1] and old[2:] == unlike[1:]
+    )
 
 
 def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):

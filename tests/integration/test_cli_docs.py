@@ -99,3 +99,20 @@ def test_synopsis_names_every_option() -> None:
             ):
                 missing.append(f"{name} {action.option_strings[0]}")
     assert not missing, f"docs/guide/cli.md's synopsis lacks {missing}"
+
+
+def test_synopsis_lists_every_choice() -> None:
+    """An option with fixed choices shows them all, in the parser's order (``--format a|b|c``)."""
+    page = _page()
+    wrong = []
+    for name, parser in docs.subcommands().items():
+        synopsis = _synopsis_of(name, page)
+        for action in parser._actions:
+            if not action.option_strings or not action.choices:
+                continue
+            want = "|".join(str(c) for c in action.choices)
+            for o in action.option_strings:
+                for shown in re.findall(rf"{re.escape(o)} ([\w|+-]+)", synopsis):
+                    if shown != want:
+                        wrong.append(f"{name} {o} {shown} (parser: {want})")
+    assert not wrong, f"docs/guide/cli.md's synopsis lists other choices: {wrong}"

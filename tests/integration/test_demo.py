@@ -2,9 +2,12 @@
 
 import json
 import re
+import time
 
+import numpy as np
 import pytest
 
+from jaxproj._internal.progress import Heartbeat
 from jaxproj.errors import ConfigError
 from jaxproj.io import datasets
 from jaxproj.paper import demo, demo_report
@@ -61,9 +64,26 @@ def test_the_report_names_the_training_and_test_people():
 
 
 @pytest.mark.slow
-def test_demo_quick_writes_the_report(tmp_path):
+def test_demo_quick_writes_the_report(tmp_path, monkeypatch):
     out = tmp_path / "report"
+    said: list[tuple[float, str]] = []
+    t0 = time.monotonic()
+
+    def record(text: str) -> None:
+        said.append((time.monotonic(), text))
+
+    monkeypatch.setattr(demo, "Heartbeat", lambda: Heartbeat(emit=record))
     run_demo(out, quick=True)
+    # progress: a line at once, then never 30 s of silence; every stage says where it is; once
+    # a kind of work is measured, the steps that repeat it carry estimates (stage and all)
+    gaps = np.diff([t0] + [t for t, _ in said])
+    assert gaps[0] < 10.0 and gaps.max() < 30.0, gaps.max()
+    steps = {k: [x for _, x in said if re.match(rf"\[{k}/5\] \d+/\d+ (?!still )", x)]
+             for k in range(1, 6)}  # fmt: skip
+    assert all(steps.values()), steps
+    estimated = steps[4] + steps[3][2:] + steps[2][1:]
+    assert estimated and all("stage ~" in x and " left (estimates;" in x for x in estimated)
+    assert re.search(r"\(\d+ s in all: build_per_chain .*experiments .*report ", said[-1][1])
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert len(pngs) >= 3 and "landmark_size.png" in pngs and "error_distributions.png" in pngs
     for p in out.glob("*.png"):

@@ -99,6 +99,11 @@ def test_readme_cli_example_runs(readme_folder: Path, capsys: pytest.CaptureFixt
 
     n_frames = datasets.msr_action3d(subjects=[2], actions=[1])[0].positions.shape[0]
     assert f"recording.npz: {n_frames} frames ({n_frames} valid" in out
+    # the small model's confidence is on its own scale: a held-out person's recording reads as
+    # like the people it was built from, not as 100 % low-confidence (its cut-off is its own)
+    low = [line for line in out.splitlines() if "low-confidence frames" in line]
+    assert low and all("this recording is like the people the model was built from" in x
+                       for x in low), low  # fmt: skip
     # the NPZ motion carries the human, so the video draws the human and the NAO side by side
     with np.load(readme_folder / "nao.npz") as f:
         assert f["angles"].shape == (n_frames, 26) and f["positions"].shape == (n_frames, 20, 3)

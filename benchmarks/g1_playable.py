@@ -1,0 +1,243 @@
+"""Is what ``jaxproj retarget`` writes for the G1 something a G1 could play? (issue 57)
+
+Runs the command line's ``retarget`` as a user does (in-process, default options unless
+``--method relaxed --model P.npz``) on recordings the default model never trained on, reads back
+the NPZ it wrote, and measures the output itself (after the last stage), over time, in the world
+and against the robot's own geometry:
+
+* ``flip_steps``: steps between two valid frames where a driven joint moves more than
+  ``FLIP_JOINT_DEG`` (20 deg) while every person's bone of that joint's chain (its own bones:
+  upper arm and forearm for an arm, thigh, shin and foot for a leg, the hip line and lower spine
+  for the waist) turns less than ``FLIP_BONE_DEG`` (10 deg); also the largest joint step and the
+  steps over 20 and 90 deg whatever the person did.
+* ``contact_frames``: frames where two of the robot's own geoms (its MJCF, fixed base, MuJoCo's
+  own collision pipeline with the MJCF's exclusions) penetrate by more than 1 mm; the pairs.
+* ``lean``: the trunk's lean (deg) when the robot stands on its soles (the angle between the
+  torso's up axis and the sole's normal, mean of the two feet), against the person's trunk lean
+  (HipCenter -> ShoulderCenter against the capture's up axis: +y for Kinect v1 camera space and
+  the BVH reader's output; the camera's own tilt is not removed): medians and their difference.
+* ``sole_pitch``: the robot's sole pitch (deg, toes up positive) in the world when its torso is
+  turned as the person's body frame is (the person's soles taken as flat): median, and the share
+  of frames with the ankle pitch at a limit.
+* ``arms``: the angle between the robot's upper arm / forearm (torso frame) and the person's
+  (body frame), deg: median and p90 over valid frames and both arms.
+
+Inputs (default): the UTKinect-Action3D people 7 and 9 (the default model trains on 3, 4, 6) and
+the two CMU BVH clips at their full 120 fps, from ``../shared/data`` when it is there, else the
+bundled UTKinect copies and ``tests/data/cmu_bvh`` (every 6th frame).
+
+    python -m benchmarks.g1_playable [--method ik|relaxed --model P.npz] [--json OUT] [FILES...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from jaxproj import robots
+from jaxproj.cli.main import main as cli
+from jaxproj.human.skeleton import BONE_NAMES, J, descriptor
+from jaxproj.io.motion_files import load_motion
+
+ROBOT = "unitree_g1"
+FLIP_JOINT_DEG = 20.0
+FLIP_BONE_DEG = 10.0
+CONTACT_MM = 1.0
+TORSO = "torso_link"
+FEET = ("left_ankle_roll_link", "right_ankle_roll_link")
+ARM_SITES = {
+    "upper_arm": ("shoulder_site", "elbow_site"),
+    "forearm": ("elbow_site", "wrist_site"),
+}
+
+_REPO = Path(__file__).resolve().parent.parent
+_SHARED = _REPO.parent / "shared" / "data"
+
+
+def default_files() -> list[Path]:
+    """The held-out recordings (module doc)."""
+    utk = [f"joints_s{p:02d}_e{e:02d}.txt" for p in (7, 9) for e in (1, 2)]
+    if (_SHARED / "utkinect_action3d").is_dir():
+        files = [_SHARED / "utkinect_action3d" / f for f in utk]
+        return files + [_SHARED / "cmu_bvh" / f"131_0{i}.bvh" for i in (1, 3)]
+    raise SystemExit(f"{_SHARED} is missing: pass the recordings as arguments")
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (deg) between the unit vectors of ``a`` and ``b`` along the last axis."""
+    na = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    nb = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(np.sum(na * nb, -1), -1.0, 1.0)))
+
+
+def _bones(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Person: ``(T, 19, 3)`` body-frame bone units, ``(T,)`` ok, ``(T, 3, 3)`` body frames."""
+    from jaxproj.human.skeleton import body_frame
+
+    d, ok = descriptor(positions, bones="full")
+    frame, ok_f = body_frame(positions)
+    return np.asarray(d).reshape(len(d), -1, 3), np.asarray(ok & ok_f), np.asarray(frame)
+
+
+def _chain_bones(robot: robots.Robot) -> dict[str, tuple[str, ...]]:
+    """Each chain's own bones (its bones no earlier chain reads)."""
+    seen: set[str] = set()
+    out = {}
+    for c in robot.chains:
+        own = tuple(b for b in c.bones if b not in seen) or tuple(c.bones)
+        seen |= set(c.bones)
+        out[c.name] = own
+    return out
+
+
+def flips(motion, bones: np.ndarray, ok: np.ndarray, robot: robots.Robot) -> dict:
+    q = np.degrees(motion.angles.astype(np.float64))
+    valid = motion.valid & ok
+    both = valid[1:] & valid[:-1]
+    step = np.abs(np.diff(q, axis=0))  # (T-1, n_joints)
+    per_chain = _chain_bones(robot)
+    flip = np.zeros(len(step), bool)
+    worst: list[dict] = []
+    for c in robot.chains:
+        idx = [BONE_NAMES.index(b) for b in per_chain[c.name]]
+        turn = _angle(bones[1:, idx], bones[:-1, idx]).max(axis=1)  # (T-1,)
+        cols = [robot.index(j) for j in c.joints]
+        moved = step[:, cols].max(axis=1)
+        f = both & (moved > FLIP_JOINT_DEG) & (turn < FLIP_BONE_DEG)
+        flip |= f
+        for t in np.flatnonzero(f)[:3]:
+            j = cols[int(np.argmax(step[t, cols]))]
+            worst.append({"step": int(t), "joint": robot.joint_names[j],
+                          "deg": round(float(step[t, j]), 1), "bones_turn": round(float(turn[t]), 1)})  # fmt: skip
+    big = step.max(axis=1)
+    return {
+        "flip_steps": int(flip.sum()),
+        "steps": int(both.sum()),
+        "steps_over_20": int((both & (big > 20)).sum()),
+        "steps_over_90": int((both & (big > 90)).sum()),
+        "max_step_deg": round(float(big[both].max(initial=0.0)), 1),
+        "examples": worst[:6],
+    }
+
+
+def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robot: robots.Robot,
+             positions: np.ndarray) -> dict:  # fmt: skip
+    """Contacts, lean, sole pitch and arm directions from the robot's MJCF (fixed base)."""
+    model = robot.load_model("fixed")
+    data = mujoco.MjData(model)
+    qadr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)])
+            for n in robot.joint_names]  # fmt: skip
+    bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (TORSO, *FEET)}
+    site = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n)
+            for s in ("left", "right") for a, b in ARM_SITES.values()
+            for n in (f"{s}_{a}", f"{s}_{b}")}  # fmt: skip
+    t_n = len(motion.angles)
+    contact = np.zeros(t_n, bool)
+    pairs: dict[str, int] = {}
+    lean = np.full(t_n, np.nan)
+    pitch = np.full(t_n, np.nan)
+    arm_err: list[float] = []
+    up = np.array([0.0, 1.0, 0.0])
+    for t in range(t_n):
+        data.qpos[qadr] = motion.angles[t]
+        mujoco.mj_forward(model, data)
+        for c in data.contact[: data.ncon]:
+            if c.dist < -CONTACT_MM / 1000:
+                contact[t] = True
+                b1 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, c.geom1)
+                b2 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, c.geom2)
+                key = " - ".join(sorted((str(b1), str(b2))))
+                pairs[key] = pairs.get(key, 0) + 1
+        r_t = data.xmat[bid[TORSO]].reshape(3, 3)
+        leans, pitches = [], []
+        for f in FEET:
+            r_f = data.xmat[bid[f]].reshape(3, 3)
+            leans.append(_angle(r_t[:, 2], r_f[:, 2]))
+            if ok[t]:
+                fwd_torso = r_t.T @ r_f[:, 0]  # the sole's forward axis in the torso frame
+                world = frames[t].T @ fwd_torso  # turned as the person's body (camera axes)
+                pitches.append(np.degrees(np.arcsin(np.clip(world @ up, -1, 1))))
+        lean[t] = float(np.mean(leans))
+        if pitches:
+            pitch[t] = float(np.mean(pitches))
+        if ok[t] and motion.valid[t]:
+            for s in ("left", "right"):
+                for bone, (a, b) in ARM_SITES.items():
+                    v = r_t.T @ (data.site_xpos[site[f"{s}_{b}"]] - data.site_xpos[site[f"{s}_{a}"]])
+                    arm_err.append(float(_angle(v, bones[t, BONE_NAMES.index(f"{bone}_{s}")])))
+    use = motion.valid & ok
+    trunk = positions[:, J["ShoulderCenter"]] - positions[:, J["HipCenter"]]
+    person_lean = _angle(trunk, np.broadcast_to(up, trunk.shape))
+    ankle = [robot.index(f"{s}_ankle_pitch_joint") for s in ("left", "right")]
+    qa = motion.angles[:, ankle]
+    at_limit = (qa <= robot.lower[ankle] + 1e-3) | (qa >= robot.upper[ankle] - 1e-3)
+    err = np.asarray(arm_err)
+    return {
+        "contact_frames": int(contact.sum()),
+        "contact_share": round(float(contact.mean()), 4),
+        "contact_pairs": dict(sorted(pairs.items(), key=lambda kv: -kv[1])[:8]),
+        "lean_robot_median": round(float(np.nanmedian(lean[use])), 1),
+        "lean_person_median": round(float(np.nanmedian(person_lean[use])), 1),
+        "lean_diff": round(float(np.nanmedian(lean[use]) - np.nanmedian(person_lean[use])), 1),
+        "sole_pitch_median": round(float(np.nanmedian(pitch[use])), 1),
+        "ankle_pitch_at_limit_share": round(float(at_limit[use].any(axis=1).mean()), 3),
+        "arm_median": round(float(np.median(err)), 2) if len(err) else None,
+        "arm_p90": round(float(np.percentile(err, 90)), 2) if len(err) else None,
+    }
+
+
+def measure(path: Path, extra: list[str], out_dir: Path) -> dict:
+    robot = robots.get(ROBOT)
+    out = out_dir / f"{path.stem}.npz"
+    t0 = time.perf_counter()
+    argv = ["retarget", str(path), "--out", str(out), *extra]
+    if "--model" not in extra:
+        argv += ["--robot", ROBOT]
+    code = cli(argv)
+    if code != 0:
+        return {"file": path.name, "error": f"retarget exited {code}"}
+    wall = time.perf_counter() - t0
+    motion = load_motion(out, robot=ROBOT)
+    positions = np.asarray(motion.positions, np.float32)
+    bones, ok, frames = _bones(positions)
+    res = {"file": path.name, "frames": len(motion.angles), "retarget_s": round(wall, 1)}
+    res |= flips(motion, bones, ok, robot)
+    res |= geometry(motion, bones, ok, frames, robot, positions)
+    return res
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("files", nargs="*", type=Path)
+    p.add_argument("--method", default="ik", choices=("ik", "relaxed", "full"))
+    p.add_argument("--model", default=None)
+    p.add_argument("--json", default=None)
+    a = p.parse_args(argv)
+    extra = ["--method", a.method] + (["--model", a.model] if a.model else [])
+    files = a.files or default_files()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for f in files:
+            r = measure(f, extra, Path(tmp))
+            rows.append(r)
+            print(json.dumps(r), flush=True)
+    keys = ("flip_steps", "steps_over_90", "max_step_deg", "contact_frames", "lean_diff",
+            "sole_pitch_median", "arm_median", "arm_p90")  # fmt: skip
+    print(f"{'file':24s} " + " ".join(f"{k:>16s}" for k in keys), file=sys.stderr)
+    for r in rows:
+        print(f"{r['file']:24s} " + " ".join(f"{r.get(k)!s:>16s}" for k in keys), file=sys.stderr)
+    if a.json:
+        Path(a.json).write_text(json.dumps({"method": a.method, "model": a.model, "rows": rows},
+                                           indent=1) + "\n")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
