@@ -31,6 +31,14 @@ def add_parsers(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from jaxproj.paper.demo_report import check_report_folder
+
+    out_dir = Path(args.out)
+    try:  # before anything else: a refusal is the only line
+        check_report_folder(out_dir, args.force)
+    except ConfigError as e:
+        message = str(e).replace("--force (CLI) / overwrite=True (Python)", "--force")
+        raise ConfigError(f"--out {message}") from None
     # the first line, before MuJoCo, the plots and the first compile (minutes of silence else)
     print(
         f"jaxproj demo{' --quick' if args.quick else ''}: 5 stages (build, evaluate, roll out, "
@@ -41,15 +49,9 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj._internal.mjx import import_mjx
 
     import_mjx()  # before jaxproj.eval imports it: without Warp's notice
-    from jaxproj.paper.demo import check_report_folder, run_demo
+    from jaxproj.paper.demo import run_demo
     from jaxproj.paper.demo_report import stdout_summary
 
-    out_dir = Path(args.out)
-    try:
-        check_report_folder(out_dir, args.force)
-    except ConfigError as e:
-        message = str(e).replace("--force (CLI) / overwrite=True (Python)", "--force")
-        raise ConfigError(f"--out {message}") from None
     devices = options.devices(args.devices)
     out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices, overwrite=args.force)
     print(stdout_summary(out))

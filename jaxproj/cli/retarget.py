@@ -251,7 +251,9 @@ def _settings(args: argparse.Namespace, engine: Any) -> tuple[robots.Robot, str,
         return robot, bones, bool(args.mirror)
     if args.model is None:
         raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
-    config = engine.read_config(args.model)
+    from jaxproj.projection.model_file import read_config
+
+    config = read_config(args.model)
     fixed: dict[str, tuple[Any, Any]] = {"--bones": (args.bones, config.bones)}
     fixed["--robot"] = (args.robot, config.robot)
     fixed["--mirror"] = (args.mirror, config.mirror)

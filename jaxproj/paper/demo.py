@@ -288,11 +288,10 @@ def run_demo(
     report's (``report.json`` and the report's first line say ``quick``). ``progress`` shows
     progress bars on a terminal (stage lines always go to stderr). ``devices`` (several JAX
     devices, or ``None`` for the default one) shard the held-out evaluation's projections and
-    the rollout (then MJX; ``engine.resolve_devices``). ``overwrite`` (default ``True``)
-    replaces the report files of an earlier run in ``out_dir``; ``False`` refuses a folder that
-    holds any (``check_report_folder``, before any work; ``jaxproj demo`` without ``--force``).
+    the rollout (then MJX; ``engine.resolve_devices``). ``overwrite=False`` refuses a folder
+    holding an earlier run's report (``demo_report.check_report_folder``, first); default: replace.
     """
-    check_report_folder(out_dir, overwrite)
+    demo_report.check_report_folder(out_dir, overwrite)
     t_start = time.perf_counter()
     out_dir.mkdir(exist_ok=True)
     with Heartbeat() as beat:
@@ -531,48 +530,3 @@ def _sample_motions(data) -> list[str]:
                 out.append(name)
                 break
     return out
-
-
-REPORT_FILES = (
-    "projector.npz",
-    "projector_whole_body.npz",
-    "report.json",
-    "report.md",
-    "error_distributions.png",
-    "per_joint_error.png",
-    "landmark_size.png",
-    "efficiency.png",
-)
-"""The files ``run_demo`` writes into its folder, besides ``motion_<recording>.png``."""
-
-
-def check_report_folder(out_dir: Path, overwrite: bool) -> None:
-    """``ConfigError`` (before any work) unless ``run_demo`` may write into ``out_dir``: it
-    must be a folder or absent (its parent folder must exist: only the report folder itself is
-    created), and, unless ``overwrite``, hold none of the files a run writes (``REPORT_FILES``,
-    ``motion_*.png``)."""
-    from jaxproj.errors import ConfigError
-
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ConfigError(
-            f"{out_dir}: is a file, not a report folder: name a folder (created if missing)"
-        )
-    if not out_dir.parent.is_dir():
-        raise ConfigError(
-            f"{out_dir}: folder {out_dir.parent} does not exist (the report folder is created, "
-            "its parent is not: create it first)"
-        )
-    if overwrite or not out_dir.is_dir():
-        return
-    found = sorted(
-        f.name
-        for f in out_dir.iterdir()
-        if f.name in REPORT_FILES or (f.name.startswith("motion_") and f.suffix == ".png")
-    )
-    if found:
-        shown = ", ".join(found[:3]) + (f" and {len(found) - 3} more" if len(found) > 3 else "")
-        raise ConfigError(
-            f"{out_dir}: holds the report of an earlier run ({shown}); pass --force (CLI) / "
-            "overwrite=True (Python) to replace it, or name another folder"
-        )

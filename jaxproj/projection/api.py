@@ -44,7 +44,7 @@ from jaxproj.projection.config import (
     PerChain,
 )
 from jaxproj.projection.full import project_full_one
-from jaxproj.projection.model_file import FORMAT, FORMAT_VERSION, load, read_config, save
+from jaxproj.projection.model_file import FORMAT, FORMAT_VERSION, load, save
 from jaxproj.projection.ops import Impl, ImplLike, platform_of, resolve_impl
 from jaxproj.projection.projector import ChainLayout, Projector, StackedProjector
 from jaxproj.projection.relaxed import project_relaxed_rows
@@ -83,7 +83,6 @@ __all__ = [
     "project_batch",
     "project_chunk",
     "project_sharded",
-    "read_config",
     "resolve_devices",
     "save",
     "search_batch",

@@ -375,9 +375,8 @@ def render_to_file(
     camera: Camera | None = None,
     overwrite: bool = True,
 ) -> Rendered:
-    """``render_motion`` for a ``Motion``, telling what it did (the ``jaxproj render`` command).
-    ``overwrite`` (default ``True``): replace an existing ``out``; ``False``: ConfigError
-    before anything is drawn (``jaxproj render`` passes ``--force``).
+    """``render_motion`` for a ``Motion``, telling what it did (the ``jaxproj render`` command);
+    ``overwrite=False``: an existing ``out`` is a ConfigError, before anything is drawn.
 
     Returns:
       ``Rendered(path, frames, backend, fps, seconds, longest_hold_s, human)``.
@@ -427,9 +426,8 @@ def render_motion(
         default the motion's frame rate (``Motion.fps``) divided by ``stride`` (at most
         ``MAX_GIF_FPS`` for a GIF); the video plays in real time by the motion's ``times`` at
         any ``fps`` (``playback``: a gap is held on its last frame); ``backend``, ``size``,
-        ``stride``, ``camera`` as in ``render_frames``; ``overwrite`` (default ``True``):
-        replace an existing ``out``, else ConfigError. ``out`` naming the motion file itself
-        is refused even with ``overwrite``.
+        ``stride``, ``camera`` as in ``render_frames``; ``overwrite`` as in
+        ``render_to_file`` (``out`` naming the motion file is refused even with it).
 
     Returns:
       ``out`` as a ``Path``. Frames are streamed to MP4 (constant memory), gathered for GIF.

@@ -238,8 +238,6 @@ def plot_motion(
       truth: ``(T, n_driven)`` IK angles (driven joints); ``predictions``: method ->
         ``(T, n_driven)``.
       robot: the robot the angles are for.
-      overwrite: replace an existing ``path`` (default); ``False``: ConfigError (as every
-        writer here: ``write_text``).
     """
     check_output(path, overwrite=overwrite)
     plt = _plt()
@@ -311,7 +309,6 @@ def plot_retarget(
         ``(T,)`` seconds.
       angles, ik_angles: ``(T, n_driven)`` radians, ``robot.driven_joints`` order.
       robot: the robot the angles are for.
-      overwrite: replace an existing ``path`` (default); ``False``: ConfigError.
     """
     check_output(path, overwrite=overwrite)
     plt = _plt()
@@ -357,8 +354,7 @@ def plot_distributions(
     """CDFs of M_avg and M_max per method on a logarithmic error axis (one scale over its whole
     range: no kink where a symlog axis turns linear); ``predictions[m]`` and ``truth``:
     ``(F, 10)``. Frames with an error of exactly 0 count in the fraction but have no place on a
-    log axis (the curve starts at the smallest non-zero error). ``overwrite=False``: an existing
-    ``path`` is a ConfigError (as for every plot here)."""
+    log axis (the curve starts at the smallest non-zero error). ``overwrite``: ``write_text``'s."""
     check_output(path, overwrite=overwrite)
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -462,7 +458,6 @@ def plot_per_joint(
         (``jaxproj.eval.metrics.summarize_errors``), e.g. ``evaluate``'s ``summary``.
       methods: which methods; default the projection methods present (``PROJECTION_METHODS``),
         else every method of ``summary``.
-      overwrite: replace an existing ``path`` (default); ``False``: ConfigError.
     """
     check_output(path, overwrite=overwrite)
     methods = methods or [m for m in PROJECTION_METHODS if m in summary] or list(summary)
@@ -489,16 +484,14 @@ def plot_per_joint(
 
 def write_json(path: Path, report: dict, *, overwrite: bool = True) -> None:
     """Write ``report`` (private keys dropped) as indented JSON, atomically (``write_text``)."""
-    check_output(path, overwrite=overwrite)
     write_text(path, json.dumps(to_jsonable(report), indent=2) + "\n", overwrite=overwrite)
 
 
 def write_text(path: Path, text: str, *, overwrite: bool = True) -> None:
     """Write a report file atomically: a temporary file beside ``path``, then renamed, so a
     failed or interrupted write never leaves a half-written report (``InputError`` when the
-    file cannot be written). ``overwrite`` (default ``True``) replaces an existing file;
-    ``False`` refuses it (ConfigError "exists; pass overwrite=True ..."), as does every writer
-    here (the plots take it too)."""
+    file cannot be written). ``overwrite=False``: an existing file is a ConfigError, here and
+    in every ``plot_*`` (checked before drawing); default ``True``, replace it."""
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", encoding="utf-8") as fh:
