@@ -19,6 +19,7 @@ retarget motions, save and load motion files.
 
 __version__ = "0.2.0"
 
+import jaxproj._internal.mujoco_gl  # noqa: F401  (first: imports MuJoCo whatever MUJOCO_GL says)
 from jaxproj import errors, robots
 from jaxproj.io.motion_files import Motion, load_motion, save_motion
 from jaxproj.io.readers import Recording

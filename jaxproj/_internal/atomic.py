@@ -9,6 +9,11 @@ No writer creates a folder: a target whose folder is missing (or is not a folder
 as the CLI's output options (``jaxproj.cli.options.output_path``): a typo such as
 ``/nope/x.json`` must not create ``/nope``.
 
+No writer replaces a file it was told not to (``check_output``): every writer of the Python API
+takes ``overwrite`` (default ``True``, as numpy's savers; the CLI passes ``--force``, default
+off), and an output that is one of the writer's inputs (same file by ``os.path.samefile``, or the
+same resolved path) is refused whatever ``overwrite`` says.
+
 ``write_npz`` is the package's one NPZ writer (model files, motion files, the bundled datasets):
 atomic, and deterministic — the same arrays give the same bytes (fixed zip timestamps and
 permissions, no pickles).
@@ -68,7 +73,66 @@ def check_folder(path: str | os.PathLike[str]) -> Path:
     return Path(path)
 
 
-def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> Path:
+OVERWRITE_FIX = "pass overwrite=True (Python) / --force (CLI) to replace it"
+"""What to do about an existing output, in the words of every refusal."""
+
+
+def same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
+    """Whether ``a`` and ``b`` name one file: ``os.path.samefile`` where both exist (hard and
+    symbolic links included), else the same resolved path (two outputs not written yet)."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+        return Path(a).resolve() == Path(b).resolve()
+    except (OSError, RuntimeError):  # unreadable, or a symlink loop: not provably the same
+        return False
+
+
+def output_problem(
+    path: str | os.PathLike[str],
+    overwrite: bool,
+    inputs: Mapping[str, str | os.PathLike[str] | None] | None = None,
+    fix: str = OVERWRITE_FIX,
+) -> str | None:
+    """What forbids writing the output file ``path``, or ``None``: a missing folder
+    (``missing_folder``), one of ``inputs`` (what -> path, e.g. ``{"the recording": p}``;
+    ``None`` entries skipped; refused even with ``overwrite``), an existing folder, or an
+    existing file when ``overwrite`` is false (``"exists; " + fix``)."""
+    problem = missing_folder(path)
+    if problem is not None:
+        return problem
+    for what, other in (inputs or {}).items():
+        if other is not None and same_file(path, other):
+            return (
+                f"is {what} too: write the output to another file (an input is never "
+                "replaced, not even with overwrite=True / --force)"
+            )
+    if os.path.isdir(path):
+        return "is a folder: name an output file"
+    if not overwrite and os.path.lexists(path):
+        return f"exists; {fix}"
+    return None
+
+
+def check_output(
+    path: str | os.PathLike[str],
+    *,
+    overwrite: bool = True,
+    inputs: Mapping[str, str | os.PathLike[str] | None] | None = None,
+) -> Path:
+    """``path`` as a ``Path`` if a writer may write it (``output_problem``), else
+    ``ConfigError`` naming it: ``"P: exists; pass overwrite=True (Python) / --force (CLI) to
+    replace it"``, ``"P: is the recording too: ..."``, a missing folder. Writers call it before
+    any work."""
+    problem = output_problem(path, overwrite, inputs)
+    if problem is not None:
+        raise ConfigError(f"{path}: {problem}")
+    return Path(path)
+
+
+def atomic_write(
+    path: str | os.PathLike[str], write: Callable[[Path], None], *, overwrite: bool = True
+) -> Path:
     """Write ``path`` atomically.
 
     Args:
@@ -76,18 +140,20 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
       write: called with the path of a fresh temporary file in the same folder, with the same
         extension (encoders such as ffmpeg pick the format from it); it writes the whole content
         there (replacing the empty file).
+      overwrite: replace an existing ``path`` (default); ``False``: ``ConfigError`` if it
+        exists (``check_output``, checked again here, after ``write``'s caller did its work).
 
     Returns:
       ``path`` as a ``Path``.
 
     Raises:
       ConfigError: the folder of ``path`` does not exist or is not a folder (nothing is
-        created).
+        created); ``path`` exists and ``overwrite`` is false.
       InputError: an ``OSError`` while writing or renaming ("cannot write ..."). Any other
         exception of ``write`` propagates unchanged. In both cases the temporary file is
         removed and the target is left as it was.
     """
-    path = check_folder(path)
+    path = check_output(path, overwrite=overwrite)
     try:
         tmp = _temp_path(path)
     except OSError as e:
@@ -131,7 +197,11 @@ def _write_npz_file(path: Path, arrays: Mapping[str, np.ndarray], compress: bool
 
 
 def write_npz(
-    path: str | os.PathLike[str], arrays: Mapping[str, np.ndarray], *, compress: bool = False
+    path: str | os.PathLike[str],
+    arrays: Mapping[str, np.ndarray],
+    *,
+    compress: bool = False,
+    overwrite: bool = True,
 ) -> Path:
     """Write ``arrays`` as an NPZ archive (``np.load`` reads it), atomically and deterministically.
 
@@ -140,12 +210,16 @@ def write_npz(
       arrays: member name (without ``.npy``) -> array, written in this order; no object arrays.
       compress: deflate each member (level 9) like ``np.savez_compressed``; default stored, like
         ``np.savez``.
+      overwrite: replace an existing file (default), else ``ConfigError`` (``atomic_write``).
 
     Returns:
       ``path`` as a ``Path``.
 
     Raises:
-      ConfigError: the folder of ``path`` does not exist (``atomic_write``).
+      ConfigError: the folder of ``path`` does not exist, or ``path`` exists and ``overwrite``
+        is false (``atomic_write``).
       InputError: the file cannot be written (``atomic_write``).
     """
-    return atomic_write(path, lambda tmp: _write_npz_file(tmp, arrays, compress))
+    return atomic_write(
+        path, lambda tmp: _write_npz_file(tmp, arrays, compress), overwrite=overwrite
+    )

@@ -16,8 +16,10 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--out",
         default="jaxproj-report",
-        help="report folder, created if missing (its parent folder must exist)",
+        help="report folder, created if missing (its parent folder must exist); one that "
+        "holds an earlier report is refused without --force",
     )
+    options.add_force_option(p, "report of an earlier run in --out (files of other names stay)")
     p.add_argument(
         "--quick",
         action="store_true",
@@ -29,6 +31,14 @@ def add_parsers(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from jaxproj.paper.demo_report import check_report_folder
+
+    out_dir = Path(args.out)
+    try:  # before anything else: a refusal is the only line
+        check_report_folder(out_dir, args.force)
+    except ConfigError as e:
+        message = str(e).replace("--force (CLI) / overwrite=True (Python)", "--force")
+        raise ConfigError(f"--out {message}") from None
     # the first line, before MuJoCo, the plots and the first compile (minutes of silence else)
     print(
         f"jaxproj demo{' --quick' if args.quick else ''}: 5 stages (build, evaluate, roll out, "
@@ -42,14 +52,8 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.paper.demo import run_demo
     from jaxproj.paper.demo_report import stdout_summary
 
-    out_dir = Path(args.out)
-    if not out_dir.parent.is_dir():
-        raise ConfigError(
-            f"--out {out_dir}: folder {out_dir.parent} does not exist (the report folder is "
-            "created, its parent is not: create it first)"
-        )
     devices = options.devices(args.devices)
-    out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices)
+    out = run_demo(out_dir, quick=args.quick, progress=True, devices=devices, overwrite=args.force)
     print(stdout_summary(out))
     t = out["timings"]
     print(f"report: {out_dir / 'report.md'} ({t['total_s']:.0f} s)")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from typing import Any
 
 from jaxproj import __version__
@@ -26,6 +27,8 @@ def collect() -> dict:
 
     robot = robots.get()  # the default robot
 
+    from jaxproj._internal.mujoco_gl import gl_failure
+
     msr = datasets.dataset_summary("msr")
     utk = datasets.dataset_summary("utkinect")
     return {
@@ -33,6 +36,11 @@ def collect() -> dict:
         "jax": jax.__version__,
         "mujoco": mujoco.__version__,
         "devices": [str(d) for d in jax.devices()],
+        "rendering": {
+            "mujoco_gl": os.environ.get("MUJOCO_GL", ""),
+            "mujoco_available": gl_failure() is None,
+            "problem": gl_failure(),
+        },
         "robot": {
             "name": robot.title,
             "mjcf": str(robot.require_mjcf().path.resolve()),
@@ -48,6 +56,18 @@ def collect() -> dict:
     }
 
 
+def rendering_line(r: dict) -> str:
+    """``collect()["rendering"]`` in words: the MuJoCo OpenGL back-end, or why it is missing."""
+    gl = r["mujoco_gl"]
+    gl = f"MUJOCO_GL={gl}" if gl else "MUJOCO_GL unset (GLFW, needs a display)"
+    if r["mujoco_available"]:
+        return f"MuJoCo OpenGL, {gl} (a context is created when rendering; else matplotlib)"
+    return (
+        f"MuJoCo OpenGL unavailable: {r['problem']}; `jaxproj render` draws the robot with "
+        "matplotlib (--backend matplotlib), or install the back-end / change MUJOCO_GL"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     info = collect()
     if args.json:
@@ -55,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"jaxproj {info['jaxproj']}  (jax {info['jax']}, mujoco {info['mujoco']})")
     print(f"devices: {', '.join(info['devices'])}")
+    print(f"rendering: {rendering_line(info['rendering'])}")
     r = info["robot"]
     print(f"robot: {r['name']}, {len(r['joints'])} joints, mjcf {r['mjcf']}")
     print(f"driven joints ({len(r['driven_joints'])}): {', '.join(r['driven_joints'])}")

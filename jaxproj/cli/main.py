@@ -7,8 +7,10 @@ the robot's own document),
 evaluation against the IK) and ``demo`` (the main job); one module per group
 (``jaxproj.cli.info``, ``.retarget``, ``.render``, ``.projector``, ``.demo``), their shared
 options in ``jaxproj.cli.options``. Every user error prints one line naming the file and the
-problem on stderr and exits with status 2; no traceback. Output files are written only into
-folders that exist.
+problem on stderr and exits with status 2 (a usage error too: ``options.Parser``); no
+traceback. Output files are written only into folders that exist, never over an existing file
+without ``--force``, never over one of the command's inputs; every check that needs no
+computation runs before any.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ DESCRIPTION = (
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jaxproj`` command."""
-    p = argparse.ArgumentParser(
+    p = options.Parser(
         prog="jaxproj", description=DESCRIPTION, formatter_class=options.HelpFormatter
     )
     p.add_argument("--version", action="version", version=f"jaxproj {__version__}")

@@ -1,12 +1,16 @@
-"""What the ``jaxproj`` subcommands share: the help formatter, option groups added once
-(data, neighbours, devices, BVH), value parsers, output-path checks and data loading."""
+"""What the ``jaxproj`` subcommands share: the parser (one-line errors) and its help formatter,
+option groups added once (data, neighbours, devices, BVH, --force), value parsers with their
+documented ranges, output-path checks and data loading."""
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from jaxproj.errors import ConfigError
 from jaxproj.projection.config import FULL_READINGS
@@ -23,12 +27,74 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
+class Parser(argparse.ArgumentParser):
+    """``argparse.ArgumentParser`` whose usage errors (an unknown option, a value out of its
+    range) are one line on stderr, exit status 2, as every other jaxproj error: ``jaxproj
+    retarget: error: argument --fps: ... (see jaxproj retarget --help)``, without the usage
+    block (several lines for the larger subcommands)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def add_parser(sub: Any, name: str, help: str) -> argparse.ArgumentParser:
     """A subcommand parser with the house help formatter."""
     return sub.add_parser(name, formatter_class=HelpFormatter, help=help, description=help)
 
 
 # ------------------------------------------------------------------------------ value parsers
+
+
+def _number_text(x: float) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+class Bounded:
+    """An argparse ``type=``: a number of ``kind`` in ``[lo, hi]`` (``(lo, hi]`` with
+    ``open_lo``; no upper end for ``hi=None``), finite, else a one-line error naming the range
+    (argparse adds the option's name); ``many``: comma-separated values, each in the range
+    (``--landmarks 400,1644,1644``), as a list. ``RANGE`` says the range in words, for the
+    help."""
+
+    def __init__(
+        self,
+        kind: type[int] | type[float],
+        lo: float,
+        hi: float | None = None,
+        *,
+        open_lo: bool = False,
+        many: bool = False,
+    ) -> None:
+        self.kind, self.lo, self.hi, self.open_lo, self.many = kind, lo, hi, open_lo, many
+        lo_text = f"{'>' if open_lo else '>='} {_number_text(lo)}"
+        if hi is None:
+            self.RANGE = lo_text
+        elif open_lo:
+            self.RANGE = f"{lo_text} and <= {_number_text(hi)}"
+        else:
+            self.RANGE = f"{_number_text(lo)}..{_number_text(hi)}"
+        self.__name__ = kind.__name__  # what argparse calls the type in its own messages
+
+    def one(self, text: str) -> Any:
+        noun = "a whole number" if self.kind is int else "a number"
+        try:
+            value = self.kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected {noun} {self.RANGE}, got {text!r}"
+            ) from None
+        low_ok = value > self.lo if self.open_lo else value >= self.lo
+        if not (math.isfinite(value) and low_ok and (self.hi is None or value <= self.hi)):
+            raise argparse.ArgumentTypeError(f"{text} is out of range: use {noun} {self.RANGE}")
+        return value
+
+    def __call__(self, text: str) -> Any:
+        if not self.many:
+            return self.one(text)
+        values = [self.one(t.strip()) for t in text.split(",") if t.strip()]
+        if not values:
+            raise argparse.ArgumentTypeError(f"expected comma-separated values, got {text!r}")
+        return values
 
 
 def parse_ints(text: str) -> list[int]:
@@ -49,13 +115,20 @@ def parse_floats(text: str) -> list[float]:
         ) from None
 
 
+SIZE_RANGE = (32, 4096)
+"""Pixels of each side of ``render --size`` (``jaxproj.viz.render``'s limits)."""
+
+
 def parse_size(text: str) -> tuple[int, int]:
+    lo, hi = SIZE_RANGE
     try:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected WIDTHxHEIGHT in pixels, e.g. 480x360, got {text!r}"
         ) from None
+    if not (lo <= width <= hi and lo <= height <= hi):
+        raise argparse.ArgumentTypeError(f"{text} is out of range: each side {lo}..{hi} pixels")
     return width, height
 
 
@@ -68,25 +141,63 @@ def one_or_tuple(values: list | None) -> Any:
 
 # ------------------------------------------------------------------------------ output paths
 
-OUTPUT_FOLDER_RULE = "its folder must exist"
-"""What the help of every output option says: jaxproj creates no missing folder for a file."""
+OUTPUT_FOLDER_RULE = "its folder must exist; an existing file is replaced only with --force"
+"""What the help of every output option says: jaxproj creates no missing folder for a file,
+and replaces no file unless told to."""
+
+FORCE_FIX = "pass --force to replace it"
+"""What to do about an existing output, in the CLI's words."""
 
 
-def output_path(value: str, flag: str, suffixes: tuple[str, ...] = ()) -> Path:
+def add_force_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--force``: replace existing output files (``what``); never an input."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace an existing {what} (default: refuse, exit 2, before any work); an "
+        "output that is one of the command's inputs is refused even with --force",
+    )
+
+
+def output_path(
+    value: str,
+    flag: str,
+    suffixes: tuple[str, ...] = (),
+    *,
+    force: bool = False,
+    inputs: Mapping[str, str | os.PathLike[str] | None] | None = None,
+) -> Path:
     """``--out``-style option ``flag`` -> a ``Path``, checked before any work: one of
-    ``suffixes`` (if given) and an existing parent folder (a typo such as ``/no/dir/r.csv`` must
-    not create ``/no/dir``). ``ConfigError`` naming the option and the folder otherwise."""
+    ``suffixes`` (if given), an existing parent folder (a typo such as ``/no/dir/r.csv`` must
+    not create ``/no/dir``), none of ``inputs`` (what -> path: the recording, ``--model``,
+    another output; refused even with ``force``), not an existing file unless ``force``.
+    ``ConfigError`` naming the option and the problem otherwise."""
     out = Path(value)
     if suffixes and out.suffix.lower() not in suffixes:
         names = suffixes[0] if len(suffixes) == 1 else ", ".join(suffixes[:-1])
         names += "" if len(suffixes) == 1 else f" or {suffixes[-1]}"
         raise ConfigError(f"{flag} {out}: use a {names} file name")
-    from jaxproj._internal.atomic import missing_folder
+    from jaxproj._internal.atomic import output_problem
 
-    problem = missing_folder(out)  # the Python API's writers apply the same rule
+    # the Python API's writers apply the same rules (overwrite=False is --force left out)
+    problem = output_problem(out, force, inputs, fix=FORCE_FIX)
     if problem is not None:
-        raise ConfigError(f"{flag} {out}: {problem}")
+        raise ConfigError(f"{flag} {out}: {problem.replace('overwrite=True / ', '')}")
     return out
+
+
+def folder_inputs(data: str, out: str) -> dict[str, Path]:
+    """``{"a file of --data F": out}`` where the existing file ``out`` lies in a folder ``F`` of
+    ``--data`` (for ``output_path``'s ``inputs``): it is, or would be read as, a recording."""
+    parts = [data] if Path(data).exists() else data.split("+")
+    folders = [Path(p) for p in parts if p not in ("bundled", "msr", "utkinect")]
+    if not Path(out).is_file():
+        return {}
+    return {
+        f"a file of --data {f}": Path(out)
+        for f in folders
+        if f.is_dir() and Path(out).resolve().parent == f.resolve()
+    }
 
 
 # ------------------------------------------------------------------------------ option groups
@@ -152,9 +263,19 @@ def add_data_options(
     add_bvh_options(parser)
 
 
+NEIGHBOURS = Bounded(int, 1, 200)
+"""``--L`` / ``--M``: 1..200 (the paper's sweep is 5..50; the search's cost grows with L x M; a
+model also caps both at its smallest chain's landmark count)."""
+
+
 def add_neighbour_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--L", type=int, default=10, help="human-landmark neighbours (candidates)")
-    parser.add_argument("--M", type=int, default=10, help="robot-landmark neighbours per candidate")
+    rule = f"{NEIGHBOURS.RANGE} (and at most the model's smallest chain's landmark count)"
+    parser.add_argument(
+        "--L", type=NEIGHBOURS, default=10, help=f"human-landmark neighbours (candidates): {rule}"
+    )
+    parser.add_argument(
+        "--M", type=NEIGHBOURS, default=10, help=f"robot-landmark neighbours per candidate: {rule}"
+    )
 
 
 def add_full_reading_option(parser: argparse.ArgumentParser) -> None:

@@ -17,6 +17,21 @@ from jaxproj.projection.api import HEAD_BANDWIDTH
 BUILD_STAGES = ("descriptors", "landmarks and kernels", "save")
 """The steps of ``jaxproj build`` its progress bar counts (on a terminal only)."""
 
+LANDMARKS = options.Bounded(int, 2, 100_000, many=True)
+"""``build --landmarks``: 2..100,000 per chain (``BuildConfig`` needs >= 2; the bundled training
+set holds ~30,000 frames)."""
+BANDWIDTH = options.Bounded(float, 0.0, 10.0, open_lo=True, many=True)
+"""``build --bandwidth``: > 0 and <= 10 (descriptor distances between unit bone directions
+stay under 2 per bone: a larger bandwidth makes one landmark)."""
+K = options.Bounded(int, 2, 4096)
+"""``build --k``: 2..4096 training neighbours per kernel (tuned: 96)."""
+HIDDEN = options.Bounded(int, 2, 4096)
+"""``build --hidden``: 2..4096 hidden units (tuned: 96 / 192)."""
+POSITIVE = options.Bounded(float, 0.0, None, open_lo=True)
+"""``build --lam`` / ``--input-scale``: finite and > 0."""
+SEED = options.Bounded(int, 0, 2**32 - 1)
+"""``build --seed``: a uint32, as ``jax.random.PRNGKey`` takes."""
+
 
 def add_parsers(sub: Any) -> None:
     _add_build(sub)
@@ -52,26 +67,51 @@ def _add_build(sub: Any) -> None:
     size = pb.add_mutually_exclusive_group()
     size.add_argument(
         "--landmarks",
-        type=options.parse_ints,
-        help="target landmark count, bisected: one number for each arm (head: bandwidth "
-        f"{HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644 (neither this nor --bandwidth: "
-        "engine.DEFAULTS, the tuned bandwidths)",
+        type=LANDMARKS,
+        help=f"target landmark count, bisected, each {LANDMARKS.RANGE}: one number for each arm "
+        f"(head: bandwidth {HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644 (neither this "
+        "nor --bandwidth: engine.DEFAULTS, the tuned bandwidths; the paper's largest set is "
+        "1644, and a chain cannot hold more landmarks than training frames)",
     )
     size.add_argument(
-        "--bandwidth", type=options.parse_floats, help="mean-shift bandwidth: one, or one per chain"
+        "--bandwidth",
+        type=BANDWIDTH,
+        help=f"mean-shift bandwidth, each {BANDWIDTH.RANGE} (descriptor units: unit bone "
+        "directions): one, or one per chain",
     )
     tuned = "None: engine.DEFAULTS of the chain set"
-    pb.add_argument("--k", type=int, default=None, help=f"training neighbours per kernel ({tuned})")
     pb.add_argument(
-        "--hidden", type=int, default=None, help=f"hidden units ({tuned}; with --k: max(k, 192))"
+        "--k",
+        type=K,
+        default=None,
+        help=f"training neighbours per kernel, {K.RANGE} ({tuned}, 96; at most the landmarks)",
     )
-    pb.add_argument("--lam", type=float, default=None, help=f"ELM ridge regulariser ({tuned})")
-    pb.add_argument("--input-scale", type=float, default=None, help=f"hidden-weight std ({tuned})")
-    pb.add_argument("--seed", type=int, default=0, help="PRNG seed of the hidden layers")
+    pb.add_argument(
+        "--hidden",
+        type=HIDDEN,
+        default=None,
+        help=f"hidden units, {HIDDEN.RANGE} and >= k ({tuned}; with --k: max(k, 192))",
+    )
+    pb.add_argument(
+        "--lam",
+        type=POSITIVE,
+        default=None,
+        help=f"ELM ridge regulariser, {POSITIVE.RANGE} ({tuned})",
+    )
+    pb.add_argument(
+        "--input-scale",
+        type=POSITIVE,
+        default=None,
+        help=f"hidden-weight std, {POSITIVE.RANGE} ({tuned})",
+    )
+    pb.add_argument(
+        "--seed", type=SEED, default=0, help=f"PRNG seed of the hidden layers, {SEED.RANGE}"
+    )
     pb.add_argument("--mirror", action="store_true", help="mirror imitation")
     pb.add_argument(
         "--out", required=True, help=f"output projector .npz; {options.OUTPUT_FOLDER_RULE}"
     )
+    options.add_force_option(pb, "--out")
     pb.set_defaults(func=build)
 
 
@@ -99,6 +139,7 @@ def _add_evaluate(sub: Any) -> None:
     pe.add_argument(
         "--json", required=True, help=f"output report JSON; {options.OUTPUT_FOLDER_RULE}"
     )
+    options.add_force_option(pe, "--json")
     pe.set_defaults(func=evaluate)
 
 
@@ -141,7 +182,10 @@ def build(args: argparse.Namespace) -> int:
     from jaxproj.io import datasets
     from jaxproj.projection import api as engine
 
-    out = options.output_path(args.out, "--out", (".npz",))
+    out = options.output_path(
+        args.out, "--out", (".npz",), force=args.force,
+        inputs=options.folder_inputs(args.data, args.out),
+    )  # fmt: skip
     people, recorded = training_people(args.data, args.subjects, args.utkinect_people)
     cfg = engine.BuildConfig(
         chains=args.chains,
@@ -169,7 +213,7 @@ def build(args: argparse.Namespace) -> int:
     next(stages)  # landmarks and kernels
     model = engine.build(d, cfg)
     next(stages)  # save
-    engine.save(model, out)
+    engine.save(model, out, overwrite=args.force)
     for _ in stages:  # the bar completes and closes
         pass
     dt = time.perf_counter() - t0
@@ -200,7 +244,8 @@ def evaluate(args: argparse.Namespace) -> int:
     from jaxproj.projection import api as engine
     from jaxproj.viz import report
 
-    json_out = options.output_path(args.json, "--json")
+    inputs = {"--model": args.model, **options.folder_inputs(args.data, args.json)}
+    json_out = options.output_path(args.json, "--json", force=args.force, inputs=inputs)
     devices = options.devices(args.devices)
     model = engine.load(args.model)
     engine.check_neighbours(model, args.L, args.M)
@@ -229,7 +274,7 @@ def evaluate(args: argparse.Namespace) -> int:
     out["model"] = str(args.model)
     if contents is not None:
         out["data_files"] = contents.to_json()
-    report.write_json(Path(json_out), out)
+    report.write_json(Path(json_out), out, overwrite=args.force)
     print(report.summary_table(out["summary"], methods))
     print(
         f"{out['valid_frames']} valid frames of {out['sequences']} sequences -> {args.json}"

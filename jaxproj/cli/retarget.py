@@ -48,6 +48,13 @@ def parse_rate(text: str) -> float | str:
     return rate
 
 
+FPS = options.Bounded(float, 1.0, 1000.0)
+"""``--fps``: 1..1000 frames/s. Above ~1 kHz the feasibility filter's acceleration bound cannot
+be told from float32 round-off: one unit in the last place of an angle (~1.2e-7 rad near 1 rad)
+over the squared step is 0.12 rad/s^2 at 1 kHz but 1,200 at 100 kHz (``--fps 1e5`` wrote
+accelerations of 298 rad/s^2 against the bound of 80)."""
+
+
 def add_parsers(sub: Any) -> None:
     pr = options.add_parser(
         sub, "retarget", "retarget a skeleton recording to a robot's joint angles"
@@ -60,6 +67,7 @@ def add_parsers(sub: Any) -> None:
         f".csv (time + the robot's joints in its SDK order, rad: {_joint_counts()}; no other "
         f"column) or the robot's own document: {_documents()}; {options.OUTPUT_FOLDER_RULE}",
     )
+    options.add_force_option(pr, "--out or --plot")
     pr.add_argument(
         "--format",
         default="auto",
@@ -104,12 +112,15 @@ def add_parsers(sub: Any) -> None:
     options.add_smoother_option(pr, "the projected motion")
     pr.add_argument(
         "--fps",
-        type=float,
+        type=FPS,
         default=None,
-        help="frame rate of the input (None: the file's own timing: UTKinect frame numbers at "
-        "30 fps, MSR Action3D 15 fps, CSV / NPZ 30 fps unless the NPZ has times or fps). A BVH "
-        "states its own rate (Frame Time): there --fps F resamples the clip to F frames/s "
-        "(linear interpolation of joint positions), e.g. 30; None keeps the clip's rate",
+        help=f"frame rate of the input, {FPS.RANGE} frames/s (None: the file's own timing: "
+        "UTKinect frame numbers at 30 fps, MSR Action3D 15 fps, CSV / NPZ 30 fps unless the NPZ "
+        "has times or fps). A BVH states its own rate (Frame Time): there --fps F resamples the "
+        "clip to F frames/s (linear interpolation of joint positions), e.g. 30; None keeps the "
+        "clip's rate. The range spans slow captures to 1 kHz motion capture; above it a float32 "
+        "angle's resolution over the squared frame step outgrows the 80 rad/s^2 bound of "
+        "--feasible (docs/reliability.md)",
     )
     pr.add_argument(
         "--rate",
@@ -139,10 +150,11 @@ def add_parsers(sub: Any) -> None:
     )
     pr.add_argument(
         "--joints",
-        default="upper",
+        default=None,
         choices=("upper", "body"),
-        help="joints in a .json output (NAOqi): upper = NAOqi's Head, LArm, RArm chains (the "
-        "legs stay with the robot's own balance); body = all of the robot's joints",
+        help="joints in a .json output (NAOqi, NAO only): upper = NAOqi's Head, LArm, RArm "
+        "chains (the legs stay with the robot's own balance); body = all of the robot's joints "
+        "(None: upper; refused with another output, which holds every joint)",
     )
     pr.add_argument(
         "--plot",
@@ -154,43 +166,48 @@ def add_parsers(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from jaxproj.io import motion_files
     from jaxproj.io.motion_files import Motion, save_motion
     from jaxproj.io.readers import read_skeleton
     from jaxproj.motion import feasible
     from jaxproj.motion.retarget import MIN_VALID_SHARE, retarget
     from jaxproj.projection import api as engine
 
-    model = None
-    robot = robots.get(args.robot)
-    bones = engine.BuildConfig(robot=robot.name, bones=args.bones or "auto").bones
-    mirror = bool(args.mirror)
-    if args.method == "ik" and args.model is not None:
+    # every check that needs no computation first: the options, the model's metadata (not its
+    # arrays) and the output paths; then the recording, the model's arrays, the retargeting
+    robot, bones, mirror = _settings(args, engine)
+    inputs = {"the recording": args.input, "--model": args.model}
+    out = options.output_path(
+        args.out, "--out", (".npz", ".csv", ".json"), force=args.force, inputs=inputs
+    )
+    ext = out.suffix.lower()
+    if ext not in motion_files.formats(robot):
         raise ConfigError(
-            f"--model {args.model} is used by --method relaxed / full only, and --method is ik "
-            "(the default: the analytic IK, no model): add --method relaxed to use the model, "
-            "or leave --model out"
+            f"--out {out}: a {ext} motion is not written for the {robot.name} (its formats: "
+            f"{', '.join(motion_files.formats(robot))}; .json is the NAO's NAOqi format)"
         )
-    if args.method != "ik":
-        if args.model is None:
-            raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
-        model = engine.load(args.model)
-        fixed: dict[str, tuple[Any, Any]] = {"--bones": (args.bones, model.config.bones)}
-        fixed["--robot"] = (args.robot, model.robot.name)
-        fixed["--mirror"] = (args.mirror, model.config.mirror)
-        for flag, (given, own) in fixed.items():
-            if given is not None and given != own:
-                raise ConfigError(
-                    f"{flag} {given} conflicts with the model {args.model}, built with "
-                    f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
-                )
-        bones, mirror, robot = model.config.bones, model.config.mirror, model.robot
-    out = options.output_path(args.out, "--out", (".npz", ".csv", ".json"))
-    plot = None if args.plot is None else options.output_path(args.plot, "--plot", (".png",))
+    if args.joints is not None and ext not in robot.exports:
+        raise ConfigError(
+            f"--joints picks the joints of a NAOqi .json output; --out {out} holds every joint: "
+            "leave --joints out"
+        )
+    joints = args.joints or "upper"
+    for e in robot.exports.values():
+        e.check(robot, joints, None)
+    plot = None
+    if args.plot is not None:
+        plot = options.output_path(
+            args.plot, "--plot", (".png",), force=args.force, inputs={**inputs, "--out": out}
+        )
     rec = read_skeleton(
         args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale,
         rest_frame=args.bvh_rest_frame,
     )  # fmt: skip
     rec = output_rate(rec, args.rate)
+    model = None
+    if args.method != "ik":
+        model = engine.load(args.model)
+        engine.check_neighbours(model, args.L, args.M)
     try:
         result = retarget(
             rec.positions,
@@ -233,7 +250,7 @@ def run(args: argparse.Namespace) -> int:
         meta["full_reading"] = args.full_reading
     motion = Motion(angles, result.times, result.valid, rec.positions, meta,
                     confidence=result.confidence, robot=robot)  # fmt: skip
-    save_motion(out, motion, joints=args.joints)
+    save_motion(out, motion, joints=joints, overwrite=args.force)
     n, nv = len(result.valid), int(result.valid.sum())
     print(
         f"{args.input}: {n} frames ({nv} valid, {result.times[-1]:.2f} s, {rec.time_source}) -> "
@@ -278,6 +295,37 @@ def output_rate(rec: Any, rate: float | str) -> Any:
     if np.allclose(np.diff(rec.times), 1.0 / hz, rtol=1e-6, atol=0.0):
         return rec
     return resample(rec, hz, max_gap=GAP_S)
+
+
+def _settings(args: argparse.Namespace, engine: Any) -> tuple[robots.Robot, str, bool]:
+    """``(robot, bones, mirror)`` of the run: the model's (read from its metadata alone) with
+    --method relaxed / full, where a differing --robot / --bones / --mirror is refused; else the
+    options'. A model with --method ik, or no model with relaxed / full, is refused."""
+    if args.method == "ik" and args.model is not None:
+        raise ConfigError(
+            f"--model {args.model} is used by --method relaxed / full only, and --method is ik "
+            "(the default: the analytic IK, no model): add --method relaxed to use the model, "
+            "or leave --model out"
+        )
+    if args.method == "ik":
+        robot = robots.get(args.robot)
+        bones = engine.BuildConfig(robot=robot.name, bones=args.bones or "auto").bones
+        return robot, bones, bool(args.mirror)
+    if args.model is None:
+        raise ConfigError(f"--method {args.method} needs --model P.npz (see `jaxproj build`)")
+    from jaxproj.projection.model_file import read_config
+
+    config = read_config(args.model)
+    fixed: dict[str, tuple[Any, Any]] = {"--bones": (args.bones, config.bones)}
+    fixed["--robot"] = (args.robot, config.robot)
+    fixed["--mirror"] = (args.mirror, config.mirror)
+    for flag, (given, own) in fixed.items():
+        if given is not None and given != own:
+            raise ConfigError(
+                f"{flag} {given} conflicts with the model {args.model}, built with "
+                f"{flag.lstrip('-')}={own}: leave {flag} out (the model fixes it)"
+            )
+    return config.robot_spec, config.bones, config.mirror
 
 
 EXPECTED_LOW_SHARE = 0.10
@@ -364,5 +412,5 @@ def _plot(
     title = (f"{Path(args.input).name}: {args.method}, {len(out)} frames over {span:.1f} s "
              f"({rec.time_source}; {rec.fps:.3g} frames/s on average)")  # fmt: skip
     report.plot_retarget(plot, title, rec.positions, result.valid, result.times, out, ik_q,
-                         label=args.method, robot=robot)  # fmt: skip
+                         label=args.method, robot=robot, overwrite=args.force)  # fmt: skip
     print(f"  plot -> {plot} (widest joint ranges, deg: {widest})")

@@ -61,7 +61,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write, check_folder, write_npz
+from jaxproj._internal.atomic import atomic_write, check_output, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import N_JOINTS as N_HUMAN_JOINTS
 from jaxproj.robots import Robot, clip_coupled
@@ -261,6 +261,7 @@ def save_motion(
     joints: str | Sequence[str] = "upper",
     lead_in: float | None = None,
     margin: float | None = EXPORT_MARGIN,
+    overwrite: bool = True,
 ) -> Path:
     """Write ``motion`` to ``path``; the format follows the extension (module docstring).
 
@@ -276,6 +277,8 @@ def save_motion(
       margin: CSV and the robot's exports: rad inside each joint's range the angles are
         written at (``export_angles``; default ``EXPORT_MARGIN``); ``None``: as they are. The
         NPZ always holds the motion's own angles.
+      overwrite: replace an existing ``path`` (default, as numpy's savers); ``False``: refuse
+        it (``jaxproj retarget`` passes ``--force``, off by default).
 
     Returns:
       ``path`` as a ``Path``.
@@ -283,7 +286,8 @@ def save_motion(
     Raises:
       ConfigError: an unsupported extension, bad ``joints`` / ``lead_in`` / ``margin``, a meta
         key the JSON block reserves (``t0``, ``lead_in_s``, ``joints``, ``invalid_frames``), a
-        folder of ``path`` that does not exist (nothing is created).
+        folder of ``path`` that does not exist (nothing is created), an existing ``path`` with
+        ``overwrite=False`` ("exists; pass overwrite=True ...").
       InputError: the file cannot be written (nothing is left behind).
     """
     path = Path(path)
@@ -294,17 +298,17 @@ def save_motion(
         raise ConfigError(f"motion must be a jaxproj.io.motion_files.Motion, got {kind}")
     options = {s: e.check(robot, joints, lead_in) for s, e in robot.exports.items()}
     _check_margin(robot, margin)
-    check_folder(path)
+    check_output(path, overwrite=overwrite)
     if ext == ".npz":
-        return write_npz(path, _npz_arrays(motion))
+        return write_npz(path, _npz_arrays(motion), overwrite=overwrite)
     angles = motion.angles if margin is None else export_angles(robot, motion.angles, margin)
     if ext == ".csv":
-        return atomic_write(path, lambda tmp: _write_csv(tmp, motion, angles))
+        return atomic_write(path, lambda tmp: _write_csv(tmp, motion, angles), overwrite=overwrite)
     text = robot.exports[ext].write(
         robot, angles, motion.times, motion.valid, motion.meta, options[ext],
         confidence=motion.confidence,
     )  # fmt: skip
-    return atomic_write(path, lambda tmp: _write_text(tmp, text))
+    return atomic_write(path, lambda tmp: _write_text(tmp, text), overwrite=overwrite)
 
 
 def _check_margin(robot: Robot, margin: float | None) -> None:

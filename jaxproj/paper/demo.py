@@ -273,6 +273,7 @@ def run_demo(
     quick: bool = False,
     progress: bool = False,
     devices: list[jax.Device] | None = None,
+    overwrite: bool = True,
 ) -> dict:
     """Run the whole demo and write the report; returns the report dict.
 
@@ -287,10 +288,12 @@ def run_demo(
     report's (``report.json`` and the report's first line say ``quick``). ``progress`` shows
     progress bars on a terminal (stage lines always go to stderr). ``devices`` (several JAX
     devices, or ``None`` for the default one) shard the held-out evaluation's projections and
-    the rollout (then MJX; ``engine.resolve_devices``).
+    the rollout (then MJX; ``engine.resolve_devices``). ``overwrite=False`` refuses a folder
+    holding an earlier run's report (``demo_report.check_report_folder``, first); default: replace.
     """
+    demo_report.check_report_folder(out_dir, overwrite)
     t_start = time.perf_counter()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir.mkdir(exist_ok=True)
     with Heartbeat() as beat:
         return _run(out_dir, quick, progress, devices, beat, t_start)
 

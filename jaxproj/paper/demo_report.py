@@ -8,6 +8,8 @@ that states its split, frame count and metric; nothing here computes.
 
 from __future__ import annotations
 
+import os
+
 from jaxproj.viz import report, report_text
 
 QUICK_TRAIN_STRIDE = 8
@@ -632,3 +634,50 @@ def markdown(r: dict) -> str:
     lines += [f"| {k.removesuffix('_s')} | {v:.1f} |" for k, v in r["timings"].items()]
     lines += [""]
     return "\n".join(lines)
+
+
+REPORT_FILES = (
+    "projector.npz",
+    "projector_whole_body.npz",
+    "report.json",
+    "report.md",
+    "error_distributions.png",
+    "per_joint_error.png",
+    "landmark_size.png",
+    "efficiency.png",
+)
+"""The files ``run_demo`` writes into its folder, besides ``motion_<recording>.png``."""
+
+
+def check_report_folder(out_dir: os.PathLike[str] | str, overwrite: bool) -> None:
+    """``ConfigError`` (before any work) unless ``run_demo`` may write into ``out_dir``: it
+    must be a folder or absent (its parent folder must exist: only the report folder itself is
+    created), and, unless ``overwrite``, hold none of the files a run writes (``REPORT_FILES``,
+    ``motion_*.png``)."""
+    from pathlib import Path
+
+    from jaxproj.errors import ConfigError
+
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(
+            f"{out_dir}: is a file, not a report folder: name a folder (created if missing)"
+        )
+    if not out_dir.parent.is_dir():
+        raise ConfigError(
+            f"{out_dir}: folder {out_dir.parent} does not exist (the report folder is created, "
+            "its parent is not: create it first)"
+        )
+    if overwrite or not out_dir.is_dir():
+        return
+    found = sorted(
+        f.name
+        for f in out_dir.iterdir()
+        if f.name in REPORT_FILES or (f.name.startswith("motion_") and f.suffix == ".png")
+    )
+    if found:
+        shown = ", ".join(found[:3]) + (f" and {len(found) - 3} more" if len(found) > 3 else "")
+        raise ConfigError(
+            f"{out_dir}: holds the report of an earlier run ({shown}); pass --force (CLI) / "
+            "overwrite=True (Python) to replace it, or name another folder"
+        )

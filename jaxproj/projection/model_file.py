@@ -17,7 +17,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from jaxproj._internal.atomic import check_folder, write_npz
+from jaxproj._internal.atomic import check_output, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.projection.build import Model
 from jaxproj.projection.config import BuildConfig
@@ -51,7 +51,7 @@ _ARRAY_SHAPES: dict[str, tuple[str, ...]] = {
 }
 
 
-def save(model: Model, path: str | Path) -> None:
+def save(model: Model, path: str | Path, *, overwrite: bool = True) -> None:
     """Write a model to one ``.npz``: every chain's arrays (unpadded), the config, the chain
     layout and a format version.
 
@@ -59,12 +59,15 @@ def save(model: Model, path: str | Path) -> None:
     (``jaxproj._internal.atomic``), so an interrupted or failed save never leaves a half-written
     model; the zip members carry fixed timestamps, so the same model gives a byte-identical file.
     No folder is created: the folder of ``path`` must exist (as for ``jaxproj build --out``).
+    ``overwrite`` (default ``True``, as numpy's savers) replaces an existing file; ``False``
+    refuses it (``jaxproj build`` passes ``--force``, off by default).
 
     Raises:
-      ConfigError: the folder of ``path`` does not exist or is not a folder (nothing written).
+      ConfigError: the folder of ``path`` does not exist or is not a folder, or ``path``
+        exists and ``overwrite`` is false (nothing written).
       InputError: the file cannot be written.
     """
-    check_folder(path)  # before any array is copied off the device
+    check_output(path, overwrite=overwrite)  # before any array is copied off the device
     sp = model.projector
     lay = sp.layout
     spec = model.robot
@@ -89,7 +92,7 @@ def save(model: Model, path: str | Path) -> None:
         "ik": dict(spec.ik_constants),
     }
     arrays = {"meta": np.array(json.dumps(meta)), **arrays}
-    write_npz(path, arrays)
+    write_npz(path, arrays, overwrite=overwrite)
 
 
 def _one_line(err: BaseException) -> str:
@@ -107,30 +110,9 @@ def load(path: str | Path) -> Model:
         configuration, a missing, mis-shaped or non-finite array.
     """
     path = Path(path)
-    if path.is_dir():
-        raise InputError(path, "is a directory, not a model file")
-    if not path.is_file():
-        raise InputError(path, "model file not found")
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(4)
-            if head != b"PK\x03\x04":
-                what = "an empty file" if not head else "not an npz archive"
-                raise InputError(path, f"not a jaxproj model ({what}; see `jaxproj build`)")
-            fh.seek(0)
-            with np.load(fh, allow_pickle=False) as z:
-                data = {k: z[k] for k in z.files}
-    except InputError:
-        raise
-    except Exception as e:  # zipfile / zlib / numpy errors of a truncated or corrupt archive
-        raise InputError(path, f"not a readable model file ({_one_line(e)})") from None
+    data = _read_arrays(path)
     meta = _read_meta(path, data)
-    try:
-        # a file written before BuildConfig.utkinect_people existed trained on MSR Action3D
-        # (or the user's data) alone: it must not read as trained on the default UTKinect people
-        config = BuildConfig(**{"utkinect_people": (), **meta["config"]})
-    except (KeyError, TypeError, ValueError, ConfigError) as e:
-        raise InputError(path, f"invalid model configuration ({_one_line(e)})") from None
+    config = _config(path, meta)
     spec = config.robot_spec
     chains = spec.chain_set(config.chains)
     _check_layout(path, meta, config, data)
@@ -177,6 +159,55 @@ def load(path: str | Path) -> Model:
     except (TypeError, ValueError) as e:
         raise InputError(path, f"inconsistent model file ({_one_line(e)})") from None
     return Model(stacked, config, bandwidth, tuple(counts), n_train, scale)
+
+
+def read_config(path: str | Path) -> BuildConfig:
+    """The ``BuildConfig`` a model file records (its robot, chains, bones, mirror, ...), read
+    from its metadata alone, without its arrays: what a caller checks its other settings against
+    before ``load`` (``jaxproj retarget`` refuses a conflicting option before any work).
+
+    Raises:
+      InputError: as ``load`` for the file and its metadata (the arrays are checked by
+        ``load``).
+    """
+    path = Path(path)
+    data = _read_arrays(path, ("meta",))
+    if "meta" not in data:  # not a model: name the arrays it holds, as load does
+        data = _read_arrays(path)
+    return _config(path, _read_meta(path, data))
+
+
+def _read_arrays(path: Path, keys: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+    """The arrays of the model file ``path`` (only ``keys`` of them, where given and present),
+    or InputError naming it: missing, a folder, not an npz archive, truncated or corrupt."""
+    if path.is_dir():
+        raise InputError(path, "is a directory, not a model file")
+    if not path.is_file():
+        raise InputError(path, "model file not found")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+            if head != b"PK\x03\x04":
+                what = "an empty file" if not head else "not an npz archive"
+                raise InputError(path, f"not a jaxproj model ({what}; see `jaxproj build`)")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as z:
+                names = z.files if keys is None else [k for k in keys if k in z.files]
+                return {k: z[k] for k in names}
+    except InputError:
+        raise
+    except Exception as e:  # zipfile / zlib / numpy errors of a truncated or corrupt archive
+        raise InputError(path, f"not a readable model file ({_one_line(e)})") from None
+
+
+def _config(path: Path, meta: dict) -> BuildConfig:
+    """The checked ``BuildConfig`` of a model file's ``meta``."""
+    try:
+        # a file written before BuildConfig.utkinect_people existed trained on MSR Action3D
+        # (or the user's data) alone: it must not read as trained on the default UTKinect people
+        return BuildConfig(**{"utkinect_people": (), **meta["config"]})
+    except (KeyError, TypeError, ValueError, ConfigError) as e:
+        raise InputError(path, f"invalid model configuration ({_one_line(e)})") from None
 
 
 def _read_meta(path: Path, data: dict[str, np.ndarray]) -> dict:

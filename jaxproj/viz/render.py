@@ -48,6 +48,8 @@ from typing import Any, Literal, NamedTuple, TypedDict, Unpack
 
 import numpy as np
 
+from jaxproj._internal.atomic import check_output
+from jaxproj._internal.mujoco_gl import gl_failure
 from jaxproj.errors import ConfigError
 from jaxproj.io.motion_files import Motion, load_motion
 from jaxproj.robots import Robot
@@ -150,6 +152,8 @@ def _create_renderer(model: Any, width: int, height: int) -> Any:
     """
     import mujoco
 
+    if not _gl_failure and gl_failure() is not None:  # MUJOCO_GL's back-end did not even load
+        _gl_failure.append(f"MuJoCo cannot render: {gl_failure()}: {_GL_FIX}")
     if _gl_failure:
         raise RenderError(_gl_failure[0])
     problem = ""
@@ -369,6 +373,7 @@ class RenderOptions(TypedDict, total=False):
     size: tuple[int, int]
     stride: int
     camera: Camera | None
+    overwrite: bool
 
 
 def render_to_file(
@@ -380,8 +385,10 @@ def render_to_file(
     size: tuple[int, int] = DEFAULT_SIZE,
     stride: int = 1,
     camera: Camera | None = None,
+    overwrite: bool = True,
 ) -> Rendered:
-    """``render_motion`` for a ``Motion``, telling what it did (the ``jaxproj render`` command).
+    """``render_motion`` for a ``Motion``, telling what it did (the ``jaxproj render`` command);
+    ``overwrite=False``: an existing ``out`` is a ConfigError, before anything is drawn.
 
     Returns:
       ``Rendered(path, frames, backend, fps, seconds, longest_hold_s, human)``.
@@ -389,13 +396,14 @@ def render_to_file(
     out = Path(out)
     _check_motion(motion)
     ext = check_video_path(out)
+    check_output(out, overwrite=overwrite)
     if ext == ".mp4":
         _require_ffmpeg()
     size, stride, camera = _check_options(backend, size, stride, camera)
     sched = playback(motion.times, _rate(motion, stride, fps, ext), stride)
     frames = _Frames(motion, backend, size, sched.frames, camera)
     try:
-        path = save_video(frames, out, sched.fps, sched.holds)
+        path = save_video(frames, out, sched.fps, sched.holds, overwrite=overwrite)
     finally:
         frames.close()
     return Rendered(path, len(frames), frames.backend, sched.fps, sched.seconds,
@@ -430,17 +438,21 @@ def render_motion(
         default the motion's frame rate (``Motion.fps``) divided by ``stride`` (at most
         ``MAX_GIF_FPS`` for a GIF); the video plays in real time by the motion's ``times`` at
         any ``fps`` (``playback``: a gap is held on its last frame); ``backend``, ``size``,
-        ``stride``, ``camera`` as in ``render_frames``.
+        ``stride``, ``camera`` as in ``render_frames``; ``overwrite`` as in
+        ``render_to_file`` (``out`` naming the motion file is refused even with it).
 
     Returns:
       ``out`` as a ``Path``. Frames are streamed to MP4 (constant memory), gathered for GIF.
 
     Raises:
-      ConfigError: a bad option or extension (before anything is read or rendered).
+      ConfigError: a bad option or extension, an existing ``out`` with ``overwrite=False``,
+        ``out`` the motion file (before anything is read or rendered).
       RenderError: ``backend="mujoco"`` and no OpenGL. InputError: a bad motion file, or the
         video cannot be written.
     """
     check_video_path(out)
+    source = None if isinstance(motion, Motion) else motion
+    check_output(out, overwrite=options.get("overwrite", True), inputs={"the motion file": source})
     m = motion if isinstance(motion, Motion) else load_motion(motion)
     return render_to_file(m, out, **options).path
 

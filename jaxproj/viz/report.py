@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write
+from jaxproj._internal.atomic import atomic_write, check_output
 from jaxproj.human.skeleton import BONES, J, body_frame
 from jaxproj.robots import Robot
 from jaxproj.viz.panels import kinematics, robot_label
@@ -225,6 +225,7 @@ def plot_motion(
     key_frames: int = 3,
     *,
     robot: Robot,
+    overwrite: bool = True,
 ) -> None:
     """One motion: skeleton vs robot at a few frames, and the errors over time.
 
@@ -234,6 +235,7 @@ def plot_motion(
         ``(T, n_driven)``.
       robot: the robot the angles are for.
     """
+    check_output(path, overwrite=overwrite)
     plt = _plt()
     frames = np.flatnonzero(valid)
     picks = frames[np.linspace(0, len(frames) - 1, key_frames).round().astype(int)]
@@ -286,6 +288,7 @@ def plot_retarget(
     key_frames: int = 4,
     *,
     robot: Robot,
+    overwrite: bool = True,
 ) -> None:
     """One retargeted recording (``jaxproj retarget --plot``): the figure of ``plot_motion`` with
     the joint angles over time instead of the errors.
@@ -303,6 +306,7 @@ def plot_retarget(
       angles, ik_angles: ``(T, n_driven)`` radians, ``robot.driven_joints`` order.
       robot: the robot the angles are for.
     """
+    check_output(path, overwrite=overwrite)
     plt = _plt()
     frames = np.flatnonzero(valid)
     if frames.size == 0:
@@ -340,11 +344,14 @@ def plot_distributions(
     predictions: dict[str, np.ndarray],
     truth: np.ndarray,
     title: str = "Error distributions on held-out subjects (valid frames)",
+    *,
+    overwrite: bool = True,
 ) -> None:
     """CDFs of M_avg and M_max per method on a logarithmic error axis (one scale over its whole
     range: no kink where a symlog axis turns linear); ``predictions[m]`` and ``truth``:
     ``(F, 10)``. Frames with an error of exactly 0 count in the fraction but have no place on a
-    log axis (the curve starts at the smallest non-zero error)."""
+    log axis (the curve starts at the smallest non-zero error). ``overwrite``: ``write_text``'s."""
+    check_output(path, overwrite=overwrite)
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for name, pred in predictions.items():
@@ -368,11 +375,14 @@ def _size_label(row: dict) -> str:
     return "default" if row.get("target") is None else str(row["target"])
 
 
-def plot_landmark_size(path: Path, study: dict, title: str | None = None) -> None:
+def plot_landmark_size(
+    path: Path, study: dict, title: str | None = None, *, overwrite: bool = True
+) -> None:
     """``study``: ``{"sizes": [{"landmarks": K, "M_avg_median": .., "M_max_p95": ..}, ...]}``
     (``experiments.landmark_size_study``: ``landmarks`` is the mean of the two arm chains of a
     per-chain model, the x axis says so; each point is labelled by its target, ``default`` for
     the row of ``target`` ``None``)."""
+    check_output(path, overwrite=overwrite)
     plt = _plt()
     rows = sorted(study["sizes"], key=lambda r: r["landmarks"])
     k = [r["landmarks"] for r in rows]
@@ -398,11 +408,14 @@ def plot_landmark_size(path: Path, study: dict, title: str | None = None) -> Non
     _save(plt, fig, path)
 
 
-def plot_efficiency(path: Path, study: dict, title: str | None = None) -> None:
+def plot_efficiency(
+    path: Path, study: dict, title: str | None = None, *, overwrite: bool = True
+) -> None:
     """``study``: ``{"rows": [{"L": .., "batch": .., "us_per_projection": ..,
     "M_avg_median": ..}, ...]}`` (``experiments.efficiency_study``). Both axes start at 0, so
     that a change of a few hundredths of a degree is drawn as the flat line it is; the batch
     size of the timed calls is in the title when every point shares it, else at each point."""
+    check_output(path, overwrite=overwrite)
     plt = _plt()
     rows = study["rows"]
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -431,7 +444,9 @@ def plot_efficiency(path: Path, study: dict, title: str | None = None) -> None:
     _save(plt, fig, path)
 
 
-def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) -> None:
+def plot_per_joint(
+    path: Path, summary: dict, methods: list[str] | None = None, *, overwrite: bool = True
+) -> None:
     """Bars of the p50 (solid) and p95 (light) error per driven joint, one group per joint.
 
     Args:
@@ -440,6 +455,7 @@ def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) 
       methods: which methods; default the projection methods present (``PROJECTION_METHODS``),
         else every method of ``summary``.
     """
+    check_output(path, overwrite=overwrite)
     methods = methods or [m for m in PROJECTION_METHODS if m in summary] or list(summary)
     plt = _plt()
     joints = list(summary[methods[0]]["per_joint"])  # the robot's driven joints, in order
@@ -462,18 +478,19 @@ def plot_per_joint(path: Path, summary: dict, methods: list[str] | None = None) 
     _save(plt, fig, path)
 
 
-def write_json(path: Path, report: dict) -> None:
+def write_json(path: Path, report: dict, *, overwrite: bool = True) -> None:
     """Write ``report`` (private keys dropped) as indented JSON, atomically (``write_text``)."""
-    write_text(path, json.dumps(to_jsonable(report), indent=2) + "\n")
+    write_text(path, json.dumps(to_jsonable(report), indent=2) + "\n", overwrite=overwrite)
 
 
-def write_text(path: Path, text: str) -> None:
+def write_text(path: Path, text: str, *, overwrite: bool = True) -> None:
     """Write a report file atomically: a temporary file beside ``path``, then renamed, so a
     failed or interrupted write never leaves a half-written report (``InputError`` when the
-    file cannot be written)."""
+    file cannot be written). ``overwrite=False``: an existing file is a ConfigError, here and
+    in every ``plot_*`` (checked before drawing); default ``True``, replace it."""
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", encoding="utf-8") as fh:
             fh.write(text)
 
-    atomic_write(path, write)
+    atomic_write(path, write, overwrite=overwrite)

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from jaxproj._internal.atomic import atomic_write
+from jaxproj._internal.atomic import atomic_write, check_output
 from jaxproj.errors import ConfigError
 
 VIDEO_FORMATS: tuple[str, ...] = (".mp4", ".gif")
@@ -194,6 +194,8 @@ def save_video(
     out: str | os.PathLike[str],
     fps: float,
     holds: Sequence[int] | np.ndarray | None = None,
+    *,
+    overwrite: bool = True,
 ) -> Path:
     """Write frames as a video, atomically (a failed write leaves nothing behind).
 
@@ -207,17 +209,21 @@ def save_video(
       holds: how many ticks of ``1 / fps`` each frame is shown (whole numbers >= 1, one per
         frame; default 1 each): an MP4 repeats the frame, a GIF lengthens its delay. A motion's
         real-time schedule (``jaxproj.viz.render.playback``) holds a frame across a gap.
+      overwrite: replace an existing ``out`` (default); ``False``: ConfigError, before any
+        frame is drawn.
 
     Returns:
       ``out`` as a ``Path``.
 
     Raises:
       ConfigError: an unsupported extension, a bad ``fps`` (a ``.gif`` over ``MAX_GIF_FPS``),
-        bad ``holds``, bad frames, or ``.mp4`` without ``imageio-ffmpeg``.
+        bad ``holds``, bad frames, ``.mp4`` without ``imageio-ffmpeg``, an existing ``out``
+        with ``overwrite=False``.
       InputError: the file cannot be written.
     """
     out = Path(out)
     ext = check_video_path(out)
+    check_output(out, overwrite=overwrite)
     fps = float(fps)
     if not (math.isfinite(fps) and fps > 0):
         raise ConfigError(f"fps must be a finite number > 0, got {fps}")
@@ -226,12 +232,14 @@ def save_video(
         check_gif_fps(fps)  # before any frame is drawn
     if ext == ".mp4":
         _require_ffmpeg()
-        return atomic_write(out, lambda tmp: _write_mp4(tmp, _repeated(frames, h), fps))
+        return atomic_write(
+            out, lambda tmp: _write_mp4(tmp, _repeated(frames, h), fps), overwrite=overwrite
+        )
 
     def write_gif(tmp: Path) -> None:
         tmp.write_bytes(_gif_bytes(frames, fps, h))
 
-    return atomic_write(out, write_gif)
+    return atomic_write(out, write_gif, overwrite=overwrite)
 
 
 TICK_TOLERANCE = 0.01

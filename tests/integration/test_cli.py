@@ -1,5 +1,6 @@
 import argparse
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -198,11 +199,12 @@ def test_retarget_csv_and_no_valid_frame(tmp_path, capsys):
         "warns at: the others hold or bridge the valid poses around them (valid = false in the "
         "output); check the recording (lost tracking, units)"
     ]
-    # half the frames valid: no warning
+    # half the frames valid: no warning (--force: the motion of the last run is replaced)
     rows[0] = seq.positions[1].reshape(-1)
     np.savetxt(src, rows, delimiter=",")
-    code, _, err = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth")
+    code, _, err = _run(capsys, "retarget", str(src), "--out", str(out), "--no-smooth", "--force")
     assert code == 0 and err == ""
+    np.testing.assert_array_equal(np.load(out)["valid"], [True, False, True, False])
 
 
 @pytest.mark.parametrize(
@@ -347,9 +349,10 @@ def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):
     report = tmp_path / "r.json"
     argv_eval = ["evaluate", "--model", str(model), "--data", str(folder), "--subjects", "2"]
     argv_eval += ["--objective", "relaxed", "--json", str(report)]
-    # more neighbours than the smallest chain's landmarks: refused, naming the chain
-    code, out, err = _run(capsys, *argv_eval, "--L", "999")
-    assert code == 2 and "chain has" in err and "L=999" in err
+    # more neighbours than the smallest chain's landmarks (within --L's 1..200): refused, naming
+    # the chain
+    code, out, err = _run(capsys, *argv_eval, "--L", "150")
+    assert code == 2 and "chain has" in err and "L=150" in err
     code, out, _ = _run(capsys, *argv_eval, "--L", "5", "--M", "5")
     assert code == 0
     r = json.loads(report.read_text())
@@ -359,8 +362,9 @@ def test_build_and_evaluate_from_a_folder_of_recordings(tmp_path, capsys):
     assert any(k.endswith("unknown action") for k in r["per_action"])
     assert r["summary"]["relaxed"]["M_avg"]["median"] > 0
     code, _, err = _run(
-        capsys, "build", "--data", str(tmp_path / "nope"), "--landmarks", "5", "--out", str(model)
-    )
+        capsys, "build", "--data", str(tmp_path / "nope"), "--landmarks", "5",
+        "--out", str(tmp_path / "q.npz"),
+    )  # fmt: skip
     assert code == 2 and "nope" in err
 
 
@@ -478,3 +482,97 @@ def test_build_trains_on_the_default_training_set_and_evaluate_scores_the_others
     assert "trained on UTKinect-Action3D people [3]" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="none is left"):
         chosen("utkinect", None, datasets.UTK_SUBJECTS)
+
+
+NUMBERS = [
+    # (subcommand argv before the option, option, a value out of range, its range in words)
+    (["retarget", "r.npz", "--out", "o.npz"], "--fps", "1e5", "1..1000"),
+    (["retarget", "r.npz", "--out", "o.npz"], "--fps", "0.5", "1..1000"),
+    (["retarget", "r.npz", "--out", "o.npz"], "--fps", "nan", "1..1000"),
+    (["retarget", "r.npz", "--out", "o.npz"], "--L", "0", "1..200"),
+    (["retarget", "r.npz", "--out", "o.npz"], "--M", "201", "1..200"),
+    (["evaluate", "--model", "p.npz", "--json", "r.json"], "--L", "1.5", "1..200"),
+    (["build", "--out", "p.npz"], "--landmarks", "400,1,1644", "2..100000"),
+    (["build", "--out", "p.npz"], "--bandwidth", "0.1,-1", "> 0 and <= 10"),
+    (["build", "--out", "p.npz"], "--k", "1", "2..4096"),
+    (["build", "--out", "p.npz"], "--hidden", "5000", "2..4096"),
+    (["build", "--out", "p.npz"], "--lam", "0", "> 0"),
+    (["build", "--out", "p.npz"], "--input-scale", "inf", "> 0"),
+    (["build", "--out", "p.npz"], "--seed", "-1", "0..4294967295"),
+    (["render", "m.npz", "--out", "v.gif"], "--stride", "0", "1..1000"),
+    (["render", "m.npz", "--out", "v.gif"], "--fps", "300", "1..240"),
+    (["render", "m.npz", "--out", "v.gif"], "--size", "16x360", "32..4096"),
+]
+
+
+@pytest.mark.parametrize(("argv", "option", "value", "words"), NUMBERS)
+def test_numbers_out_of_range_are_one_line_at_parse_time(argv, option, value, words, capsys):
+    """Issue 56: ``--fps 1e5`` was taken (and the motion broke the 80 rad/s^2 bound): every
+    numeric option has a range, checked when the command line is read, one line, exit 2."""
+    with pytest.raises(SystemExit) as e:
+        main([*argv, option, value])
+    err = capsys.readouterr().err
+    assert e.value.code == 2
+    (line,) = err.strip().splitlines()
+    assert line.startswith(f"jaxproj {argv[0]}: error: argument {option}: ")
+    assert words in line and f"(see jaxproj {argv[0]} --help)" in line
+
+
+def test_every_numeric_option_has_a_documented_range():
+    """No numeric option parses with a bare ``int`` / ``float``: each has a range
+    (``options.Bounded``), and its help says it (the range is in the generated docs page)."""
+    from jaxproj.cli import options
+
+    seen = 0
+    for name, parser in _subcommand_parsers().items():
+        for action in parser._actions:
+            assert action.type not in (int, float, options.parse_floats), (name, action.dest)
+            if isinstance(action.type, options.Bounded):
+                seen += 1
+                assert action.type.RANGE in " ".join(action.help.split()), (name, action.dest)
+    assert seen >= 12
+    p = _subcommand_parsers()
+    args = p["retarget"].parse_args(["r.npz", "--out", "o.npz", "--fps", "1000", "--L", "200"])
+    assert (args.fps, args.L) == (1000.0, 200)
+    args = p["build"].parse_args(["--out", "p.npz", "--landmarks", "2,100000,5", "--seed", "0"])
+    assert args.landmarks == [2, 100000, 5]
+
+
+def test_a_missing_opengl_back_end_is_one_line_not_a_traceback(tmp_path):
+    """``MUJOCO_GL=osmesa`` without libOSMesa made ``import mujoco`` (so every command, even
+    ``info``) die with a PyOpenGL AttributeError. ``info`` now reports rendering unavailable and
+    ``render --backend mujoco`` is one line, exit 2. ``MUJOCO_GL=bogus`` fails the same way on
+    every machine (MuJoCo's RuntimeError where PyOpenGL's AttributeError came), so the test can
+    fail anywhere; one process (~6 s), not a second for ``osmesa``, which renders where
+    libOSMesa is installed."""
+    import subprocess
+    import sys
+
+    import jaxproj
+
+    motion = tmp_path / "m.npz"
+    nao = jaxproj.robots.get()
+    standing = jaxproj.Motion(np.tile(nao.standing, (2, 1)), np.arange(2) / 15.0, np.ones(2, bool))
+    jaxproj.save_motion(motion, standing)
+    gif = tmp_path / "a.gif"
+    script = (
+        "import os\n"
+        "from jaxproj.cli.main import main\n"
+        "codes = [main(['info', '--json']), main(['info'])]\n"
+        f"codes.append(main(['render', {str(motion)!r}, '--out', {str(gif)!r}, '--backend', "
+        "'mujoco', '--size', '32x32']))\n"
+        "print('codes', codes, os.environ['MUJOCO_GL'], os.environ.get('PYOPENGL_PLATFORM'))\n"
+    )
+    env = {**os.environ, "MUJOCO_GL": "bogus"}
+    env.pop("PYOPENGL_PLATFORM", None)
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
+    assert "Traceback" not in res.stderr and res.returncode == 0, res.stderr
+    info = json.loads(res.stdout[: res.stdout.index("\n}\n") + 2])
+    assert info["rendering"]["mujoco_available"] is False
+    problem = info["rendering"]["problem"]
+    assert problem.startswith("MUJOCO_GL=bogus: MuJoCo's OpenGL back-end cannot load")
+    assert f"rendering: MuJoCo OpenGL unavailable: {problem}" in res.stdout
+    assert res.stdout.splitlines()[-1] == "codes [0, 0, 2] bogus None"  # the environment kept
+    (line,) = res.stderr.strip().splitlines()
+    assert line.startswith("jaxproj: error: MuJoCo cannot render: MUJOCO_GL=bogus: ")
+    assert not gif.exists()

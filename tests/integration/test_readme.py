@@ -105,13 +105,13 @@ def test_readme_cli_example_runs(readme_folder: Path, capsys: pytest.CaptureFixt
     assert low and all("this recording is like the people the model was built from" in x
                        for x in low), low  # fmt: skip
     # the NPZ motion carries the human, so the video draws the human and the NAO side by side
-    with np.load(readme_folder / "motion.npz") as f:
+    with np.load(readme_folder / "nao.npz") as f:
         assert f["angles"].shape == (n_frames, 26) and f["positions"].shape == (n_frames, 20, 3)
-    with Image.open(readme_folder / "motion.gif") as gif:
-        two_panels = gif.size
-    assert jaxproj.load_motion(readme_folder / "motion.json").angles.shape == (n_frames, 26)
-    # what the README says of a JSON motion: no human in it, so one panel, the NAO's
-    assert main(["render", "motion.json", "--out", "nao.gif", "--stride", str(n_frames)]) == 0
     with Image.open(readme_folder / "nao.gif") as gif:
+        two_panels = gif.size
+    assert jaxproj.load_motion(readme_folder / "nao.json").angles.shape == (n_frames, 26)
+    # what the README says of a JSON motion: no human in it, so one panel, the NAO's
+    assert main(["render", "nao.json", "--out", "nao_alone.gif", "--stride", str(n_frames)]) == 0
+    with Image.open(readme_folder / "nao_alone.gif") as gif:
         one_panel = gif.size
     assert two_panels == (2 * one_panel[0], one_panel[1])

@@ -407,6 +407,225 @@ class TestAtomicWrites:
         assert list(tmp_path.iterdir()) == []
 
 
+# --- outputs: never over an existing file unless told, never over an input (issue 56) ------------
+
+
+EXISTS = "exists; pass overwrite=True (Python) / --force (CLI) to replace it"
+"""The end of every Python API writer's refusal of an existing file."""
+
+
+class WorkStarted(Exception):
+    """Raised by the stand-ins of the commands' first piece of work (``_no_work``)."""
+
+
+def _no_work(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every command's first piece of work raises ``WorkStarted``: reading a recording, a
+    motion or the data, loading a model's arrays, running the demo."""
+    from jaxproj.cli import options
+    from jaxproj.io import motion_files, readers
+    from jaxproj.paper import demo
+
+    def started(*args, **kwargs):
+        raise WorkStarted
+
+    for module, name in ((readers, "read_skeleton"), (engine, "load"), (options, "load_data"),
+                         (motion_files, "load_motion"), (demo, "run_demo")):  # fmt: skip
+        monkeypatch.setattr(module, name, started)
+
+
+def _standing_motion() -> jaxproj.Motion:
+    n = 4
+    standing = jaxproj.robots.get().standing
+    return jaxproj.Motion(np.tile(standing, (n, 1)), np.arange(n) / 15.0, np.ones(n, bool))
+
+
+class TestOutputs:
+    """Issue 56: ``jaxproj retarget rec.npz --out rec.npz`` replaced the recording. Every CLI
+    output refuses an existing file unless ``--force`` and one of the command's inputs even
+    with it, and every Python API writer takes ``overwrite`` (default ``True``), all before any
+    work; every check that needs no computation runs before the first."""
+
+    def test_api_writers_refuse_an_existing_file_without_overwrite(self, models, tmp_path):
+        from jaxproj.paper.demo import run_demo
+        from jaxproj.viz import render, video
+
+        motion = _standing_motion()
+        frames = np.zeros((2, 32, 32, 3), np.uint8)
+        summary = {"relaxed": {"per_joint": {j: {"p50": 1.0, "p95": 2.0}
+                                             for j in robot.DRIVEN_JOINTS}}}  # fmt: skip
+        writers = {
+            "model.npz": lambda p, o: jaxproj.save(models["upper"], p, overwrite=o),
+            "motion.npz": lambda p, o: jaxproj.save_motion(p, motion, overwrite=o),
+            "motion.csv": lambda p, o: jaxproj.save_motion(p, motion, overwrite=o),
+            "motion.json": lambda p, o: jaxproj.save_motion(p, motion, overwrite=o),
+            "report.json": lambda p, o: report.write_json(p, {"a": 1}, overwrite=o),
+            "report.md": lambda p, o: report.write_text(p, "# r\n", overwrite=o),
+            "video.gif": lambda p, o: video.save_video(frames, p, 10.0, overwrite=o),
+            "render.gif": lambda p, o: render.render_to_file(motion, p, overwrite=o),
+            "motion_file.gif": lambda p, o: render.render_motion(motion, p, overwrite=o),
+            "per_joint.png": lambda p, o: report.plot_per_joint(p, summary, overwrite=o),
+            "sizes.png": lambda p, o: report.plot_landmark_size(p, {}, overwrite=o),
+            "efficiency.png": lambda p, o: report.plot_efficiency(p, {}, overwrite=o),
+            "cdf.png": lambda p, o: report.plot_distributions(p, {}, np.zeros(0), overwrite=o),
+            "motion.png": lambda p, o: report.plot_motion(
+                p, "", np.zeros(0), np.zeros(0), np.zeros(0), {}, robot=robot, overwrite=o
+            ),
+            "retarget.png": lambda p, o: report.plot_retarget(
+                p, "", *[np.zeros(0)] * 5, robot=robot, overwrite=o
+            ),
+        }
+        with no_tracing() as traced:
+            for name, write in writers.items():
+                path = tmp_path / name
+                path.write_bytes(b"old")
+                with pytest.raises(ConfigError) as e:
+                    write(path, False)
+                assert str(e.value) == f"{path}: {EXISTS}", name
+                assert path.read_bytes() == b"old", name
+            folder = tmp_path / "report"
+            folder.mkdir()
+            (folder / "report.md").write_text("old")
+            with pytest.raises(ConfigError, match="holds the report of an earlier run"):
+                run_demo(folder, quick=True, overwrite=False)
+            with pytest.raises(ConfigError, match="is a file, not a report folder"):
+                run_demo(tmp_path / "report.md", quick=True)
+        assert traced == []
+        # the default replaces, as numpy's savers do
+        for name in ("model.npz", "motion.npz", "motion.json", "report.json"):
+            writers[name](tmp_path / name, True)
+            assert (tmp_path / name).read_bytes() != b"old", name
+        assert engine.load(tmp_path / "model.npz").config == models["upper"].config
+        assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+    def test_api_writers_never_replace_their_input(self, tmp_path):
+        from jaxproj._internal.atomic import check_output, same_file
+        from jaxproj.viz import render
+
+        src = tmp_path / "motion.npz"
+        jaxproj.save_motion(src, _standing_motion())
+        before = src.read_bytes()
+        (tmp_path / "link.gif").symlink_to(src)
+        os.link(src, tmp_path / "hard.gif")
+        for alias in ("link.gif", "hard.gif"):
+            assert same_file(tmp_path / alias, src)
+            with pytest.raises(ConfigError, match="is the motion file too"):
+                render.render_motion(src, tmp_path / alias, overwrite=True)
+        assert src.read_bytes() == before
+        # two outputs not written yet: the same resolved path
+        assert same_file(tmp_path / "a.png", tmp_path / "sub" / ".." / "a.png")
+        assert not same_file(tmp_path / "a.png", tmp_path / "b.png")
+        with pytest.raises(ConfigError, match=r"b\.npz: is --out too"):
+            check_output(tmp_path / "b.npz", inputs={"--out": tmp_path / "." / "b.npz"})
+
+    def test_cli_refuses_existing_outputs_before_any_work(
+        self, model_file, tmp_path, capsys, monkeypatch
+    ):
+        src = _msr(tmp_path)
+        motion = tmp_path / "motion.npz"
+        jaxproj.save_motion(motion, _standing_motion())
+        old = {n: tmp_path / n for n in ("o.npz", "o.png", "m.npz", "r.json", "v.gif")}
+        report_dir = tmp_path / "report"
+        report_dir.mkdir()
+        old["report"] = report_dir / "motion_a01_s02_e01.png"  # a file the demo writes
+        for path in old.values():
+            path.write_bytes(b"old")
+        cases = [
+            (["retarget", src, "--out", old["o.npz"]], f"--out {old['o.npz']}"),
+            (["retarget", src, "--out", tmp_path / "n.npz", "--plot", old["o.png"]],
+             f"--plot {old['o.png']}"),
+            (["build", "--out", old["m.npz"]], f"--out {old['m.npz']}"),
+            (["evaluate", "--model", model_file, "--json", old["r.json"]],
+             f"--json {old['r.json']}"),
+            (["render", motion, "--out", old["v.gif"]], f"--out {old['v.gif']}"),
+            (["demo", "--out", report_dir], f"--out {report_dir}: holds the report of an "
+             "earlier run (motion_a01_s02_e01.png)"),
+        ]  # fmt: skip
+        _no_work(monkeypatch)
+        with no_tracing() as traced:
+            for argv, words in cases:
+                code, _, err = run_cli(capsys, *argv)
+                assert_one_line_error(code, err, words, "pass --force to replace it")
+                with pytest.raises(WorkStarted):  # --force: the checks pass, the work starts
+                    run_cli(capsys, *argv, "--force")
+        assert traced == []
+        assert all(path.read_bytes() == b"old" for path in old.values())
+
+    def test_cli_never_writes_over_an_input(self, model_file, tmp_path, capsys, monkeypatch):
+        src = tmp_path / "rec.npz"  # a recording that `retarget --out` could name
+        np.savez(src, positions=datasets.msr_action3d(subjects=[2], actions=[1])[0].positions)
+        model = tmp_path / "p.npz"
+        model.write_bytes(model_file.read_bytes())
+        motion = tmp_path / "motion.npz"
+        jaxproj.save_motion(motion, _standing_motion())
+        os.link(src, tmp_path / "hard.npz")
+        (tmp_path / "link.gif").symlink_to(motion)
+        folder = tmp_path / "data"
+        folder.mkdir()
+        rec = _msr(folder)
+        cases = [
+            (["retarget", src, "--out", src], "the recording"),
+            (["retarget", src, "--out", tmp_path / "hard.npz"], "the recording"),
+            (["retarget", src, "--method", "relaxed", "--model", model, "--out", model],
+             "--model"),
+            (["retarget", src, "--out", tmp_path / "o.npz", "--plot",
+              tmp_path / "x" / ".." / "o.npz"], "use a .png"),
+            (["evaluate", "--model", model, "--json", model], "--model"),
+            (["render", motion, "--out", tmp_path / "link.gif"], "the motion file"),
+            (["build", "--data", folder, "--out", rec.with_suffix(".npz")], None),
+            (["evaluate", "--model", model, "--data", folder, "--json", rec], "a file of --data"),
+        ]  # fmt: skip
+        rec.with_suffix(".npz").write_bytes(b"a recording")  # NPZ is a recording format too
+        cases[6] = (cases[6][0], "a file of --data")
+        before = {p: p.read_bytes() for p in (src, model, motion, rec, rec.with_suffix(".npz"))}
+        _no_work(monkeypatch)
+        for argv, what in cases:
+            code, _, err = run_cli(capsys, *argv, "--force")
+            assert_one_line_error(code, err, what)
+            if what != "use a .png":
+                assert "too: write the output to another file" in err and "--force" in err
+        assert all(p.read_bytes() == b for p, b in before.items())
+
+    def test_cli_checks_come_before_the_model_and_the_recording(
+        self, model_file, tmp_path, capsys, monkeypatch
+    ):
+        """``--out x.json`` with a G1 model was refused after ~3 minutes of work: a model's
+        robot, bones and mirroring are read from its metadata alone, and every option checked
+        against them before the recording is read or the model's arrays loaded (here a file
+        whose metadata says G1: its arrays, the NAO's, are never read)."""
+        src = _msr(tmp_path)
+
+        def to_g1(arrays, meta):
+            meta["config"].update(robot="unitree_g1", bones="full")
+
+        g1 = _edit(model_file, tmp_path / "g1.npz", to_g1)
+        relaxed = ["retarget", src, "--method", "relaxed", "--out"]
+        cases = [
+            ([*relaxed, tmp_path / "o.json", "--model", g1],
+             "a .json motion is not written for the unitree_g1 (its formats: .npz, .csv;"),
+            ([*relaxed, tmp_path / "o.csv", "--model", g1, "--joints", "body"],
+             "--joints picks the joints of a NAOqi .json output"),
+            ([*relaxed, tmp_path / "o.npz", "--model", model_file, "--joints", "upper"],
+             "--joints picks the joints"),
+            ([*relaxed, tmp_path / "o.npz", "--model", model_file, "--bones", "full"],
+             "--bones full conflicts with the model"),
+            ([*relaxed, tmp_path / "o.npz", "--model", g1, "--robot", "nao_h25"],
+             "--robot nao_h25 conflicts with the model"),
+            ([*relaxed, tmp_path / "o.npz", "--model", g1, "--plot", tmp_path / "p.png"],
+             "--plot draws the nao_h25 only"),
+            (["retarget", src, "--robot", "unitree_g1", "--out", tmp_path / "o.json"],
+             "not written for the unitree_g1"),
+        ]  # fmt: skip
+        _no_work(monkeypatch)
+        with no_tracing() as traced:
+            for argv, words in cases:
+                code, _, err = run_cli(capsys, *argv)
+                assert_one_line_error(code, err, words)
+        assert traced == []
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted([src.name, g1.name])
+        with pytest.raises(WorkStarted):  # the same model with a .csv: on to the work
+            run_cli(capsys, *relaxed, tmp_path / "o.csv", "--model", g1)
+
+
 # --- determinism ----------------------------------------------------------------------------------
 
 
