@@ -12,15 +12,16 @@ and against the robot's own geometry:
   steps over 20 and 90 deg whatever the person did.
 * ``contact_frames``: frames where two of the robot's own geoms (its MJCF, fixed base, MuJoCo's
   own collision pipeline with the MJCF's exclusions) penetrate by more than 1 mm; the pairs.
-* ``lean``: the trunk's lean (deg) when the robot stands on its soles (the angle between the
-  torso's up axis and the sole's normal, mean of the two feet), against the person's trunk lean
-  (HipCenter -> ShoulderCenter against the capture's up axis: +y for Kinect v1 camera space and
-  the BVH reader's output; the camera's own tilt is not removed): medians and their difference.
-* ``sole_pitch``: the robot's sole pitch (deg, toes up positive) in the world when its torso is
-  turned as the person's body frame is (the person's soles taken as flat): median, and the share
-  of frames with the ankle pitch at a limit.
+* ``lean``: the trunk's forward lean (deg, sagittal) when the robot stands on its soles: the
+  torso's up axis seen in the sole's frame, ``atan2(z . x_sole, z . z_sole)``, mean of the two
+  feet (``lean_roll``: the sideways part; the ankle rolls are not driven, so an abducted leg
+  tilts its sole), against the person's forward lean (HipCenter -> ShoulderCenter against the
+  capture's up axis, in the plane of the body's forward direction: +y up for Kinect v1 camera
+  space and the BVH reader's output; the camera's own tilt is not removed): medians and their
+  difference; and the share of frames with an ankle pitch at a limit.
 * ``arms``: the angle between the robot's upper arm / forearm (torso frame) and the person's
-  (body frame), deg: median and p90 over valid frames and both arms.
+  (the body frame as ``retarget`` levels it, ``skeleton.level_body``), deg: median and p90 over
+  valid frames and both arms.
 
 Inputs (default): the UTKinect-Action3D people 7 and 9 (the default model trains on 3, 4, 6) and
 the two CMU BVH clips at their full 120 fps, from ``../shared/data`` when it is there, else the
@@ -43,7 +44,7 @@ import numpy as np
 
 from jaxproj import robots
 from jaxproj.cli.main import main as cli
-from jaxproj.human.skeleton import BONE_NAMES, J, descriptor
+from jaxproj.human.skeleton import BONE_NAMES, J, descriptor, level_body
 from jaxproj.io.motion_files import load_motion
 
 ROBOT = "unitree_g1"
@@ -86,7 +87,9 @@ def _bones(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     d, ok = descriptor(positions, bones="full")
     frame, ok_f = body_frame(positions)
-    return np.asarray(d).reshape(len(d), -1, 3), np.asarray(ok & ok_f), np.asarray(frame)
+    ok = np.asarray(ok & ok_f)
+    d = np.asarray(level_body(d, ok, "full"))
+    return d.reshape(len(d), -1, 3), ok, np.asarray(frame)
 
 
 def _chain_bones(robot: robots.Robot) -> dict[str, tuple[str, ...]]:
@@ -146,7 +149,7 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
     contact = np.zeros(t_n, bool)
     pairs: dict[str, int] = {}
     lean = np.full(t_n, np.nan)
-    pitch = np.full(t_n, np.nan)
+    roll = np.full(t_n, np.nan)
     arm_err: list[float] = []
     up = np.array([0.0, 1.0, 0.0])
     for t in range(t_n):
@@ -160,17 +163,12 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
                 key = " - ".join(sorted((str(b1), str(b2))))
                 pairs[key] = pairs.get(key, 0) + 1
         r_t = data.xmat[bid[TORSO]].reshape(3, 3)
-        leans, pitches = [], []
+        leans, rolls = [], []
         for f in FEET:
-            r_f = data.xmat[bid[f]].reshape(3, 3)
-            leans.append(_angle(r_t[:, 2], r_f[:, 2]))
-            if ok[t]:
-                fwd_torso = r_t.T @ r_f[:, 0]  # the sole's forward axis in the torso frame
-                world = frames[t].T @ fwd_torso  # turned as the person's body (camera axes)
-                pitches.append(np.degrees(np.arcsin(np.clip(world @ up, -1, 1))))
-        lean[t] = float(np.mean(leans))
-        if pitches:
-            pitch[t] = float(np.mean(pitches))
+            z = data.xmat[bid[f]].reshape(3, 3).T @ r_t[:, 2]  # torso up in the sole's frame
+            leans.append(np.degrees(np.arctan2(z[0], z[2])))
+            rolls.append(np.degrees(np.arctan2(-z[1], z[2])))
+        lean[t], roll[t] = float(np.mean(leans)), float(np.mean(rolls))
         if ok[t] and motion.valid[t]:
             for s in ("left", "right"):
                 for bone, (a, b) in ARM_SITES.items():
@@ -179,7 +177,9 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
                     arm_err.append(float(_angle(v, bones[t, BONE_NAMES.index(f"{bone}_{s}")])))
     use = motion.valid & ok
     trunk = positions[:, J["ShoulderCenter"]] - positions[:, J["HipCenter"]]
-    person_lean = _angle(trunk, np.broadcast_to(up, trunk.shape))
+    fwd = frames[:, 0, :] - (frames[:, 0, :] @ up)[:, None] * up  # body forward, horizontal
+    fwd /= np.maximum(np.linalg.norm(fwd, axis=-1, keepdims=True), 1e-9)
+    person_lean = np.degrees(np.arctan2(np.sum(trunk * fwd, -1), trunk @ up))
     ankle = [robot.index(f"{s}_ankle_pitch_joint") for s in ("left", "right")]
     qa = motion.angles[:, ankle]
     at_limit = (qa <= robot.lower[ankle] + 1e-3) | (qa >= robot.upper[ankle] - 1e-3)
@@ -191,7 +191,7 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
         "lean_robot_median": round(float(np.nanmedian(lean[use])), 1),
         "lean_person_median": round(float(np.nanmedian(person_lean[use])), 1),
         "lean_diff": round(float(np.nanmedian(lean[use]) - np.nanmedian(person_lean[use])), 1),
-        "sole_pitch_median": round(float(np.nanmedian(pitch[use])), 1),
+        "lean_roll_median": round(float(np.nanmedian(np.abs(roll[use]))), 1),
         "ankle_pitch_at_limit_share": round(float(at_limit[use].any(axis=1).mean()), 3),
         "arm_median": round(float(np.median(err)), 2) if len(err) else None,
         "arm_p90": round(float(np.percentile(err, 90)), 2) if len(err) else None,
@@ -236,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(r)
             print(json.dumps(r), flush=True)
     keys = ("flip_steps", "steps_over_90", "max_step_deg", "contact_frames", "lean_diff",
-            "sole_pitch_median", "arm_median", "arm_p90")  # fmt: skip
+            "lean_roll_median", "arm_median", "arm_p90")  # fmt: skip
     print(f"{'file':24s} " + " ".join(f"{k:>16s}" for k in keys), file=sys.stderr)
     for r in rows:
         print(f"{r['file']:24s} " + " ".join(f"{r.get(k)!s:>16s}" for k in keys), file=sys.stderr)

@@ -18,8 +18,9 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     stand_if_lost       a motion with no valid frame -> the robot's standing posture
     feasible            ``feasible.make_feasible`` on the full configuration (host side: it
                         resamples irregular times on a grid before its own jitted filter)
-    playable_full       after the filter, ``Robot.playable`` once more (``retarget``): the
-                        filter moves joints, and a contact it brings back is pushed apart
+    playable_full       after the filter, ``Robot.playable`` once more and the filter again
+                        (``retarget``): the filter moves joints, and a contact it brings back
+                        is pushed apart; the second filter keeps its bounds for the output
 
 ``finish`` composes track -> fill -> smooth -> clip -> stand for one motion (``track``:
 ``Robot.continuous``, the robot's continuity pass over the per-frame answers, where it has one; the

@@ -300,10 +300,13 @@ def retarget(
     if feasible is not None:
         unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
-        if spec.separate is not None:  # the filter moved joints: no contact may come back
+        if spec.separate is not None:
+            # the filter moves joints, and a contact can come back: pushed apart again, then
+            # the filter once more, so that its bounds hold for what is written
             angles = np.asarray(
                 call_bucketed(functools.partial(_playable_jit, robot=spec), angles, 1)
             )
+            angles = make_feasible(angles, stamps, config=feasible, robot=spec)
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
         conf = rescale(conf, spec.deviation_scale or DEVIATION_SCALE, model.confidence_scale)
     conf_t = np.asarray(conf, np.float32)[:t]

@@ -239,10 +239,15 @@ class TrackConfig:
         the directions better by about 0.7 rad (40 deg) of error, while following a limb that
         turns costs a lag of about ``c`` (5 %) of one frame's step.
       iterations: Levenberg-Marquardt iterations per start.
+      min_step: ``r_0``, rad: how far a joint may move in one frame whatever its limb did.
+      step_gain: ``g``: how far a joint may move in one frame per radian its limb turned. With
+        15 deg and 1.8, a joint whose limb turned less than 10 deg moves at most 18 deg.
     """
 
     continuity: float = 0.05
     iterations: int = 12
+    min_step: float = math.radians(15.0)
+    step_gain: float = 1.8
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.continuity) and self.continuity > 0):
@@ -251,6 +256,8 @@ class TrackConfig:
             )
         if self.iterations < 1:
             raise ConfigError("TrackConfig.iterations must be >= 1")
+        if not (0 < self.min_step <= math.pi and 0 < self.step_gain < math.inf):
+            raise ConfigError("TrackConfig: min_step in (0, pi] rad and step_gain > 0")
 
 
 class IKInfo(NamedTuple):
@@ -641,26 +648,30 @@ class GenericIK:
         config: TrackConfig | None = None,
     ) -> jax.Array:
         """One motion's per-frame answers made continuous: each frame's pose re-chosen, among
-        the poses with the same bone directions, as the one nearest the previous output.
+        the poses with (nearly) the same bone directions, near the previous output.
 
         A per-frame answer (the IK's or a projection's) fixes the directions of the
         correspondence rows, not the joints that turn a limb about its own axis (a straight
         arm's shoulder yaw, a straight leg's hip yaw) nor which of two branches reaches a
         direction; frame by frame it can jump between them while the person hardly moves. This
-        pass runs through the frames in order (``lax.scan``), carrying the last output ``y``;
-        per chain, in chain order, it solves from two starts (``y``'s angles and the frame's
-        own answer ``q_t``) by the IK's Levenberg-Marquardt::
+        pass runs through the frames in order (``lax.scan``), carrying the last output ``y`` and
+        the last valid answer ``q_prev``; per chain, in chain order, it solves from two starts
+        (``y``'s angles and the frame's own answer ``q_t``) by the IK's Levenberg-Marquardt::
 
             minimise   sum_k w_k |dir_k(x) - dir_k(q_t)|^2  +  c * |x - y|^2
-                       +  lam * |x - x_0|^2  +  collision(x)          x in the IK's box
+                       +  lam * |x - x_0|^2  +  collision(x)
+            within     the IK's box  and  |x - y|_inf <= max(r_0, g * turn)
 
-        (``dir_k(q_t)``: the chain's row directions at the frame's answer, base frame; ``c``:
-        ``TrackConfig.continuity``; ``lam``, ``collision``: the IK's) and keeps the start with
-        the least objective. Turning a loose joint or changing branch then has to buy its
-        ``c * step^2`` with a better fit of the directions. A frame that is not valid, and
-        frames before the first valid one, output the frame's answer (``fill_invalid`` replaces
-        them later) and leave ``y`` as it was. Causal: frame ``t``'s output depends on frames
-        ``<= t`` only (streaming can run it frame by frame: ``track_step``). Traceable.
+        (``dir_k(q)``: the chain's row directions at ``q``, base frame; ``turn``: the largest
+        angle between ``dir_k(q_prev)`` and ``dir_k(q_t)``, how far the limb turned since the
+        last frame; ``c``, ``r_0``, ``g``: ``TrackConfig``; ``lam``, ``collision``: the IK's)
+        and keeps the start with the least objective. A joint then moves at most ``g`` times as
+        far as its limb turned (at least ``r_0``): a flip cannot enter where the person hardly
+        moved; where a limb needs more (near a singular pose) the output follows over the next
+        frames. A frame that is not valid, and frames before the first valid one, output the
+        frame's answer (``fill_invalid`` replaces them later) and leave the state as it was.
+        Causal: frame ``t``'s output depends on frames ``<= t`` only (``track_step``).
+        Traceable.
 
         Args:
           q: ``(T, n_driven)`` per-frame answers, rad (``Robot.driven_joints`` order).
@@ -678,40 +689,53 @@ class GenericIK:
         valid = jnp.asarray(valid, bool)
 
         def body(
-            carry: tuple[jax.Array, jax.Array], xs: tuple[jax.Array, jax.Array]
-        ) -> tuple[tuple[jax.Array, jax.Array], jax.Array]:
-            y, started = carry
+            carry: tuple[jax.Array, jax.Array, jax.Array], xs: tuple[jax.Array, jax.Array]
+        ) -> tuple[tuple[jax.Array, jax.Array, jax.Array], jax.Array]:
+            y, q_prev, started = carry
             q_t, ok = xs
-            out = self.track_step(y, q_t, cfg)
+            out = self.track_step(y, q_prev, q_t, cfg)
             out = jnp.where(started & ok, out, q_t)
-            y_next = jnp.where(ok, out, y)
-            return (y_next, started | ok), out
+            return (
+                (jnp.where(ok, out, y), jnp.where(ok, q_t, q_prev), started | ok),
+                out,
+            )
 
-        init = (jnp.asarray(self.robot.standing_driven, jnp.float32), jnp.asarray(False))
-        _, out = jax.lax.scan(body, init, (q, valid))
+        standing = jnp.asarray(self.robot.standing_driven, jnp.float32)
+        _, out = jax.lax.scan(body, (standing, standing, jnp.asarray(False)), (q, valid))
         return out
 
+    def _directions(self, q_full: jax.Array, prob: _ChainProblem) -> jax.Array:
+        """``(n_rows, 3)`` unit row directions of chain ``prob`` at ``(n_joints,)`` ``q_full``."""
+        p = prob.fk.points(q_full)
+        seg = p[prob.row_points[:, 1]] - p[prob.row_points[:, 0]]
+        return seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
+
     def track_step(
-        self, y: jax.Array, q_t: jax.Array, config: TrackConfig | None = None
+        self,
+        y: jax.Array,
+        q_prev: jax.Array,
+        q_t: jax.Array,
+        config: TrackConfig | None = None,
     ) -> jax.Array:
-        """One frame of ``track``: ``(n_driven,)`` last output ``y`` and this frame's answer
-        ``q_t`` -> ``(n_driven,)`` this frame's output. Traceable (one pose; vmap for many)."""
+        """One frame of ``track``: ``(n_driven,)`` last output ``y``, last valid answer
+        ``q_prev`` and this frame's answer ``q_t`` -> ``(n_driven,)`` this frame's output.
+        Traceable (one pose; vmap for many)."""
         cfg = TrackConfig() if config is None else config
         standing = jnp.asarray(self.robot.standing)
         didx = self.robot.driven_index
         q_full = standing.at[didx].set(q_t)
-        y_full = standing.at[didx].set(y)
-        out = y_full
+        prev_full = standing.at[didx].set(q_prev)
+        out = standing.at[didx].set(y)
         sc = np.float32(math.sqrt(cfg.continuity))
         for prob in self.problems:
-            p_t = prob.fk.points(q_full)
-            s_i, e_i = prob.row_points[:, 0], prob.row_points[:, 1]
-            seg = p_t[e_i] - p_t[s_i]
-            t = seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
+            t = self._directions(q_full, prob)
+            cos = jnp.sum(t * self._directions(prev_full, prob), axis=-1)
+            turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)))
+            radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
             w = jnp.asarray(prob.weights)
-            anchor = y_full[prob.joints]
-            lo, hi = jnp.asarray(prob.lo), jnp.asarray(prob.hi)
-
+            anchor = out[prob.joints]
+            lo = jnp.maximum(jnp.asarray(prob.lo), anchor - radius)
+            hi = jnp.minimum(jnp.asarray(prob.hi), anchor + radius)
             p_static = prob.fk.points(out)
 
             def res_jac(
@@ -726,7 +750,9 @@ class GenericIK:
                     jnp.concatenate([jac, sc * eye], axis=0),
                 )
 
-            def run(x0: jax.Array, res_jac=res_jac, lo=lo, hi=hi) -> tuple[jax.Array, jax.Array]:
+            def run(
+                x0: jax.Array, res_jac: Callable = res_jac, lo: jax.Array = lo, hi: jax.Array = hi
+            ) -> tuple[jax.Array, jax.Array]:
                 x, r, _ = _levenberg_marquardt(
                     res_jac, x0, lo, hi, cfg.iterations, self.config.damping
                 )
