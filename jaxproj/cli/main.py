@@ -5,9 +5,10 @@ recording or BVH clip -> a robot-feasible NAO joint trajectory as NPZ, CSV or NA
 ``render`` (a motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch
 evaluation against the IK) and ``demo`` (the main job); one module per group
 (``jaxproj.cli.info``, ``.retarget``, ``.render``, ``.projector``, ``.demo``), their shared
-options in ``jaxproj.cli.options``. Every user error prints one line naming the file and the
-problem on stderr and exits with status 2; no traceback. Output files are written only into
-folders that exist.
+options in ``jaxproj.cli.options``; every subcommand runs with the persistent compilation cache
+(``jaxproj.cli.cache``; ``--no-cache`` to run without). Every user error prints one line naming
+the file and the problem on stderr and exits with status 2; no traceback. Output files are
+written only into folders that exist.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import sys
 from collections.abc import Sequence
 
 from jaxproj import __version__
-from jaxproj.cli import demo, info, options, projector, render, retarget
+from jaxproj.cli import cache, demo, info, options, projector, render, retarget
 from jaxproj.errors import JaxprojError
 
 DESCRIPTION = (
@@ -42,7 +43,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``jaxproj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        with cache.compilation_cache(enabled=not args.no_cache):
+            return int(args.func(args))
     except JaxprojError as e:
         print(f"jaxproj: error: {e}", file=sys.stderr)
         return 2
