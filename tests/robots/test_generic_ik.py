@@ -3,7 +3,7 @@
 Its correctness test: on held-out MSR frames it agrees with the NAO's closed form wherever the
 closed form solves the same problem (its rules for straight elbows and its joint-by-joint
 clamping excepted, counted). Compiles: the NAO arms once (module fixture, one shape), the G1's
-left arm twice (with and without the collision term), the G1's waist alone once.
+left arm twice (with and without the collision term).
 """
 
 from __future__ import annotations
