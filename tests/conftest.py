@@ -12,7 +12,9 @@ rollout program: 4,618 -> 1,097 maps).
 One persistent XLA compilation cache for the whole run (``pytest_configure``): the clearing above
 would otherwise make every module compile again the programs an earlier module compiled (the
 same model shapes, FK, MJX steps), and the child processes the tests start (the CLI, the
-benchmarks, the notebooks' kernels) inherit it through ``JAX_COMPILATION_CACHE_DIR``. A cached
+benchmarks, the notebooks' kernels) inherit it through ``JAX_COMPILATION_CACHE_DIR``; the
+command line's cache (``jaxproj.cli.cache``, on by default) is pointed at it too
+(``JAXPROJ_CACHE_DIR``), so no test writes into the user's cache folder. A cached
 program is the same executable XLA would compile again, so no answer changes; the cache is a
 fresh temporary folder per run (removed at the end), or ``$JAXPROJ_TEST_XLA_CACHE`` (or JAX's
 own ``$JAX_COMPILATION_CACHE_DIR``) to keep one across local runs."""
@@ -50,7 +52,10 @@ def pytest_configure(config: pytest.Config) -> None:
     if not folder:
         folder = tempfile.mkdtemp(prefix="jaxproj-test-xla-")
         _TEMP_CACHE.append(folder)
-    os.environ.update({"JAX_COMPILATION_CACHE_DIR": folder, **_CACHE_ENV})
+    # the command line's own cache (jaxproj.cli.cache) goes there too, never to the user's home
+    os.environ.update(
+        {"JAX_COMPILATION_CACHE_DIR": folder, "JAXPROJ_CACHE_DIR": folder, **_CACHE_ENV}
+    )
     jax.config.update("jax_compilation_cache_dir", folder)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)

@@ -1,4 +1,5 @@
-"""``jaxproj info``: versions, devices, the robot model and the bundled datasets."""
+"""``jaxproj info``: versions, devices, the robot model, the bundled datasets and the
+compilation cache's folder and size."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import os
 from typing import Any
 
 from jaxproj import __version__
-from jaxproj.cli import options
+from jaxproj.cli import cache, options
 
 
 def add_parsers(sub: Any) -> None:
@@ -29,6 +30,8 @@ def collect() -> dict:
 
     from jaxproj._internal.mujoco_gl import gl_failure
 
+    folder = cache.active_folder()
+    files, size = cache.usage(folder)
     msr = datasets.dataset_summary("msr")
     utk = datasets.dataset_summary("utkinect")
     return {
@@ -46,6 +49,11 @@ def collect() -> dict:
             "mjcf": str(robot.require_mjcf().path.resolve()),
             "joints": list(robot.joint_names),
             "driven_joints": list(robot.driven_joints),
+        },
+        "compilation_cache": {
+            "folder": None if folder is None else str(folder),
+            "files": files,
+            "bytes": size,
         },
         "datasets": {
             "msr_action3d": {k: msr[k] for k in ("sequences", "frames", "subjects")},
@@ -89,4 +97,9 @@ def run(args: argparse.Namespace) -> int:
         f"dataset utkinect_action3d (--data utkinect): {u['recordings']} recordings, "
         f"{u['frames']} frames, {u['subjects']} subjects, {u['segments']} action segments"
     )
+    c = info["compilation_cache"]
+    if c["folder"] is None:
+        print("compilation cache: off")
+    else:
+        print(f"compilation cache: {c['folder']} ({c['files']} files, {c['bytes'] / 1e6:.1f} MB)")
     return 0

@@ -6,11 +6,12 @@ the robot's own document),
 ``render`` (a motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch
 evaluation against the IK) and ``demo`` (the main job); one module per group
 (``jaxproj.cli.info``, ``.retarget``, ``.render``, ``.projector``, ``.demo``), their shared
-options in ``jaxproj.cli.options``. Every user error prints one line naming the file and the
-problem on stderr and exits with status 2 (a usage error too: ``options.Parser``); no
-traceback. Output files are written only into folders that exist, never over an existing file
-without ``--force``, never over one of the command's inputs; every check that needs no
-computation runs before any.
+options in ``jaxproj.cli.options``; every subcommand runs with the persistent compilation cache
+(``jaxproj.cli.cache``; ``--no-cache`` to run without). Every user error prints one line naming
+the file and the problem on stderr and exits with status 2 (a usage error too:
+``options.Parser``); no traceback. Output files are written only into folders that exist, never
+over an existing file without ``--force``, never over one of the command's inputs; every check
+that needs no computation runs before any.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import sys
 from collections.abc import Sequence
 
 from jaxproj import __version__, robots
-from jaxproj.cli import demo, info, options, projector, render, retarget
+from jaxproj.cli import cache, demo, info, options, projector, render, retarget
 from jaxproj.errors import JaxprojError
 
 DESCRIPTION = (
@@ -46,7 +47,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``jaxproj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        with cache.compilation_cache(enabled=not args.no_cache):
+            return int(args.func(args))
     except JaxprojError as e:
         print(f"jaxproj: error: {e}", file=sys.stderr)
         return 2

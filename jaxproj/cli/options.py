@@ -38,8 +38,16 @@ class Parser(argparse.ArgumentParser):
 
 
 def add_parser(sub: Any, name: str, help: str) -> argparse.ArgumentParser:
-    """A subcommand parser with the house help formatter."""
-    return sub.add_parser(name, formatter_class=HelpFormatter, help=help, description=help)
+    """A subcommand parser with the house help formatter and the options every subcommand
+    takes (``--no-cache``)."""
+    p = sub.add_parser(name, formatter_class=HelpFormatter, help=help, description=help)
+    p.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="run without the persistent compilation cache (compiled programs kept on disk "
+        "between runs; `jaxproj info` shows its folder, $JAXPROJ_CACHE_DIR sets it)",
+    )
+    return p
 
 
 # ------------------------------------------------------------------------------ value parsers

@@ -5,8 +5,12 @@ bone (``jaxproj.human.skeleton.BONE_NAMES``) the direction between two points of
 MJCF (sites or bodies) follows, with a weight; the directions are compared in the frame of one
 robot body (``Correspondence.base``, e.g. the torso), which plays the human body frame's part
 (x forward, y left, z up). Each ``Chain`` of the robot is solved on its own, in chain order,
-from the rows of its bones: chains after it see its answer (a leg chain solved after the waist
-sees the waist's angles), chains before it do not see it.
+from the rows it reads (``chain_rows``): those of its bones whose direction, seen from the base,
+one of its joints changes, i.e. a joint on the path between a row's point and the base body
+(``row_turned_by``; the waist reads the hip line although its points hang from the hips, as the
+waist turns the base). Chains after it see its answer (a leg chain solved after the waist sees
+the waist's angles), chains before it do not see it. Building the IK fails (``ConfigError``)
+for a chain that reads no row and for a row that no chain reads.
 
 The problem of one chain with joints ``x`` (box ``[lo, hi]``, the robot's limits)::
 
@@ -315,12 +319,16 @@ class GenericIK:
           model: a compiled ``mujoco.MjModel`` (default ``robot.load_model("fixed")``).
 
         Raises:
-          ConfigError: a chain without rows, or a name the MJCF lacks.
+          ConfigError: a chain that reads no row (``chain_rows``), a row that no chain reads (of
+            all rows when ``chains`` is the robot's; else of the rows of their bones), or a
+            name the MJCF lacks.
         """
         config = IKConfig() if config is None else config
+        every = chains is None
         chains = tuple(robot.chains if chains is None else chains)
         if model is None:
             model = robot.load_model("fixed")
+        read = _rows_read(model, correspondence, chains, every)
         rng = np.random.default_rng(config.seed)
         collision_pairs = (
             mjcf_collision_pairs(model)
@@ -328,7 +336,7 @@ class GenericIK:
             else correspondence.collision_pairs
         )
         problems = []
-        for chain in chains:
+        for chain, rows in zip(chains, read, strict=True):
             names: list[Point] = []
 
             def point(name: Point, names: list[Point] = names) -> int:
@@ -336,18 +344,6 @@ class GenericIK:
                     names.append(name)
                 return names.index(name)
 
-            # the rows of the chain's bones that its joints move (a leg chain reads the waist's
-            # bones, whose directions the leg's joints do not change)
-            rows = tuple(
-                r
-                for r in correspondence.rows(chain.bones)
-                if set(chain.joints) & _row_moved_by(model, r)
-            )
-            if not rows:
-                raise ConfigError(
-                    f"chain {chain.name!r}: no correspondence row of {chain.bones} moves with its "
-                    f"joints {chain.joints}"
-                )
             joints = np.array([robot.index(j) for j in chain.joints], np.int32)
             driven = np.array(robot.chain_joints(chain), np.int32)
             lo, hi = correspondence.box(robot, chain.joints)
@@ -914,10 +910,128 @@ def _pair_moved_by(model: mujoco.MjModel, pair: tuple[str, str]) -> set[str]:
     return _moved_by(model, pair[0]) ^ _moved_by(model, pair[1])
 
 
-def _row_moved_by(model: mujoco.MjModel, row: BonePair) -> set[str]:
-    """Names of the joints that move either end of ``row``."""
-    return _body_joints(model, _point(model, row.start)[0]) | _body_joints(
-        model, _point(model, row.end)[0]
+def _rows_read(
+    model: mujoco.MjModel, correspondence: Correspondence, chains: Sequence[Chain], every: bool
+) -> tuple[tuple[BonePair, ...], ...]:
+    """``chain_rows`` of each chain, checked: every chain reads a row, and every row is read by
+    a chain (with ``every``: all of the correspondence's rows; else those of the chains'
+    bones, when a caller solves some chains only). ConfigError naming the chain or row."""
+    read = tuple(chain_rows(model, correspondence, c) for c in chains)
+    for chain, rows in zip(chains, read, strict=True):
+        if not rows:
+            raise ConfigError(
+                f"chain {chain.name!r}: its joints {chain.joints} change the direction of no "
+                f"correspondence row of its bones {chain.bones} (seen from "
+                f"{correspondence.base!r}); add a row or drop the chain"
+            )
+    offered = [
+        r
+        for r in correspondence.pairs
+        if every or any(r in correspondence.rows(c.bones) for c in chains)
+    ]
+    unread = [r for r in offered if not any(r in rows for rows in read)]
+    if unread:
+        names = ", ".join(f"{_row_name(r)!r} ({r.start} -> {r.end})" for r in unread)
+        raise ConfigError(
+            f"correspondence rows read by no chain: {names}; no chain of "
+            f"{[c.name for c in chains]} lists the row's bones with a joint that changes its "
+            f"direction seen from {correspondence.base!r}: add the bones to a chain whose "
+            "joints move the row, or drop the row"
+        )
+    return read
+
+
+def _row_name(row: BonePair) -> str:
+    return row.bone if row.minus is None else f"{row.bone} - {row.minus}"
+
+
+def row_turned_by(model: mujoco.MjModel, row: BonePair, base: str) -> set[str]:
+    """Names of the joints that change the direction of ``row``, seen in ``base``'s frame.
+
+    A joint moves a point relative to the base when it lies on the path between the point's
+    body and the base body: the symmetric difference of the two bodies' ancestor joints (a
+    joint above both turns the point and the base together, as ``TreeFK.jacobian`` treats it).
+    The row's direction changes with the joints that move either of its points so, less a
+    joint that moves only one of them when that point lies on the joint's axis (a hinge turns
+    such a point about itself; checked for points of the two bodies the axis is fixed in: the
+    G1's hip pitch and the hip line's end at the hip pitch link's origin, its waist yaw and
+    the spine row's start at the pelvis origin).
+
+    Raises:
+      ConfigError: an unknown base or point.
+    """
+    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base)
+    if bid < 0:
+        raise ConfigError(f"the MJCF has no body named {base!r} (the correspondence's base)")
+    above_base = _body_joints(model, bid)
+    moved = []
+    for name in (row.start, row.end):
+        body, offset = _point(model, name)
+        moved.append(
+            {
+                j
+                for j in _body_joints(model, body) ^ above_base
+                if not _on_axis(model, j, body, offset)
+            }
+        )
+    return moved[0] | moved[1]
+
+
+def _on_axis(model: mujoco.MjModel, joint: str, body: int, offset: np.ndarray) -> bool:
+    """Whether hinge ``joint`` leaves the point ``offset`` of ``body`` where it is at every
+    pose: the point lies on the joint's axis, in a frame the axis is fixed in (the joint's body
+    when the point hangs from it, else that body's parent), and every joint between that frame
+    and the point's body has the point on its axis too (so that its place in the frame does
+    not change). Bodies of more than one joint count as moving the point."""
+    j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+    jb = int(model.jnt_bodyid[j])
+    if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE or model.body_jntnum[jb] != 1:
+        return False
+
+    def rest(b: int) -> tuple[np.ndarray, np.ndarray]:  # body b's frame in its parent's
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, np.asarray(model.body_quat[b], np.float64))
+        return np.asarray(model.body_pos[b], np.float64), rot.reshape(3, 3)
+
+    def on_axis(k: int, p: np.ndarray) -> bool:  # p (body frame of joint k) on k's axis
+        axis = np.asarray(model.jnt_axis[k], np.float64)
+        rel = p - np.asarray(model.jnt_pos[k], np.float64)
+        return bool(np.linalg.norm(np.cross(axis / np.linalg.norm(axis), rel)) < 1e-9)
+
+    ancestors, b = [], body
+    while b > 0:
+        ancestors.append(b)
+        b = int(model.body_parentid[b])
+    frame = jb if jb in ancestors else int(model.body_parentid[jb])
+    if frame not in ancestors:
+        return False
+    p, b = np.asarray(offset, np.float64), body
+    while b != frame:  # up to the frame, through joints that keep the point in place
+        first, n = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        hinge = n == 1 and model.jnt_type[first] == mujoco.mjtJoint.mjJNT_HINGE
+        if n > 1 or (n == 1 and not (hinge and on_axis(first, p))):
+            return False
+        pos, rot = rest(b)
+        p, b = pos + rot @ p, int(model.body_parentid[b])
+    if frame == jb:
+        return on_axis(j, p)
+    pos, rot = rest(jb)  # the point in the joint's body frame at the joint's zero
+    return on_axis(j, rot.T @ (p - pos))
+
+
+def chain_rows(
+    model: mujoco.MjModel, correspondence: Correspondence, chain: Chain
+) -> tuple[BonePair, ...]:
+    """The rows ``chain`` reads: those of its bones (``Correspondence.rows``) whose direction,
+    seen from ``correspondence.base``, one of its joints changes (``row_turned_by``). A leg
+    chain of the G1 lists the waist's bones (its IK runs after the waist's) but reads none of
+    their rows; the waist reads the hip line, whose points hang from the hips, because its
+    joints turn the base."""
+    joints = set(chain.joints)
+    return tuple(
+        r
+        for r in correspondence.rows(chain.bones)
+        if joints & row_turned_by(model, r, correspondence.base)
     )
 
 

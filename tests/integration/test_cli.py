@@ -3,10 +3,12 @@ import json
 import os
 from pathlib import Path
 
+import jax
 import numpy as np
 import pytest
 
 from jaxproj.cli import build_parser, main, projector
+from jaxproj.cli import cache as cli_cache
 from jaxproj.cli.retarget import EXPECTED_LOW_SHARE, confidence_lines
 from jaxproj.eval import evaluate
 from jaxproj.human.skeleton import descriptor, level_neck, recording_neck_tilt
@@ -49,6 +51,38 @@ def test_info_json(capsys):
     assert info["devices"]
     code, out, _ = _run(capsys, "info")
     assert code == 0 and "dataset utkinect_action3d (--data utkinect): 10 recordings" in out
+    # the compilation cache: the run's folder (tests/conftest.py), never the user's home
+    run_cache = Path(os.environ["JAXPROJ_CACHE_DIR"])
+    assert Path(info["compilation_cache"]["folder"]) == run_cache
+    assert not run_cache.is_relative_to(cli_cache.default_folder())
+    assert f"compilation cache: {run_cache} (" in out
+    code, out, _ = _run(capsys, "info", "--json", "--no-cache")
+    assert code == 0 and json.loads(out)["compilation_cache"] == {
+        "folder": None, "files": 0, "bytes": 0}  # fmt: skip
+    assert jax.config.jax_enable_compilation_cache  # the run's settings are back
+
+
+def test_cache_folder_order(tmp_path, monkeypatch) -> None:
+    """$JAXPROJ_CACHE_DIR, else JAX's own folder, else $XDG_CACHE_HOME/jaxproj/jax-cache, else
+    ~/.cache/jaxproj/jax-cache; a folder that cannot be made: a warning, no cache."""
+    assert cli_cache.folder() == Path(os.environ["JAXPROJ_CACHE_DIR"])
+    monkeypatch.delenv("JAXPROJ_CACHE_DIR")
+    assert cli_cache.folder() == Path(jax.config.jax_compilation_cache_dir)
+    saved = jax.config.jax_compilation_cache_dir
+    try:
+        jax.config.update("jax_compilation_cache_dir", None)
+        monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+        assert cli_cache.folder() == tmp_path / "xdg" / "jaxproj" / "jax-cache"
+        monkeypatch.delenv("XDG_CACHE_HOME")
+        monkeypatch.setenv("HOME", str(tmp_path / "home"))
+        assert cli_cache.folder() == tmp_path / "home" / ".cache" / "jaxproj" / "jax-cache"
+    finally:
+        jax.config.update("jax_compilation_cache_dir", saved)
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("JAXPROJ_CACHE_DIR", str(tmp_path / "file" / "cache"))
+    with cli_cache.compilation_cache() as used:
+        assert used is None and not jax.config.jax_enable_compilation_cache
+    assert jax.config.jax_enable_compilation_cache
 
 
 def test_retarget_msr_text_with_lost_frames(tmp_path, capsys):

@@ -14,11 +14,20 @@ import mujoco
 import numpy as np
 import pytest
 
+from jaxproj import robots
 from jaxproj.errors import ConfigError
+from jaxproj.human import skeleton
 from jaxproj.human.skeleton import UPPER_BODY
 from jaxproj.io import datasets
 from jaxproj.robots import NAO_H25, UNITREE_G1
-from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
+from jaxproj.robots.generic_ik import (
+    BonePair,
+    Correspondence,
+    GenericIK,
+    IKConfig,
+    chain_rows,
+    row_turned_by,
+)
 from jaxproj.robots.kinematics import TreeFK
 from jaxproj.robots.nao_h25 import spec as nao_spec
 from jaxproj.robots.unitree_g1 import spec as g1
@@ -211,8 +220,145 @@ def test_ranges_narrow_the_box_to_the_human_branch() -> None:
             "no site or body",
         ),  # fmt: skip
         (lambda: GenericIK.build(NAO_H25, NAO_ARMS, chains=NAO_H25.chains[:1]), "head"),
+        # a row no chain lists, and a row its chain's joints cannot turn: named
+        (
+            lambda: GenericIK.build(
+                UNITREE_G1,
+                Correspondence(
+                    "torso_link",
+                    (*g1.CORRESPONDENCE.pairs, BonePair("neck", "torso_site", "head_site")),
+                ),
+            ),
+            "read by no chain: 'neck'",
+        ),
+        (
+            lambda: GenericIK.build(
+                NAO_H25,
+                Correspondence(
+                    "torso", (*NAO_ARMS.pairs, BonePair("upper_arm_left", "torso", "neck"))
+                ),
+                chains=NAO_H25.chains[1:],
+            ),
+            "read by no chain: 'upper_arm_left' \\(torso -> neck\\)",
+        ),
     ],
 )
 def test_bad_correspondence_is_refused(make, message) -> None:
     with pytest.raises(ConfigError, match=message):
         make()
+
+
+ROWS_READ: dict[str, tuple[Correspondence, dict[str, tuple[str, ...]]]] = {
+    # the NAO's closed form solves its head from the neck bone; the generic IK reads its arms
+    "nao_h25": (
+        NAO_ARMS,
+        {
+            "left_arm": ("upper_arm_left", "forearm_left"),
+            "right_arm": ("upper_arm_right", "forearm_right"),
+        },
+    ),
+    # the waist reads the hip line (its points hang from the hips, but the waist turns the
+    # base); the legs list the waist's bones but read none of their rows
+    "unitree_g1": (
+        g1.CORRESPONDENCE,
+        {
+            "waist": ("pelvis_left - pelvis_right", "spine_lower"),
+            "left_arm": ("upper_arm_left", "forearm_left"),
+            "right_arm": ("upper_arm_right", "forearm_right"),
+            "left_leg": ("thigh_left", "shin_left", "foot_left"),
+            "right_leg": ("thigh_right", "shin_right", "foot_right"),
+        },
+    ),
+}
+"""Per registered robot (the toy robot of ``tests/toy_robot.py`` has no correspondence: its
+own closed form), its correspondence and, per chain the generic IK solves, the rows it reads."""
+
+
+def _name(row: BonePair) -> str:
+    return row.bone if row.minus is None else f"{row.bone} - {row.minus}"
+
+
+def test_every_registered_robot_has_its_rows_listed() -> None:
+    assert set(ROWS_READ) == set(robots.names())
+
+
+@pytest.mark.parametrize("name", sorted(ROWS_READ))
+def test_rows_each_chain_reads(name: str) -> None:
+    """The rows per chain against the table, and the rule against the FK's own derivatives: a
+    chain reads a row iff one of its joints moves the row's direction seen from the base at
+    random poses (``TreeFK.jacobian``, which holds the base's joints apart)."""
+    robot = robots.get(name)
+    corr, want = ROWS_READ[name]
+    model = robot.load_model("fixed")
+    chains = [robot.chain(c) for c in want]
+    got = {c.name: tuple(_name(r) for r in chain_rows(model, corr, c)) for c in chains}
+    assert got == want
+    # every row is read by some chain
+    assert {_name(r) for r in corr.pairs} == {r for rows in want.values() for r in rows}
+    # MuJoCo's own kinematics, central differences (h rad) at random poses
+    points = sorted({p for r in corr.pairs for p in (r.start, r.end)}, key=str)
+    q = np.random.default_rng(1).uniform(robot.lower, robot.upper, (3, robot.n_joints))
+    h = 1e-4
+    steps = np.concatenate([q[:, None] + h * np.eye(robot.n_joints), q[:, None] - h * np.eye(
+        robot.n_joints)], axis=1).reshape(-1, robot.n_joints)  # fmt: skip
+    pts = _mj_points(model, robot.joint_names, steps, points, corr.base)
+    pts = pts.reshape(len(q), 2, robot.n_joints, len(points), 3)
+    for r in corr.pairs:
+        seg = pts[..., points.index(r.end), :] - pts[..., points.index(r.start), :]
+        u = seg / np.linalg.norm(seg, axis=-1, keepdims=True)
+        du = np.abs(u[:, 0] - u[:, 1]).max(axis=(0, 2)) / (2 * h)  # (n_joints,)
+        turns = {j for j, v in zip(robot.joint_names, du, strict=True) if v > 1e-3}
+        assert turns == row_turned_by(model, r, corr.base), _name(r)
+
+
+def _twisted_skeleton(turn: float) -> np.ndarray:
+    """``(20, 3)`` a person standing (x forward, y left, z up, m) with the upper body, from the
+    Spine point up, turned ``turn`` deg about the vertical through the hip centre."""
+    j = skeleton.JOINT_NAMES.index
+    pos = np.zeros((20, 3))  # the hip centre at the origin
+    pos[j("Spine")] = 0.1 * np.asarray(g1.SPINE_REST)  # the calibrated rest: no waist pitch
+    pos[j("ShoulderCenter")] = (0.0, 0.0, 0.45)
+    pos[j("Head")] = (0.0, 0.0, 0.65)
+    for side, y in (("Left", 1.0), ("Right", -1.0)):
+        pos[j(f"Shoulder{side}")] = (0.0, 0.18 * y, 0.42)
+        pos[j(f"Elbow{side}")] = (0.0, 0.2 * y, 0.15)
+        pos[j(f"Wrist{side}")] = (0.0, 0.2 * y, -0.1)
+        pos[j(f"Hand{side}")] = (0.02, 0.2 * y, -0.18)
+        pos[j(f"Hip{side}")] = (0.03, 0.08 * y, -0.05)
+        pos[j(f"Knee{side}")] = (0.03, 0.09 * y, -0.45)
+        pos[j(f"Ankle{side}")] = (0.0, 0.09 * y, -0.85)
+        pos[j(f"Foot{side}")] = (0.1, 0.09 * y, -0.88)
+    c, s = np.cos(np.radians(turn)), np.sin(np.radians(turn))
+    upper = [j(n) for n in skeleton.JOINT_NAMES[1:12]]  # Spine .. HandRight
+    pos[upper] = pos[upper] @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+    return pos
+
+
+def test_g1_waist_yaw_follows_the_shoulders_turn_against_the_hips() -> None:
+    """Shoulders turned 20 deg to the left of the hips (about the vertical): the hip-line row,
+    which the waist reads (``ROWS_READ``), is matched at a waist yaw of +20 deg (the torso
+    turned left of the pelvis, as the person's), to -20 deg the other way. The person's hip
+    line from the descriptor (the body frame built from the shoulders), the G1's from its FK
+    over a grid of waist yaws (roll and pitch 0: the spine is at its calibrated rest). Without
+    a compile of the IK: ``benchmarks/experiments/g1_waist_yaw.py`` runs the IK itself (the
+    same +-20 deg to 0.1 deg)."""
+    model = UNITREE_G1.load_model("fixed")
+    (row,) = [r for r in g1.CORRESPONDENCE.pairs if r.minus is not None]
+    fk = TreeFK.from_model(model, UNITREE_G1.joint_names, (row.start, row.end), "torso_link")
+    yaws = np.radians(np.arange(-45.0, 45.25, 0.25))
+    q = np.zeros((len(yaws), UNITREE_G1.n_joints), np.float32)
+    q[:, UNITREE_G1.index("waist_yaw_joint")] = yaws
+    p = np.asarray(fk.points(q), np.float64)
+    robot = (p[:, 1] - p[:, 0]) / np.linalg.norm(p[:, 1] - p[:, 0], axis=-1, keepdims=True)
+    names = skeleton.resolve_bones("full")
+    for turn in (20.0, -20.0):
+        d, ok = skeleton.descriptor(_twisted_skeleton(turn)[None].astype(np.float32), "full")
+        assert bool(np.asarray(ok)[0])
+        vec = np.asarray(d, np.float64)[0].reshape(-1, 3)
+        left, right = (vec[names.index(b)] / np.linalg.norm(vec[names.index(b)])
+                       for b in (row.bone, row.minus))  # fmt: skip
+        human = (left - right) / np.linalg.norm(left - right)
+        err = np.linalg.norm(robot - human, axis=-1)
+        best = np.degrees(yaws[np.argmin(err)])
+        assert abs(best - turn) <= 0.25 and err.min() < 5e-3, (turn, best, err.min())
+        assert err[np.argmin(np.abs(yaws))] > 0.3  # the waist held at 0: 20 deg off

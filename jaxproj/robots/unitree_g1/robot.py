@@ -2,9 +2,18 @@
 
 Configurations are ``(..., 29)`` joint angles in radians in ``JOINT_NAMES`` order, Unitree's SDK
 order (``../shared/reference/unitree_g1_kinematics.md``, "Joint order used by Unitree's SDK"),
-which is also the joints' order in ``unitree_g1.xml``. Every number here is that fact sheet's
-(from "Unitree G1 29-DoF description", Unitree Robotics, BSD-3-Clause): limits, maximum joint
-speeds; the MJCF (written by this project from the same sheet) holds the rest.
+which is also the joints' order in ``unitree_g1.xml``. The limits are that fact sheet's (from
+"Unitree G1 29-DoF description", Unitree Robotics, BSD-3-Clause); the MJCF (written by this
+project from the same sheet) holds the rest.
+
+Maximum joint speeds: the ``velocity`` of each joint's ``<limit>`` in Unitree's URDF of the
+29-DoF G1, revision 1.0 (``unitreerobotics/unitree_ros``, ``robots/g1_description/
+g1_29dof_rev_1_0.urdf`` at commit ``1ab5f1e22adeeef39b3a2171b56f99ccd9c0f149``, BSD-3-Clause):
+hips and waist yaw 32, hip roll and knee 20, ankles and waist roll / pitch 30, shoulders, elbows
+and wrist roll 37, wrist pitch / yaw 22 rad/s. An earlier version of that file (commit
+``adb48c7910ef8404ca34a07df95fc3acbb09f318``), ``unitree_rl_gym``'s copy and the fact sheet give
+37 for the ankles and waist roll / pitch (with 50 N m, where the newer file says 35 N m; the
+MJCF's torques are still the sheet's).
 """
 
 from __future__ import annotations
@@ -35,15 +44,15 @@ JOINT_NAMES: tuple[str, ...] = (
 """The 29 joints in Unitree's SDK order (0-5 left leg, 6-11 right leg, 12-14 waist, 15-21 left
 arm, 22-28 right arm)."""
 
-# (lower, upper) rad and maximum speed rad/s, the fact sheet's table; right = left except the
-# roll joints' ranges, mirrored.
+# (lower, upper) rad, the fact sheet's table, and maximum speed rad/s, Unitree's URDF (the module
+# doc); right = left except the roll joints' ranges, mirrored.
 _LEFT: dict[str, tuple[float, float, float]] = {
     "hip_pitch": (-2.5307, 2.8798, 32.0),
     "hip_roll": (-0.5236, 2.9671, 20.0),
     "hip_yaw": (-2.7576, 2.7576, 32.0),
     "knee": (-0.087267, 2.8798, 20.0),
-    "ankle_pitch": (-0.87267, 0.5236, 37.0),
-    "ankle_roll": (-0.2618, 0.2618, 37.0),
+    "ankle_pitch": (-0.87267, 0.5236, 30.0),
+    "ankle_roll": (-0.2618, 0.2618, 30.0),
     "shoulder_pitch": (-3.0892, 2.6704, 37.0),
     "shoulder_roll": (-1.5882, 2.2515, 37.0),
     "shoulder_yaw": (-2.618, 2.618, 37.0),
@@ -55,8 +64,8 @@ _LEFT: dict[str, tuple[float, float, float]] = {
 _RIGHT_RANGE = {"hip_roll": (-2.9671, 0.5236), "shoulder_roll": (-2.2515, 1.5882)}
 _WAIST: dict[str, tuple[float, float, float]] = {
     "waist_yaw": (-2.618, 2.618, 32.0),
-    "waist_roll": (-0.52, 0.52, 37.0),
-    "waist_pitch": (-0.52, 0.52, 37.0),
+    "waist_roll": (-0.52, 0.52, 30.0),
+    "waist_pitch": (-0.52, 0.52, 30.0),
 }
 
 
@@ -76,8 +85,8 @@ LOWER = np.array([_row(n)[0] for n in JOINT_NAMES], np.float32)
 UPPER = np.array([_row(n)[1] for n in JOINT_NAMES], np.float32)
 """(29,) upper joint limits, rad."""
 VELOCITY_LIMITS = np.array([_row(n)[2] for n in JOINT_NAMES], np.float32)
-"""(29,) maximum joint speeds, rad/s (the sheet's; no rated speeds published: the rated
-speeds are ``base.RATED_FRACTION`` of these)."""
+"""(29,) maximum joint speeds, rad/s (Unitree's URDF, the module doc; no rated speeds published:
+the rated speeds are ``base.RATED_FRACTION`` of these)."""
 
 STANDING_POSTURE = np.zeros(len(JOINT_NAMES), np.float32)
 """(29,) zero angles: legs straight, upper arms hanging, elbows bent 90 deg (forearms forward),

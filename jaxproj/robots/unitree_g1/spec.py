@@ -25,7 +25,10 @@ upward offset from the hip centre (which the two bones share, and which would pi
 (**) calibrated (``BonePair.rest``): ``SPINE_REST``, ``FOOT_REST``.
 
 Chains are solved in the order waist, arms, legs: the legs hang from the pelvis, which the waist
-turns against the torso, so the leg chains read the waist's bones too. The feet weigh half: the
+turns against the torso, so the leg chains list the waist's bones too (their IK runs the waist's
+first; they read none of the waist's rows: ``generic_ik.chain_rows``). The waist reads the hip
+line although its points hang from the hips: its joints turn the torso, the frame the
+directions are compared in, against them. The feet weigh half: the
 Kinect foot point is the noisiest joint of the skeleton. Not driven: the ankle rolls (no
 Kinect v1 bone fixes them) and the wrists (the Kinect hand point, a few cm from the wrist, is
 too noisy to set the wrist's pitch and yaw; not measured yet), held at zero.
