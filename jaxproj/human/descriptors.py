@@ -75,11 +75,11 @@ def valid_descriptors(
         positions = np.concatenate([np.asarray(s.positions, np.float32) for s in seqs])
         valid = np.concatenate([np.asarray(s.valid, bool) for s in seqs])
         lengths = [len(s.valid) for s in seqs]
-    d, ok = descriptor(positions, bones=bones, mirror=mirror, skeleton=skeleton)
+    d_all, ok = descriptor(positions, bones=bones, mirror=mirror, skeleton=skeleton)
     keep = valid & np.asarray(ok)
     if not keep.any():
         raise ConfigError("no valid frame")
-    d = np.asarray(d, np.float32)
+    d = np.asarray(d_all, np.float32)
     names = skeletons.get(skeleton).require(bones)
     if level and lengths and {"shin_left", "shin_right"} <= set(names):
         start = 0

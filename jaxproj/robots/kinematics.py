@@ -291,7 +291,7 @@ def _axis_rotations(kx: np.ndarray, kk: np.ndarray, angle: jax.Array) -> jax.Arr
     3)`` each axis's cross-product matrix, ``kk = kx @ kx``; returns ``(..., l, 3, 3)``."""
     s, c = jnp.sin(angle)[..., None, None], jnp.cos(angle)[..., None, None]
     eye = np.broadcast_to(np.eye(3, dtype=np.float32), kx.shape)
-    return eye + s * kx + (1.0 - c) * kk
+    return jnp.asarray(eye) + s * kx + (1.0 - c) * kk
 
 
 @dataclass(frozen=True, eq=False)
