@@ -225,9 +225,12 @@ def finish(
     standing: Standing,
     robot: Robot,
     smoother: str = "paper",
+    d: jax.Array | None = None,
+    bones: str | tuple[str, ...] = "full",
 ) -> tuple[jax.Array, jax.Array]:
-    """The stages after the mapping for one motion: fill -> smooth -> clip, and the standing
-    posture for a motion with no valid frame (``standing``: before or after the smoother).
+    """The stages after the mapping for one motion: the robot's continuity pass
+    (``Robot.continuous``) -> fill -> smooth -> clip, and the standing posture for a motion
+    with no valid frame (``standing``: before or after the smoother).
 
     Args:
       q: ``(T, n)`` per-frame driven angles of a motion padded to ``T`` frames.
@@ -239,12 +242,14 @@ def finish(
       standing: ``"first"`` (evaluate) or ``"last"`` (retarget); see the module doc.
       robot: the robot (its limits and standing posture).
       smoother: the ``kind`` of the settings ``gains`` came from: ``"paper"`` or ``"offline"``.
+      d, bones: the person's ``(T, m)`` descriptors (of ``bones``) for the continuity pass (how
+        far each limb turned), or ``None`` (the answers' own directions).
 
     Returns:
       ``(filled, out)``, each ``(T, n)``: the filled motion (standing posture included with
       ``"first"``) and the playable one (filled when ``gains`` is ``None``).
     """
-    q = robot.continuous(q, valid)
+    q = robot.continuous(q, valid, d, bones)
     q = fill_invalid(q, valid)
     if standing == "first":
         q = stand_if_lost(q, valid, robot)
@@ -302,7 +307,7 @@ def motion(
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,
-                  smoother=smoother or "paper")  # fmt: skip
+                  smoother=smoother or "paper", d=d, bones=bones)  # fmt: skip
     return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)
 
 

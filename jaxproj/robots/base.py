@@ -373,7 +373,8 @@ class Robot:
       deviation_scale: the ``projection.confidence`` scale of the robot's default model (the
         p90 of its relaxed deviation on training people it did not see), or ``None``: the
         NAO's ``DEVIATION_SCALE``.
-      track: a traceable ``((T, n_driven) answers, (T,) valid) -> (T, n_driven)`` continuity
+      track: a traceable ``((T, n_driven) answers, (T,) valid, (T, m) descriptors or None,
+        bones) -> (T, n_driven)`` continuity
         pass over one motion's per-frame answers (the G1's: ``GenericIK.track``: each frame
         re-chosen, among poses with the same bone directions, nearest the previous output),
         applied by ``continuous`` before the smoother; ``None``: no such pass.
@@ -406,7 +407,7 @@ class Robot:
     coupled_limits: tuple[CoupledLimit, ...] = ()
     separate: Callable[[jax.Array], jax.Array] | None = field(default=None, compare=False)
     deviation_scale: float | None = None
-    track: Callable[[jax.Array, jax.Array], jax.Array] | None = field(default=None, compare=False)
+    track: Callable[..., jax.Array] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -674,10 +675,17 @@ class Robot:
             return q
         return self.clip_driven(self.separate(q))
 
-    def continuous(self, q: jax.Array, valid: jax.Array) -> jax.Array:
+    def continuous(
+        self,
+        q: jax.Array,
+        valid: jax.Array,
+        d: jax.Array | None = None,
+        bones: str | tuple[str, ...] = "full",
+    ) -> jax.Array:
         """One motion's ``(T, n_driven)`` per-frame answers made continuous by ``track`` (with
-        ``(T,)`` bool ``valid``), or returned as they are when the robot has no such pass."""
-        return q if self.track is None else self.track(q, valid)
+        ``(T,)`` bool ``valid`` and, if given, the person's ``(T, m)`` descriptors of ``bones``:
+        how far each limb turned), or returned as they are when the robot has no such pass."""
+        return q if self.track is None else self.track(q, valid, d, bones)
 
     def from_columns(self, names: Sequence[str], columns: np.ndarray) -> np.ndarray:
         """``(T, len(names))`` angle columns placed by joint name into ``(T, n_joints)`` float32

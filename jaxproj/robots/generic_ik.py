@@ -641,6 +641,8 @@ class GenericIK:
         self,
         q: jax.typing.ArrayLike,
         valid: jax.typing.ArrayLike,
+        d: jax.typing.ArrayLike | None = None,
+        bones: str | tuple[str, ...] = "full",
         config: TrackConfig | None = None,
     ) -> jax.Array:
         """One motion's per-frame answers made continuous: each frame's pose re-chosen, among
@@ -658,9 +660,10 @@ class GenericIK:
                        +  lam * |x - x_0|^2  +  collision(x)
             within     the IK's box  and  |x - y|_inf <= max(r_0, g * turn)
 
-        (``dir_k(q)``: the chain's row directions at ``q``, base frame; ``turn``: the largest
-        angle between ``dir_k(q_prev)`` and ``dir_k(q_t)``, how far the limb turned since the
-        last frame; ``c``, ``r_0``, ``g``: ``TrackConfig``; ``lam``, ``collision``: the IK's)
+        (``dir_k(q)``: the chain's row directions at ``q``, base frame; ``turn``: how far the
+        person's limb turned since the last valid frame, the largest angle between a row's
+        human directions in the two frames (``d``; without it, between ``dir_k(q_prev)`` and
+        ``dir_k(q_t)``); ``c``, ``r_0``, ``g``: ``TrackConfig``; ``lam``, ``collision``: the IK's)
         and keeps the start with the least objective. A joint then moves at most ``g`` times as
         far as its limb turned (at least ``r_0``): a flip cannot enter where the person hardly
         moved; where a limb needs more (near a singular pose) the output follows over the next
@@ -672,6 +675,8 @@ class GenericIK:
         Args:
           q: ``(T, n_driven)`` per-frame answers, rad (``Robot.driven_joints`` order).
           valid: ``(T,)`` bool.
+          d: ``(T, 3 * n_bones)`` the person's descriptors (``bones`` layout), or ``None``.
+          bones: the descriptor's bones.
           config: ``TrackConfig()`` by default.
 
         Returns:
@@ -683,21 +688,24 @@ class GenericIK:
         if q.ndim != 2 or q.shape[-1] != n_driven:
             raise ConfigError(f"track: answers must be (T, {n_driven}), got {q.shape}")
         valid = jnp.asarray(valid, bool)
+        names = resolve_bones(bones)
+        h = jnp.zeros((len(q), 0), jnp.float32) if d is None else jnp.asarray(d, jnp.float32)
+        Carry = tuple[jax.Array, jax.Array, jax.Array, jax.Array]
 
         def body(
-            carry: tuple[jax.Array, jax.Array, jax.Array], xs: tuple[jax.Array, jax.Array]
-        ) -> tuple[tuple[jax.Array, jax.Array, jax.Array], jax.Array]:
-            y, q_prev, started = carry
-            q_t, ok = xs
-            out = self.track_step(y, q_prev, q_t, cfg)
+            carry: Carry, xs: tuple[jax.Array, jax.Array, jax.Array]
+        ) -> tuple[Carry, jax.Array]:
+            y, q_prev, h_prev, started = carry
+            q_t, h_t, ok = xs
+            human = None if d is None else (h_prev, h_t, names)
+            out = self.track_step(y, q_prev, q_t, cfg, human)
             out = jnp.where(started & ok, out, q_t)
-            return (
-                (jnp.where(ok, out, y), jnp.where(ok, q_t, q_prev), started | ok),
-                out,
-            )
+            nxt = (jnp.where(ok, out, y), jnp.where(ok, q_t, q_prev), jnp.where(ok, h_t, h_prev))
+            return (*nxt, started | ok), out
 
         standing = jnp.asarray(self.robot.standing_driven, jnp.float32)
-        _, out = jax.lax.scan(body, (standing, standing, jnp.asarray(False)), (q, valid))
+        init = (standing, standing, h[0], jnp.asarray(False))
+        _, out = jax.lax.scan(body, init, (q, h, valid))
         return out
 
     def _directions(self, q_full: jax.Array, prob: _ChainProblem) -> jax.Array:
@@ -712,10 +720,12 @@ class GenericIK:
         q_prev: jax.Array,
         q_t: jax.Array,
         config: TrackConfig | None = None,
+        human: tuple[jax.Array, jax.Array, tuple[str, ...]] | None = None,
     ) -> jax.Array:
         """One frame of ``track``: ``(n_driven,)`` last output ``y``, last valid answer
-        ``q_prev`` and this frame's answer ``q_t`` -> ``(n_driven,)`` this frame's output.
-        Traceable (one pose; vmap for many)."""
+        ``q_prev`` and this frame's answer ``q_t`` -> ``(n_driven,)`` this frame's output;
+        ``human``: ``(last valid descriptor, this frame's, their bones)`` for the limbs' turn
+        (else the answers' directions). Traceable (one pose; vmap for many)."""
         cfg = TrackConfig() if config is None else config
         standing = jnp.asarray(self.robot.standing)
         didx = self.robot.driven_index
@@ -725,7 +735,13 @@ class GenericIK:
         sc = np.float32(math.sqrt(cfg.continuity))
         for prob in self.problems:
             t = self._directions(q_full, prob)
-            cos = jnp.sum(t * self._directions(prev_full, prob), axis=-1)
+            if human is None:
+                cos = jnp.sum(t * self._directions(prev_full, prob), axis=-1)
+            else:
+                h_prev, h_t, names = human
+                a, wa = self._targets(h_prev, names, prob)
+                b, wb = self._targets(h_t, names, prob)
+                cos = jnp.where((wa > 0) & (wb > 0), jnp.sum(a * b, axis=-1), 1.0)
             turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)))
             radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
             w = jnp.asarray(prob.weights)

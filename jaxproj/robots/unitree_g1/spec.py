@@ -222,11 +222,17 @@ def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "full") -> jax.Array:
     return generic_ik().solve(d, bones)
 
 
-def track(q: jax.Array, valid: jax.Array) -> jax.Array:
-    """``Robot.track`` of the G1: ``(T, 21)`` per-frame driven angles and ``(T,)`` valid ->
-    ``(T, 21)``, each frame re-chosen nearest the previous output among the poses with the same
-    bone directions (``GenericIK.track``). Traceable."""
-    return generic_ik().track(q, valid)
+def track(
+    q: jax.Array,
+    valid: jax.Array,
+    d: jax.Array | None = None,
+    bones: str | tuple[str, ...] = "full",
+) -> jax.Array:
+    """``Robot.track`` of the G1: ``(T, 21)`` per-frame driven angles, ``(T,)`` valid and the
+    person's ``(T, m)`` descriptors (or ``None``) -> ``(T, 21)``, each frame re-chosen near the
+    previous output among the poses with the same bone directions (``GenericIK.track``).
+    Traceable."""
+    return generic_ik().track(q, valid, d, bones)
 
 
 def separate(q: jax.Array) -> jax.Array:
