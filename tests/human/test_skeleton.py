@@ -4,6 +4,7 @@ import pytest
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import (
     BONE_NAMES,
+    BONE_TILT_REFERENCES,
     BONES,
     FULL_BODY,
     JOINT_NAMES,
@@ -11,6 +12,7 @@ from jaxproj.human.skeleton import (
     J,
     body_frame,
     descriptor,
+    level_body,
 )
 from jaxproj.io import datasets
 
@@ -124,3 +126,32 @@ def test_bad_subset_is_a_config_error():
         descriptor(np.zeros((1, 20, 3), np.float32), bones="arms")
     with pytest.raises(ConfigError, match="unknown bone"):
         descriptor(np.zeros((1, 20, 3), np.float32), bones=("neck", "tail"))
+
+
+def _tilted(d: np.ndarray, angle: float) -> np.ndarray:
+    """Every bone of ``(T, 57)`` descriptors turned by ``angle`` about the body's left axis (a
+    tracker that puts the trunk axis ``angle`` further back against the limbs)."""
+    v = d.reshape(len(d), -1, 3)
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.stack([c * v[..., 0] + s * v[..., 2], v[..., 1], c * v[..., 2] - s * v[..., 0]], -1)
+    return out.reshape(d.shape).astype(np.float32)
+
+
+def test_level_body_takes_out_a_trackers_trunk_tilt_and_keeps_the_motion(frames):
+    """``level_body``: the median shin straight down and each calibrated bone at its
+    reference; the same output whatever constant tilt the tracker put between trunk and limbs;
+    a frame's deviation from the median kept; upper-body descriptors as they were."""
+    d, ok = (np.asarray(a) for a in descriptor(frames, bones="full"))
+    out = np.asarray(level_body(d, ok, "full"))
+    v = out.reshape(len(out), -1, 3)
+    shins = -np.concatenate([v[:, BONE_NAMES.index(f"shin_{s}")] for s in ("left", "right")])
+    assert abs(np.degrees(np.median(np.arctan2(shins[:, 0], shins[:, 2])))) < 0.5
+    for bone, ref in BONE_TILT_REFERENCES.items():
+        b = v[ok, BONE_NAMES.index(bone)]
+        assert abs(np.median(np.arctan2(b[:, 0], b[:, 2])) - ref) < 5e-3  # rad
+    for angle in (np.radians(17.0), np.radians(-18.0)):
+        again = np.asarray(level_body(_tilted(d, angle), ok, "full"))
+        assert np.abs(again - out).max() < 2e-3  # a constant tilt is taken out
+    assert np.allclose(np.linalg.norm(v, axis=-1), 1.0, atol=1e-5)  # lengths kept
+    upper, ok_u = descriptor(frames, bones="upper")
+    assert np.array_equal(np.asarray(level_body(upper, ok_u, "upper")), np.asarray(upper))

@@ -25,7 +25,9 @@ from jaxproj.robots.generic_ik import (
     Correspondence,
     GenericIK,
     IKConfig,
+    TrackConfig,
     chain_rows,
+    mjcf_collision_pairs,
     row_turned_by,
 )
 from jaxproj.robots.kinematics import TreeFK
@@ -362,3 +364,70 @@ def test_g1_waist_yaw_follows_the_shoulders_turn_against_the_hips() -> None:
         best = np.degrees(yaws[np.argmin(err)])
         assert abs(best - turn) <= 0.25 and err.min() < 5e-3, (turn, best, err.min())
         assert err[np.argmin(np.abs(yaws))] > 0.3  # the waist held at 0: 20 deg off
+
+
+def test_track_holds_a_loose_joint_the_limb_does_not_justify(nao_case) -> None:
+    """The continuity pass against per-frame answers that flip a nearly straight arm's
+    ElbowYaw by 1.5 rad on every other frame (the forearm's direction moves a few degrees):
+    with the person's limbs still, the output's ElbowYaw moves at most ``min_step`` a frame,
+    and the arm's directions stay those of the answers; on answers that move smoothly it
+    follows them (within the continuity term's lag)."""
+    d, _, q, _, ik, _ = nao_case
+    cfg = TrackConfig()
+    names = NAO_H25.driven_joints
+    yaw, roll = names.index("LElbowYaw"), names.index("LElbowRoll")
+    base = q[7].copy()
+    base[roll] = NAO_H25.upper[NAO_H25.index("LElbowRoll")]  # as straight as it goes
+    flips = np.repeat(base[None], 10, axis=0)
+    flips[1::2, yaw] = np.clip(base[yaw] + 1.5, -2.0, 2.0)
+    still = np.repeat(d[7][None], 10, axis=0)
+    track = jax.jit(lambda a, v, h: ik.track(a, v, h, "upper", cfg))
+    out = np.asarray(track(flips, np.ones(10, bool), still))
+    assert np.abs(np.diff(out[:, yaw])).max() <= cfg.min_step + 1e-4
+
+    def off(a: np.ndarray, b: np.ndarray) -> float:  # deg, the worst row direction of an arm
+        worst = 0.0
+        for prob in ik.problems:
+            u = np.asarray(ik._directions(jnp.asarray(NAO_H25.driven_to_full(a)), prob))
+            v = np.asarray(ik._directions(jnp.asarray(NAO_H25.driven_to_full(b)), prob))
+            worst = max(
+                worst, float(np.degrees(np.arccos(np.clip(np.sum(u * v, -1), -1, 1))).max())
+            )
+        return worst
+
+    assert max(off(out[t], flips[t]) for t in range(10)) < 6.0
+    # answers that move smoothly (a 0.3 rad shoulder swing): followed, not held (one compile:
+    # the same still person, a radius of min_step, steps of 2 deg)
+    smooth = np.repeat(q[3][None], 10, axis=0)
+    smooth[:, names.index("LShoulderPitch")] += np.linspace(0.0, 0.3, 10, dtype=np.float32)
+    out = np.asarray(track(smooth, np.ones(10, bool), still))
+    assert max(off(out[t], smooth[t]) for t in range(10)) < 1.0
+
+
+def test_mjcf_collision_pairs_are_what_mujoco_collides() -> None:
+    """``mjcf_collision_pairs`` of the G1: every self-contact MuJoCo's own pipeline reports
+    between two capsules or spheres, over random poses, is one of its pairs; none of its pairs
+    is an excluded (adjacent) or welded one; none touches at the standing posture."""
+    model = UNITREE_G1.load_model("fixed")
+    pairs = {frozenset(p) for p in mjcf_collision_pairs(model)}
+    assert len(pairs) == 262
+    capsules = {int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_SPHERE)}
+    name = lambda g: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)  # noqa: E731
+    data = mujoco.MjData(model)
+    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
+           for j in UNITREE_G1.joint_names]  # fmt: skip
+    rng = np.random.default_rng(0)
+    seen = 0
+    for q in rng.uniform(UNITREE_G1.lower, UNITREE_G1.upper, (300, UNITREE_G1.n_joints)):
+        data.qpos[adr] = q
+        mujoco.mj_forward(model, data)
+        for c in data.contact[: data.ncon]:
+            if {int(model.geom_type[c.geom1]), int(model.geom_type[c.geom2])} <= capsules:
+                assert frozenset((name(c.geom1), name(c.geom2))) in pairs
+                seen += 1
+    assert seen > 100  # random poses of the G1 do collide
+    for a, b in ((("torso_geom", "left_upper_arm_geom")), ("pelvis_geom", "left_hip_geom")):
+        assert frozenset((a, b)) not in pairs  # excluded as adjacent in the MJCF
+    data.qpos[:] = 0
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 0
