@@ -21,6 +21,10 @@ on the upper-body segments of the UTKinect-Action3D people the model did not tra
    per arm, and the default model), L = M sweep;
 5. write ``report.json``, ``report.md`` (``jaxproj.paper.demo_report``) and the PNG plots to
    ``--out``.
+
+Size: over 500 lines: the demo is one job whose stages, their progress lines and estimates
+(``_Plan``), the output checks and the report are read in order; its pieces live in
+``paper.experiments`` and ``paper.demo_report``, this module only sequences them.
 """
 
 from __future__ import annotations

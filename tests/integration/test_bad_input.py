@@ -362,7 +362,7 @@ class TestCliFromOutside:
             )
         )  # fmt: skip
         runs.append((["build", "--landmarks", "0", "--out", str(tmp_path / "m.npz")],
-                     ["landmarks=0"]))  # fmt: skip
+                     ["--landmarks", "0 is out of range", "2..100000"]))  # fmt: skip
         env = _subprocess_env()
         procs = [
             (

@@ -610,8 +610,6 @@ class TestOutputs:
              "--bones full conflicts with the model"),
             ([*relaxed, tmp_path / "o.npz", "--model", g1, "--robot", "nao_h25"],
              "--robot nao_h25 conflicts with the model"),
-            ([*relaxed, tmp_path / "o.npz", "--model", g1, "--plot", tmp_path / "p.png"],
-             "--plot draws the nao_h25 only"),
             (["retarget", src, "--robot", "unitree_g1", "--out", tmp_path / "o.json"],
              "not written for the unitree_g1"),
         ]  # fmt: skip
@@ -794,7 +792,8 @@ class TestFolders:
         assert "no recording of subject(s) [7]" in err
         assert r["data_files"]["unreadable"] == []  # the broken file was left out, not read
         assert "unreadable" not in stdout
-        code, _, err = self._evaluate(capsys, model_file, folder, out, "--subjects", "8")
+        code, _, err = self._evaluate(capsys, model_file, folder, tmp_path / "r8.json",
+                                      "--subjects", "8")  # fmt: skip
         assert_one_line_error(code, err, str(folder), "no recording to use", "other subjects")
 
     def test_build_from_the_folder_notes_the_unreadable_recording(self, capsys, folder, tmp_path):

@@ -386,7 +386,10 @@ def test_show_without_and_with_ipython(monkeypatch):
 
 
 def _cli(capsys, *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
+    try:
+        code = main(list(argv))
+    except SystemExit as e:  # a usage error: argparse exits (one line, status 2)
+        code = int(e.code or 0)
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -475,7 +478,7 @@ def test_cli_renders_a_g1_motion_from_npz_and_csv(tmp_path, capsys, no_sigint_fo
         (("missing.npz", "--out", "v.gif"), "missing.npz: no such file"),
         (("wave.npz", "--out", "v.avi"), "unsupported video extension '.avi'"),
         (("wave.txt", "--out", "v.gif"), "unsupported motion file extension '.txt'"),
-        (("wave.npz", "--out", "v.gif", "--size", "8x8"), "size must be"),
+        (("wave.npz", "--out", "v.gif", "--size", "8x8"), "each side 32..4096 pixels"),
     ],
 )
 def test_cli_render_errors(tmp_path, capsys, monkeypatch, args, problem):
@@ -483,7 +486,9 @@ def test_cli_render_errors(tmp_path, capsys, monkeypatch, args, problem):
     save_motion("wave.npz", _motion([robot.STANDING_POSTURE], positions=False))
     code, stdout, err = _cli(capsys, "render", *args, "--backend", "matplotlib")
     assert code == 2 and stdout == ""
-    assert err.startswith("jaxproj: error: ") and err.count("\n") == 1 and problem in err
+    # a usage error (argparse) names the subcommand: "jaxproj render: error: argument ..."
+    assert err.startswith(("jaxproj: error: ", "jaxproj render: error: "))
+    assert err.count("\n") == 1 and problem in err
     assert sorted(os.listdir(tmp_path)) == ["wave.npz"]
 
 

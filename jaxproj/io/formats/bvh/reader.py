@@ -51,7 +51,8 @@ def rest_pose_first(clip: BvhClip) -> bool:
     MotionBuilder and 3ds Max insert a T-pose as frame 0 in some files) write it as every joint
     rotation 0: the hierarchy's own rest pose (its ``OFFSET``s). Frame 0 counts as such a frame
     when every rotation channel of every joint but the root is within ``REST_TOLERANCE_DEG`` of
-    0 and frame 1's are not all so (captured motion never holds every joint exactly at 0). The
+    0 and frame 1's are finite and not all so (captured motion never holds every joint exactly at
+    0; a frame 1 with a non-finite value says nothing, and frame 0 is kept). The
     root's rotation and position are not read (a converter may place the pose anywhere). The two
     bundled CMU clips (``tests/data/cmu_bvh``) start with motion: nothing is dropped there.
 
@@ -71,7 +72,8 @@ def rest_pose_first(clip: BvhClip) -> bool:
     if not cols:
         return False
     zero = np.abs(clip.motion[:2, cols]) <= REST_TOLERANCE_DEG
-    return bool(zero[0].all() and not zero[1].all())
+    moving = np.isfinite(clip.motion[1, cols]).all() and not zero[1].all()  # a lost frame 1: keep
+    return bool(zero[0].all() and moving)
 
 
 def auto_scale(clip: BvhClip, map_name: str, table: Mapping[str, str]) -> tuple[float, str]:
