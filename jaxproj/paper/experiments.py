@@ -323,7 +323,7 @@ def landmark_size_study(
             model, build_s = built[cfg]
         else:
             t0 = time.perf_counter()
-            model = engine.build(train_descriptors, cfg)
+            model = engine.build(train_descriptors, cfg, calibrate=False)  # no confidence read
             build_s = time.perf_counter() - t0
         k = model.n_landmarks  # the smallest chain
         ll, mm = min(n_l, k), min(n_m, k)

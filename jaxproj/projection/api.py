@@ -473,10 +473,12 @@ def project(
 def build(
     descriptors: np.ndarray,
     config: BuildConfig = BuildConfig(),  # noqa: B008 - frozen, hashable
-    **mean_shift: Any,
-) -> Model:
-    """``projection.build.build`` (same arguments), then ``calibrated`` on the same frames."""
-    return calibrated(_build.build(descriptors, config, **mean_shift), descriptors)
+    *, calibrate: bool = True, **mean_shift: Any,
+) -> Model:  # fmt: skip
+    """``projection.build.build``, then ``calibrated`` on the same frames (not with
+    ``calibrate=False``, for a model whose confidence nobody reads: a sweep's)."""
+    model = _build.build(descriptors, config, **mean_shift)
+    return calibrated(model, descriptors) if calibrate else model
 
 
 def calibrated(model: Model, descriptors: np.ndarray) -> Model:
