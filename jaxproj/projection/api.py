@@ -12,6 +12,9 @@ layers and the notebooks use): settings (``config``), building (``build``), the 
 
 Shapes: human descriptors ``(B, m)`` (``m = 15`` for the default upper-body bones), robot poses
 ``(B, n)`` over ``robot.DRIVEN_JOINTS`` (``n = 10``), radians.
+
+Size: just over 500 lines: the public entry points (build with its calibration, project,
+the batching and device placement) are one surface a reader checks together.
 """
 
 from __future__ import annotations
