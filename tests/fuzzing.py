@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -59,11 +60,12 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def assert_one_line_error(code: int, err: str, *words: str) -> None:
-    """Exit status 2, exactly one stderr line ``jaxproj: error: ...`` holding ``words``."""
+    """Exit status 2, exactly one stderr line ``jaxproj: error: ...`` (or, for a usage error
+    that argparse reports, ``jaxproj SUBCOMMAND: error: ...``) holding ``words``."""
     assert code == 2, err
     assert "Traceback" not in err
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("jaxproj: error: "), err
+    assert len(lines) == 1 and re.match(r"jaxproj( [a-z]+)?: error: ", lines[0]), err
     for w in words:
         assert w in lines[0], (w, lines[0])
 

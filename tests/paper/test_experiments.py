@@ -120,7 +120,7 @@ def test_landmark_size_study_builds_one_model_per_size(model_with_poses, monkeyp
     evald = _train_descriptors(subjects=(2,))[::20]
     seen = []
 
-    def fake_build(descriptors, config):
+    def fake_build(descriptors, config, calibrate=True):
         seen.append((len(descriptors), config))
         return model_with_poses
 
@@ -172,7 +172,7 @@ def test_landmark_size_study_reuses_a_model_the_caller_built(model_with_poses, m
     train = _train_descriptors(subjects=(1,))[::50]
     seen = []
 
-    def fake_build(descriptors, config):
+    def fake_build(descriptors, config, calibrate=True):
         seen.append(config.landmarks)
         return model_with_poses
 
