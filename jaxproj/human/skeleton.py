@@ -235,14 +235,8 @@ def recording_neck_tilt(
     ``(T,)`` bool, ``bones`` / ``skeleton`` as for ``neck_tilt``. Returns ``()`` float32 rad;
     ``NECK_TILT_REFERENCE`` if no frame is valid.
     """
-    valid = jnp.asarray(valid, bool)
-    tilt = jnp.where(
-        valid, neck_tilt(jnp.asarray(d, jnp.float32), bones, skeleton=skeleton), jnp.inf
-    )
-    ordered = jnp.sort(tilt)
-    k = jnp.sum(valid.astype(jnp.int32))
-    mid = 0.5 * (ordered[jnp.maximum(k - 1, 0) // 2] + ordered[k // 2])
-    return jnp.where(k > 0, mid, NECK_TILT_REFERENCE).astype(jnp.float32)
+    tilt = neck_tilt(jnp.asarray(d, jnp.float32), bones, skeleton=skeleton)
+    return _median(tilt, jnp.asarray(valid, bool), NECK_TILT_REFERENCE)
 
 
 def level_neck(
