@@ -19,6 +19,8 @@ import os
 import sys
 from types import ModuleType
 
+from jaxproj._internal.environ import restore_environ, saved_environ
+
 _DISABLED = ("disable", "disabled", "off", "false", "0")
 """``MUJOCO_GL`` values that load no OpenGL back-end (MuJoCo's ``gl_context``)."""
 
@@ -47,7 +49,7 @@ def import_mujoco() -> ModuleType:
     if "mujoco" in sys.modules:
         return sys.modules["mujoco"]
     gl = os.environ.get("MUJOCO_GL", "")
-    saved = {k: os.environ.get(k) for k in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    saved = saved_environ(("MUJOCO_GL", "PYOPENGL_PLATFORM"))
     try:
         import mujoco
     except Exception as e:  # AttributeError (PyOpenGL without its library), RuntimeError, ...
@@ -65,11 +67,7 @@ def import_mujoco() -> ModuleType:
         try:
             import mujoco
         finally:
-            for key, value in saved.items():
-                if value is None:
-                    os.environ.pop(key, None)
-                else:
-                    os.environ[key] = value
+            restore_environ(saved)
     return mujoco
 
 
