@@ -6,7 +6,7 @@ Variants: ``per_frame`` (no continuity pass, no smoother, no filter), ``track`` 
 pass), ``smooth`` (+ the offline smoother), ``default`` (+ the feasibility filter and the last
 separation: what ``retarget`` writes).
 
-    python -m benchmarks.experiments.g1_stages [FILES...] [--data FOLDER] [--json OUT]
+    python -m benchmarks.experiments.g1_stages [FILES...] [--data FOLDER] [--json OUT] [--save DIR]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("files", nargs="*", type=Path)
     p.add_argument("--data", type=Path, default=None)
     p.add_argument("--json", default=None)
+    p.add_argument("--save", type=Path, default=None, help="folder: each variant's angles (NPZ)")
     a = p.parse_args(argv)
     g1 = robots.get(gp.ROBOT)
     loose = dataclasses.replace(g1, track=None)
@@ -52,12 +53,17 @@ def main(argv: list[str] | None = None) -> int:
             res = retarget(rec.positions, rec.valid, method="ik", robot=robot, bones="full",
                            smoothing=smoothing, feasible=feasible, times=rec.times)  # fmt: skip
             motion = Motion(res.angles, res.times, res.valid, rec.positions, robot=g1)
+            if a.save is not None:
+                a.save.mkdir(parents=True, exist_ok=True)
+                np.savez(a.save / f"{f.stem}_{name}.npz", angles=res.angles, valid=res.valid,
+                         times=res.times, positions=rec.positions)  # fmt: skip
             bones, ok, frames = gp._bones(np.asarray(rec.positions, np.float32))
             r = {"file": f.name, "variant": name}
             fl = gp.flips(motion, bones, ok, g1)
-            r |= {k: fl[k] for k in ("flip_steps", "steps_over_90", "max_step_deg")}
+            r |= {k: fl[k] for k in ("flip_steps", "steps_over_90", "max_step_deg", "examples")}
             geo = gp.geometry(motion, bones, ok, frames, g1, np.asarray(rec.positions))
-            r |= {k: geo[k] for k in ("contact_frames", "lean_diff", "arm_median", "arm_p90")}
+            r |= {k: geo[k] for k in ("contact_frames", "contact_pairs", "lean_diff", "arm_median",
+                                      "arm_p90")}  # fmt: skip
             rows.append(r)
             print(json.dumps(r), flush=True)
     if a.json:

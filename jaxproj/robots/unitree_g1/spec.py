@@ -88,17 +88,24 @@ HUMAN_RANGES: tuple[tuple[str, float, float], ...] = (
     ("left_hip_roll_joint", -math.inf, math.pi / 2),
     ("right_hip_roll_joint", -math.pi / 2, math.inf),
     *((f"{s}_knee_joint", 0.0, math.inf) for s in ("left", "right")),
+    *((f"{s}_hip_yaw_joint", -math.pi / 4, math.pi / 4) for s in ("left", "right")),
+    ("waist_yaw_joint", -math.pi / 4, math.pi / 4),
 )
 """Where the IK's box is narrower than the G1's limits (``Correspondence.ranges``): the elbow
 stops at the straight arm (G1 elbow +90 deg; the robot over-extends 30 deg more, a person does
 not: AAOS elbow extension 0 deg) and the knee at the straight leg (the G1's goes 5 deg past it);
 shoulder and hip roll stop at the arm or leg held out sideways (90 deg; the G1's go to 129 and
-170 deg). Without these each bone direction near them has a second solution, the limb turned half
+170 deg); the hip yaw stops at the thigh's internal and external rotation (45 deg each way; the
+G1's go to 158 deg) and the waist yaw at the trunk's rotation (45 deg; the G1's 150 deg). Without
+these each bone direction near them has a second solution, the limb turned half
 a turn about itself (e.g. an over-extended elbow with the upper arm twisted by 180 deg), and the
-IK's answer jumps between the two on capture noise. The shoulder and hip pitch still reach every
-direction a person's limb can take. (Human ranges: American Academy of Orthopaedic Surgeons,
-*Joint Motion: Method of Measuring and Recording*, 1965; Greene & Heckman, *The Clinical
-Measurement of Joint Motion*, AAOS 1994.)"""
+IK's answer jumps between the two on capture noise; a yaw past a person's range is what the IK
+reached for when the person bent over (a thigh turned 136 deg about itself on CMU 131_01) and
+when a Kinect hip line was noisy (waist yaw bursts to 138 deg on UTKinect s09 e02). The
+shoulder and hip pitch still reach every direction a person's limb can take. (Human ranges:
+American Academy of Orthopaedic Surgeons, *Joint Motion: Method of Measuring and Recording*,
+1965; Greene & Heckman, *The Clinical Measurement of Joint Motion*, AAOS 1994: hip
+internal and external rotation 45 deg each, thoracolumbar rotation 45 deg.)"""
 
 CORRESPONDENCE = Correspondence(
     base="torso_link",
