@@ -1,0 +1,68 @@
+"""Do the G1's separation and feasibility filter settle when applied in turn? (issue 57)
+
+Reads a smoothed G1 motion saved by ``benchmarks.experiments.g1_stages --save DIR``
+(``DIR/<recording>_smooth.npz``), applies the feasibility filter (``FeasibleConfig()``), then
+``ROUNDS`` rounds of separation (``Robot.playable``) and filter, and prints after each step the
+frames with a self-contact (as ``benchmarks.g1_playable`` counts them) and how far the step
+moved a joint.
+
+    python -m benchmarks.experiments.g1_separate_rounds DIR/131_01_smooth.npz [--rounds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from jaxproj import robots
+from jaxproj._internal.buckets import call_bucketed
+from jaxproj.motion.feasible import FeasibleConfig, make_feasible
+from jaxproj.motion.retarget import _playable_jit
+
+ROBOT = "unitree_g1"
+CONTACT_MM = 1.0
+
+
+def contact_frames(q: np.ndarray, robot: robots.Robot) -> int:
+    """Frames of ``(T, n_joints)`` angles with two geoms deeper than ``CONTACT_MM`` (fixed base)."""
+    model = robot.load_model("fixed")
+    data = mujoco.MjData(model)
+    adr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)])
+           for n in robot.joint_names]  # fmt: skip
+    n = 0
+    for t in range(len(q)):
+        data.qpos[adr] = q[t]
+        mujoco.mj_forward(model, data)
+        n += any(c.dist < -CONTACT_MM / 1000 for c in data.contact[: data.ncon])
+    return n
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("motion", type=Path)
+    p.add_argument("--rounds", type=int, default=5)
+    a = p.parse_args(argv)
+    robot = robots.get(ROBOT)
+    z = np.load(a.motion)
+    q, times = np.asarray(z["angles"], np.float32), np.asarray(z["times"])
+    cfg = FeasibleConfig()
+    separate = functools.partial(_playable_jit, robot=robot)
+    print(f"smoothed: {contact_frames(q, robot)} contact frames")
+    f = make_feasible(q, times, config=cfg, robot=robot)
+    print(f"filter: {contact_frames(f, robot)} contact frames, moved {np.abs(f - q).max():.2f} rad")
+    for r in range(a.rounds):
+        s = np.asarray(call_bucketed(separate, f, 1))
+        print(f"round {r}: separation {contact_frames(s, robot)} contact frames, "
+              f"moved {np.abs(s - f).max():.2f} rad", end="; ")  # fmt: skip
+        f = make_feasible(s, times, config=cfg, robot=robot)
+        print(f"filter {contact_frames(f, robot)}, moved {np.abs(f - s).max():.2f} rad")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
