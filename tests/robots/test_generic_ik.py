@@ -194,6 +194,12 @@ def test_ranges_narrow_the_box_to_the_human_branch() -> None:
     assert lo[1] == 0.0 and hi[1] == np.float32(
         UNITREE_G1.upper[UNITREE_G1.index("left_knee_joint")]
     )
+    # the yaws a person cannot turn past 45 deg: thighs and trunk (the G1's go to 158 / 150 deg)
+    yaws = ("left_hip_yaw_joint", "right_hip_yaw_joint", "waist_yaw_joint")
+    lo, hi = g1.CORRESPONDENCE.box(UNITREE_G1, yaws)
+    np.testing.assert_allclose(np.stack([lo, hi]), np.broadcast_to(
+        np.float32([[-np.pi / 4], [np.pi / 4]]), (2, 3)), rtol=1e-6)  # fmt: skip
+    assert all(UNITREE_G1.upper[UNITREE_G1.index(j)] > 2.5 for j in yaws)
 
 
 @pytest.mark.parametrize(
