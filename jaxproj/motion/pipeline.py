@@ -311,6 +311,12 @@ def motion(
     return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)
 
 
+Carried = tuple[jax.Array, jax.Array, jax.Array]
+"""``(tracked, answer, descriptor)``: what the continuity pass carries between frames: the
+last ``(n,)`` output of ``Robot.continuous_step``, the last valid ``(n,)`` projection and the
+last valid ``(m,)`` descriptor (``streaming.StreamState``)."""
+
+
 @full_precision
 def frame(
     p: AnyProjector,
@@ -319,16 +325,19 @@ def frame(
     started: jax.Array,
     positions: jax.Array,
     gains: jax.Array,
+    carried: Carried,
     *,
     n_l: int,
     n_m: int,
     bones: str | tuple[str, ...],
     mirror: bool,
     robot: Robot,
-) -> tuple[jax.Array, jax.Array, tuple[jax.Array, jax.Array, jax.Array]]:
+) -> tuple[jax.Array, jax.Array, tuple[jax.Array, jax.Array, jax.Array], Carried]:
     """One frame of the pipeline, causal (``streaming.update``'s compiled call).
 
-    Descriptor -> relaxed projection (a batch of one) -> one smoother ``step`` -> clip. The
+    Descriptor -> relaxed projection (a batch of one) -> the robot's continuity pass, one frame
+    (``Robot.continuous_step``, as ``Robot.continuous`` runs it over a motion in ``finish``;
+    the projection as it is for a robot without one) -> one smoother ``step`` -> clip. The
     first valid frame starts the smoother (``s = y``, zero trend) as ``smooth_motion`` starts
     a motion; an invalid frame leaves the state as it was (see the module doc).
 
@@ -338,19 +347,28 @@ def frame(
       started: ``()`` bool, whether a valid frame has been seen.
       positions: ``(20, 3)`` joint positions of this frame.
       gains: ``(3,)`` smoother gains.
+      carried: the continuity pass's state (``Carried``).
       n_l, n_m: ``L`` and ``M`` of the relaxed projection.
       bones, mirror: descriptor options.
-      robot: the robot (its joint limits).
+      robot: the robot (its joint limits, its continuity pass).
 
     Returns:
-      ``(angles, confidence, (level, trend, started))``: ``(n,)`` clipped driven angles, this
-      frame's ``()`` confidence (0 if invalid) and the next state.
+      ``(angles, confidence, (level, trend, started), carried)``: ``(n,)`` clipped driven
+      angles, this frame's ``()`` confidence (0 if invalid) and the next state.
     """
     d, ok = frame_descriptors(positions, None, bones=bones, mirror=mirror)  # (m,), ()
     full = FullConfig()  # unused by the relaxed projection
     r, conf = map_frames(p, d[None], method="relaxed", n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot)  # fmt: skip
-    r = r[0]
+    answer = r[0]
+    tracked, last_answer, last_d = carried
+    step = robot.continuous_step(tracked, last_answer, answer, last_d, d, bones)
+    r = jnp.where(started & ok, step, answer)  # as GenericIK.track: the first frame as it is
+    carried = (
+        jnp.where(ok, r, tracked),
+        jnp.where(ok, answer, last_answer),
+        jnp.where(ok, d, last_d),
+    )
     s_t, b_t = smoothing_step(level, trend, r, gains)
     # the first valid frame starts the smoother, as smooth_motion starts a motion
     s_t = jnp.where(started, s_t, r)
@@ -360,7 +378,7 @@ def frame(
     new_trend = jnp.where(ok, b_t, trend)
     new_started = started | ok
     out = clip_to_limits(new_level, robot)
-    return out, jnp.where(ok, conf[0], 0.0), (new_level, new_trend, new_started)
+    return out, jnp.where(ok, conf[0], 0.0), (new_level, new_trend, new_started), carried
 
 
 def playable_full(angles: jax.Array, robot: Robot) -> jax.Array:

@@ -6,6 +6,8 @@ stages as ``retarget``) in one jitted call::
     (20, 3) joint positions -> descriptor (pipeline.frame_descriptors)
       -> relaxed projection (pipeline.map_frames: projection.api.project_batch on a batch of
          one; L and M nearest landmarks)
+      -> the robot's continuity pass, one frame (Robot.continuous_step: the G1's re-chooses
+         the pose near the last output, as retarget's GenericIK.track; none for the NAO)
       -> one step of the double exponential smoother (smoothing.step, the same function the
          whole-motion smoother scans) -> clipped to the joint limits -> (n,) driven angles
 
@@ -59,12 +61,20 @@ class StreamState(NamedTuple):
       started: ``()`` bool, whether a valid frame has been seen.
       confidence: ``()`` float32, the last frame's confidence (``projection.confidence``; 0 for
         an invalid frame and before any frame); the only field an invalid frame changes.
+      tracked: ``(n,)`` float32, the continuity pass's last output (``Robot.continuous_step``;
+        for a robot without one, the last valid projection).
+      answer: ``(n,)`` float32, the last valid frame's projection.
+      descriptor: ``(m,)`` float32, the last valid frame's descriptor (how far the person's
+        limbs turned since: the pass's bound).
     """
 
     level: jax.Array
     trend: jax.Array
     started: jax.Array
     confidence: jax.Array
+    tracked: jax.Array
+    answer: jax.Array
+    descriptor: jax.Array
 
 
 def _widths(p: AnyProjector) -> tuple[int, int]:
@@ -114,14 +124,18 @@ def init(model: Model | AnyProjector, *, robot: Robot | str | None = None) -> St
     """
     p, _, _ = _projector(model)
     spec = _robot(model, robot)
-    _, n = _widths(p)
+    m, n = _widths(p)
     if n != spec.n_driven:
         raise ConfigError(f"model drives {n} joints, {spec.name} has {spec.n_driven} driven joints")
+    standing = jnp.asarray(pipeline.standing_driven(spec))
     return StreamState(
-        level=jnp.asarray(pipeline.standing_driven(spec)),
+        level=standing,
         trend=jnp.zeros((n,), jnp.float32),
         started=jnp.zeros((), jnp.bool_),
         confidence=jnp.zeros((), jnp.float32),
+        tracked=standing,
+        answer=standing,
+        descriptor=jnp.zeros((m,), jnp.float32),
     )
 
 
@@ -137,11 +151,12 @@ def _update(
     mirror: bool,
     robot: Robot,
 ) -> tuple[jax.Array, StreamState]:
-    angles, conf, (level, trend, started) = pipeline.frame(
-        p, state.level, state.trend, state.started, positions, gains,
+    carried = (state.tracked, state.answer, state.descriptor)
+    angles, conf, (level, trend, started), carried = pipeline.frame(
+        p, state.level, state.trend, state.started, positions, gains, carried,
         n_l=n_l, n_m=n_m, bones=bones, mirror=mirror, robot=robot,
     )  # fmt: skip
-    return angles, StreamState(level, trend, started, conf)
+    return angles, StreamState(level, trend, started, conf, *carried)
 
 
 _update_jit = jit(_update, static_argnames=("n_l", "n_m", "bones", "mirror", "robot"))
@@ -194,10 +209,15 @@ def update(
         or state.trend.shape != (n,)
         or state.started.shape != ()
         or state.confidence.shape != ()
+        or state.tracked.shape != (n,)
+        or state.answer.shape != (n,)
+        or state.descriptor.shape != (m,)
     ):
         raise ConfigError(
             f"state does not fit this model: level {state.level.shape}, trend "
-            f"{state.trend.shape}, started {state.started.shape} (expected ({n},), ({n},), ())"
+            f"{state.trend.shape}, started {state.started.shape}, tracked "
+            f"{state.tracked.shape}, answer {state.answer.shape}, descriptor "
+            f"{state.descriptor.shape} (expected ({n},), ({n},), (), ({n},), ({n},), ({m},))"
         )
     if len(resolve_bones(bones)) * 3 != m:
         raise ConfigError(

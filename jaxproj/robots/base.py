@@ -378,6 +378,10 @@ class Robot:
         pass over one motion's per-frame answers (the G1's: ``GenericIK.track``: each frame
         re-chosen, among poses with the same bone directions, nearest the previous output),
         applied by ``continuous`` before the smoother; ``None``: no such pass.
+      track_step: the same pass one frame at a time, for streaming: a traceable ``((n_driven,)
+        last output, (n_driven,) last valid answer, (n_driven,) this frame's answer, (m,) last
+        valid descriptor, (m,) this frame's, bones) -> (n_driven,)`` (the G1's:
+        ``GenericIK.track_step``); ``None``: no such pass. A robot with ``track`` gives both.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -408,8 +412,12 @@ class Robot:
     separate: Callable[[jax.Array], jax.Array] | None = field(default=None, compare=False)
     deviation_scale: float | None = None
     track: Callable[..., jax.Array] | None = field(default=None, compare=False)
+    track_step: Callable[..., jax.Array] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
+        if (self.track is None) != (self.track_step is None):
+            raise ConfigError(f"robot {self.name!r}: give both track and track_step or neither "
+                              "(retarget runs the one, streaming the other)")  # fmt: skip
         if not (isinstance(self.name, str) and self.name.isidentifier()):
             raise ConfigError(f"robot name must be an identifier (registry key), got {self.name!r}")
         if self.deviation_scale is not None and not (
@@ -686,6 +694,23 @@ class Robot:
         ``(T,)`` bool ``valid`` and, if given, the person's ``(T, m)`` descriptors of ``bones``:
         how far each limb turned), or returned as they are when the robot has no such pass."""
         return q if self.track is None else self.track(q, valid, d, bones)
+
+    def continuous_step(
+        self,
+        y: jax.Array,
+        q_prev: jax.Array,
+        q_t: jax.Array,
+        d_prev: jax.Array,
+        d_t: jax.Array,
+        bones: str | tuple[str, ...] = "full",
+    ) -> jax.Array:
+        """One frame of ``continuous`` (streaming): ``(n_driven,)`` last output ``y``, last
+        valid answer ``q_prev`` and this frame's answer ``q_t``, with the person's ``(m,)``
+        last valid and current descriptors of ``bones`` -> ``(n_driven,)`` this frame's output
+        (``q_t`` as it is when the robot has no such pass). Traceable."""
+        if self.track_step is None:
+            return q_t
+        return self.track_step(y, q_prev, q_t, d_prev, d_t, bones)
 
     def from_columns(self, names: Sequence[str], columns: np.ndarray) -> np.ndarray:
         """``(T, len(names))`` angle columns placed by joint name into ``(T, n_joints)`` float32

@@ -223,3 +223,39 @@ def test_init_state(projector):
     np.testing.assert_array_equal(np.asarray(s.trend), np.zeros(10, np.float32))
     assert not bool(s.started) and float(s.confidence) == 0.0
     assert PAPER_SMOOTHING == SmoothingParams()  # update's default gains are the paper's
+
+
+def test_a_robot_with_a_continuity_pass_streams_it_as_retarget_runs_it(recordings):
+    """The G1 (``Robot.track_step``): streamed frame by frame, each frame's projection goes
+    through the same continuity pass that ``retarget`` runs over the whole motion
+    (``Robot.continuous``), carried in the state. A projector whose landmarks hold random G1
+    poses makes the raw answers jump as the person moves: the pass must hold them."""
+    from jaxproj import robots
+
+    g1 = robots.get("unitree_g1")
+    cfg = engine.BuildConfig(chains="whole", k=16, hidden=16, lam=1e-3, input_scale=0.5,
+                             robot="unitree_g1")  # fmt: skip
+    train = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1]), bones=cfg.bones)
+    human = np.unique(train, axis=0)[::40][:60].astype(np.float32)
+    rng = np.random.default_rng(0)
+    poses = rng.uniform(g1.lower_driven, g1.upper_driven, (len(human), g1.n_driven))
+    proj = engine.build_from_landmarks(human, poses.astype(np.float32), cfg,
+                                       lower=g1.lower_driven, upper=g1.upper_driven)  # fmt: skip
+    model = engine.Model(projector=proj, config=cfg, bandwidth=(0.0,),
+                         counts=(np.ones(len(human)),), n_train=len(human))  # fmt: skip
+    pos = recordings[0][:16]
+    state = streaming.init(model)
+    tracked, answers = [], []
+    for frame in pos:
+        _, state = streaming.update(model, state, frame, n_l=4, n_m=4)
+        tracked.append(np.asarray(state.tracked))
+        answers.append(np.asarray(state.answer))
+    tracked, answers = np.stack(tracked), np.stack(answers)
+    d = np.asarray(descriptor(pos, cfg.bones)[0])
+    whole = np.asarray(jax.jit(lambda q, d: g1.continuous(q, np.ones(len(q), bool), d, cfg.bones))(
+        answers, d))  # fmt: skip
+    np.testing.assert_allclose(tracked, whole, atol=2e-4)
+    # the raw answers jump between random poses; the pass moves a joint at most
+    # TrackConfig.min_step (15 deg) or 1.8 times the limb's turn a frame
+    assert np.abs(np.diff(answers, axis=0)).max() > np.radians(60)
+    assert np.abs(np.diff(tracked, axis=0)).max() < np.abs(np.diff(answers, axis=0)).max() / 2

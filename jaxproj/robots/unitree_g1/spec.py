@@ -53,6 +53,7 @@ from jax.typing import ArrayLike
 from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
+from jaxproj.human.skeleton import resolve_bones
 from jaxproj.robots.base import Chain, Figure, Mjcf, Robot
 from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
 from jaxproj.robots.unitree_g1 import robot
@@ -242,6 +243,20 @@ def track(
     return generic_ik().track(q, valid, d, bones)
 
 
+def track_step(
+    y: jax.Array,
+    q_prev: jax.Array,
+    q_t: jax.Array,
+    d_prev: jax.Array,
+    d_t: jax.Array,
+    bones: str | tuple[str, ...] = "full",
+) -> jax.Array:
+    """``Robot.track_step`` of the G1: one frame of ``track`` (``GenericIK.track_step``) from
+    the last output, the last valid answer, this frame's answer (``(21,)`` each) and the
+    person's last valid and current ``(m,)`` descriptors of ``bones``. Traceable."""
+    return generic_ik().track_step(y, q_prev, q_t, None, (d_prev, d_t, resolve_bones(bones)))
+
+
 def separate(q: jax.Array) -> jax.Array:
     """``Robot.separate`` of the G1: ``(..., 21)`` driven angles -> the same with the
     collision pairs (``collision_pairs="mjcf"``) pushed ``IK_CONFIG.margin`` apart
@@ -325,6 +340,7 @@ UNITREE_G1 = Robot(
     traced_ik=traced_ik,
     separate=separate,
     track=track,
+    track_step=track_step,
     loose_joints=LOOSE_JOINTS,
     deviation_scale=DEVIATION_SCALE,
 )
