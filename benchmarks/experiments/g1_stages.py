@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--save", type=Path, default=None, help="folder: each variant's angles (NPZ)")
     a = p.parse_args(argv)
     g1 = robots.get(gp.ROBOT)
-    loose = dataclasses.replace(g1, track=None)
+    loose = dataclasses.replace(g1, track=None, track_step=None)
     variants = {
         "per_frame": (loose, None, None),
         "track": (g1, None, None),
