@@ -136,6 +136,8 @@ def _fields() -> dict:
         ({"loose_joints": ("waist",)}, "loose_joints"),
         ({"exports": {".csv": naoqi.EXPORT}}, "exports"),
         ({"mjcf": "toy.xml"}, "mjcf must be an Mjcf"),
+        ({"track": lambda q, v, d, b: q}, "both track and track_step or neither"),
+        ({"track_step": lambda y, p, q, a, b, c: q}, "both track and track_step or neither"),
     ],
 )
 def test_validation_names_what_to_change(change: dict, message: str) -> None:
