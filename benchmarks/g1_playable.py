@@ -134,13 +134,30 @@ def flips(motion, bones: np.ndarray, ok: np.ndarray, robot: robots.Robot) -> dic
     }
 
 
+def qpos_addresses(model: mujoco.MjModel, robot: robots.Robot) -> list[int]:
+    """``qpos`` index of each of ``robot.joint_names`` in ``model``."""
+    return [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)])
+            for n in robot.joint_names]  # fmt: skip
+
+
+def contact_pairs(model: mujoco.MjModel, data: mujoco.MjData) -> list[str]:
+    """``"geom - geom"`` of every contact of the last ``mj_forward`` deeper than
+    ``CONTACT_MM`` (names sorted within a pair)."""
+    out = []
+    for c in data.contact[: data.ncon]:
+        if c.dist < -CONTACT_MM / 1000:
+            b1 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, c.geom1)
+            b2 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, c.geom2)
+            out.append(" - ".join(sorted((str(b1), str(b2)))))
+    return out
+
+
 def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robot: robots.Robot,
              positions: np.ndarray) -> dict:  # fmt: skip
     """Contacts, lean, sole pitch and arm directions from the robot's MJCF (fixed base)."""
     model = robot.load_model("fixed")
     data = mujoco.MjData(model)
-    qadr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)])
-            for n in robot.joint_names]  # fmt: skip
+    qadr = qpos_addresses(model, robot)
     bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (TORSO, *FEET)}
     site = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n)
             for s in ("left", "right") for a, b in ARM_SITES.values()
@@ -155,13 +172,9 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
     for t in range(t_n):
         data.qpos[qadr] = motion.angles[t]
         mujoco.mj_forward(model, data)
-        for c in data.contact[: data.ncon]:
-            if c.dist < -CONTACT_MM / 1000:
-                contact[t] = True
-                b1 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, c.geom1)
-                b2 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, c.geom2)
-                key = " - ".join(sorted((str(b1), str(b2))))
-                pairs[key] = pairs.get(key, 0) + 1
+        for key in contact_pairs(model, data):
+            contact[t] = True
+            pairs[key] = pairs.get(key, 0) + 1
         r_t = data.xmat[bid[TORSO]].reshape(3, 3)
         leans, rolls = [], []
         for f in FEET:

@@ -19,26 +19,23 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from benchmarks import g1_playable as gp
 from jaxproj import robots
 from jaxproj._internal.buckets import call_bucketed
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
 from jaxproj.motion.retarget import _playable_jit
 
-ROBOT = "unitree_g1"
-CONTACT_MM = 1.0
-
 
 def contact_frames(q: np.ndarray, robot: robots.Robot) -> int:
-    """Frames of ``(T, n_joints)`` angles with two geoms deeper than ``CONTACT_MM`` (fixed base)."""
+    """Frames of ``(T, n_joints)`` angles with a self-contact as ``g1_playable`` counts them."""
     model = robot.load_model("fixed")
     data = mujoco.MjData(model)
-    adr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)])
-           for n in robot.joint_names]  # fmt: skip
+    adr = gp.qpos_addresses(model, robot)
     n = 0
     for t in range(len(q)):
         data.qpos[adr] = q[t]
         mujoco.mj_forward(model, data)
-        n += any(c.dist < -CONTACT_MM / 1000 for c in data.contact[: data.ncon])
+        n += bool(gp.contact_pairs(model, data))
     return n
 
 
@@ -47,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("motion", type=Path)
     p.add_argument("--rounds", type=int, default=5)
     a = p.parse_args(argv)
-    robot = robots.get(ROBOT)
+    robot = robots.get(gp.ROBOT)
     z = np.load(a.motion)
     q, times = np.asarray(z["angles"], np.float32), np.asarray(z["times"])
     cfg = FeasibleConfig()
