@@ -377,6 +377,13 @@ def _per_motion(
     return np.asarray(filled), np.asarray(scored), lengths
 
 
+def _accel_bound(config: feasible.FeasibleConfig, robot: Robot) -> float | list[float]:
+    """The acceleration bound the filter applied to ``robot`` (rad/s^2): one number where it
+    is the same on every joint, else the ``(n_joints,)`` list."""
+    limits = config.accel_limits(robot)
+    return float(limits[0]) if np.all(limits == limits[0]) else limits.tolist()
+
+
 def _motion_times(data: EvalData, t_max: int) -> np.ndarray:
     """``(S, T_max)`` seconds of each motion's frames; padding continues at the last step."""
     lengths = np.diff(data.offsets)
@@ -458,7 +465,7 @@ def feasibility_block(
         before_points = metrics.arm_points(before, robot=spec)
     hand = metrics.arm_errors(after_points, before_points).hand
     return {
-        "config": dataclasses.asdict(config),
+        "config": dataclasses.asdict(config) | {"accel": _accel_bound(config, spec)},
         "before": _limits_summary(full, times, lengths, spec),
         "after": _limits_summary(safe, times, lengths, spec),
         "after_errors": summarize_errors(

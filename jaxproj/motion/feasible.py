@@ -19,7 +19,10 @@ while staying as close as it can to it:
   (``Robot.velocity_limits``), the default before rated speeds (``jaxproj retarget --speeds
   no-load``);
 * acceleration ``|v_t - v_{t-1}| / ((dt_t + dt_{t-1}) / 2) <= accel`` (``v_t`` the speed of
-  step ``t``), a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint).
+  step ``t``) per joint: the robot's own ``Robot.acceleration_limits`` where it gives them (the
+  G1's: each joint's peak torque over the inertia it moves, ``robots.mjcf.torque_accelerations``),
+  else a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint; ``FeasibleConfig.accel``
+  sets one bound for every joint of any robot).
   The NAO's documentation gives no acceleration limit; the bound is ours: full speed in ~0.1 s,
   so the speed limit is never reached by a jump. Chosen on the training subjects (MSR Action3D
   1,3,5,7,9, arm actions, relaxed projection, smoothed): median M_avg against the IK 3.42 deg at
@@ -87,7 +90,8 @@ from jaxproj.io.motion_files import EXPORT_MARGIN
 from jaxproj.robots import Robot, clip_coupled
 
 ACCEL_LIMIT = 80.0
-"""rad/s^2: the acceleration bound of ``FeasibleConfig`` on every joint (ours; see module doc)."""
+"""rad/s^2: the acceleration bound on every joint of a robot without ``acceleration_limits``
+(the NAO; ours, see the module doc)."""
 
 SPEED_FRACTIONS: dict[str, float] = {"rated": 0.99, "no-load": 0.9}
 """``FeasibleConfig.speed_fraction`` when left out, per ``speeds``: 99 % of the rated speeds, 90 %
@@ -113,7 +117,9 @@ class FeasibleConfig:
         speeds at the motors' nominal torque) or ``"no-load"`` (the theoretical maxima).
       speed_fraction: fraction of those speeds allowed, in (0, 1]; ``None``:
         ``SPEED_FRACTIONS[speeds]`` (the constructed config holds the number).
-      accel: acceleration bound, rad/s^2, every joint.
+      accel: acceleration bound, rad/s^2, every joint; ``None`` (default): the robot's
+        ``acceleration_limits``, or ``ACCEL_LIMIT`` for a robot without them
+        (``accel_limits``).
       straight_elbow: ``(lo, hi)`` rad of ``|elbow roll|``: below ``lo`` the elbow yaw target is
         the held yaw, above ``hi`` it is the input's, smoothstep in between.
       wrap_band: rad from an elbow yaw limit within which a target counts as "at that end".
@@ -127,7 +133,7 @@ class FeasibleConfig:
 
     speeds: str = "rated"
     speed_fraction: float | None = None
-    accel: float = ACCEL_LIMIT
+    accel: float | None = None
     straight_elbow: tuple[float, float] = (math.radians(5.0), math.radians(20.0))
     wrap_band: float = math.radians(5.0)
     wrap_patience: float = 0.3
@@ -141,7 +147,7 @@ class FeasibleConfig:
             object.__setattr__(self, "speed_fraction", SPEED_FRACTIONS[self.speeds])
         if not 0.0 < float(cast(float, self.speed_fraction)) <= 1.0:
             raise ConfigError(f"speed_fraction={self.speed_fraction} must lie in (0, 1]")
-        if not (np.isfinite(self.accel) and float(self.accel) > 0.0):
+        if self.accel is not None and not (np.isfinite(self.accel) and float(self.accel) > 0.0):
             raise ConfigError(f"accel={self.accel} must be a positive number of rad/s^2")
         lo, hi = (float(x) for x in self.straight_elbow)
         if not 0.0 <= lo < hi:
@@ -153,10 +159,19 @@ class FeasibleConfig:
         if not float(self.wrap_patience) >= 0.0:
             raise ConfigError(f"wrap_patience={self.wrap_patience} must be >= 0 s")
 
+    def accel_limits(self, robot: Robot) -> np.ndarray:
+        """``(n_joints,)`` float32 rad/s^2: the acceleration bound per joint of ``robot``
+        (``accel`` on every joint, else ``robot.acceleration_limits``, else ``ACCEL_LIMIT``)."""
+        if self.accel is not None:
+            return np.full(robot.n_joints, self.accel, np.float32)
+        if robot.acceleration_limits is not None:
+            return np.asarray(robot.acceleration_limits, np.float32)
+        return np.full(robot.n_joints, ACCEL_LIMIT, np.float32)
+
     def params(self, robot: Robot) -> jax.Array:
         """``(5, n_joints)`` float32 rows of ``robot``: lower and upper (``limit_margin``
         inside), speed limit
-        (``speed_fraction * robot.speed_limits(speeds)``), accel, and
+        (``speed_fraction * robot.speed_limits(speeds)``), accel (``accel_limits``), and
         (first 4 columns) ``straight_elbow`` lo / hi, ``wrap_band``, ``wrap_patience``: the
         traced argument of the filter.
 
@@ -175,7 +190,7 @@ class FeasibleConfig:
                     robot.lower + np.float32(self.limit_margin),
                     robot.upper - np.float32(self.limit_margin),
                     vmax,
-                    np.full(robot.n_joints, self.accel, np.float32),
+                    self.accel_limits(robot),
                     extra,
                 ]
             ),
@@ -184,7 +199,8 @@ class FeasibleConfig:
 
 
 DEFAULT_FEASIBLE = FeasibleConfig()
-"""The defaults: 99 % of the rated speeds, 80 rad/s^2, zero-phase."""
+"""The defaults: 99 % of the rated speeds, the robot's acceleration limits (80 rad/s^2 where it
+has none), zero-phase."""
 
 
 def _smoothstep(x: jax.Array, lo: jax.Array, hi: jax.Array) -> jax.Array:
@@ -464,7 +480,9 @@ def feasibility_report(
       against the rated speeds, ``robot.speed_limits("rated")``); ``max_step_deg`` and
       ``max_step_joint`` (largest frame-to-frame change); ``steps_over_30deg``;
       ``accel_violation_frames`` (acceleration above
-      ``config.accel`` by more than 1 %); ``max_accel`` (rad/s^2); ``limit_violation_frames``
+      ``config.accel_limits(robot)`` by more than 1 % on some joint); ``max_accel`` (rad/s^2)
+      and ``max_accel_ratio`` (the largest acceleration over its joint's bound);
+      ``limit_violation_frames``
       (a joint outside ``[lower, upper]``, or a follower outside its coupled range at its
       leader's angle (``Robot.coupled_limits``), by more than 1e-6 rad).
     """
@@ -496,10 +514,12 @@ def feasibility_report(
     if len(step) > 1:
         v = step / dt
         acc = np.abs(np.diff(v, axis=0)) / (0.5 * (dt[1:] + dt[:-1]))
-        out["accel_violation_frames"] = int((acc > 1.01 * config.accel).any(axis=1).sum())
+        bound = config.accel_limits(robot).astype(np.float64)
+        out["accel_violation_frames"] = int((acc > 1.01 * bound).any(axis=1).sum())
         out["max_accel"] = float(acc.max())
+        out["max_accel_ratio"] = float((acc / bound).max())
     else:
-        out["accel_violation_frames"], out["max_accel"] = 0, 0.0
+        out["accel_violation_frames"], out["max_accel"], out["max_accel_ratio"] = 0, 0.0, 0.0
     outside = np.maximum(robot.lower - q, q - robot.upper)
     for limit in robot.coupled_limits:
         lead, j = q[:, robot.index(limit.by)], robot.index(limit.joint)

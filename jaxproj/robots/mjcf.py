@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from jaxproj.errors import ConfigError, InputError
 
@@ -86,3 +87,56 @@ def remove_subtrees(spec: mujoco.MjSpec, roots: Sequence[str], root_body: str) -
             spec.delete(ex)
     for name in roots:
         spec.delete(spec.body(name))
+
+
+def torque_accelerations(
+    model: mujoco.MjModel,
+    joint_names: Sequence[str],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    samples: int = 4096,
+    seed: int = 0,
+) -> np.ndarray:
+    """Per joint, the acceleration its motor's peak torque gives the limb it moves at that
+    limb's most inertial posture: ``tau_max / max_q M_jj(q)`` (rad/s^2), ``M`` the joint-space
+    inertia (armature included) of ``model`` as compiled (a fixed base: the limb alone),
+    ``tau_max`` the larger end of the joint's actuator ``forcerange``, the maximum over
+    ``samples`` postures drawn uniformly within ``[lower, upper]`` (``seed``) and the zero
+    posture. Gravity, the other joints' coupling and a standing robot's own weight are left
+    out: an upper bound on what the joint can do, not what it does under load.
+
+    Args:
+      model: a compiled MJCF with one actuator (with a ``forcerange``) per joint.
+      joint_names: ``(n,)`` the joints, in the order of the answer.
+      lower, upper: ``(n,)`` their limits, rad.
+
+    Returns:
+      ``(n,)`` float32 rad/s^2.
+
+    Raises:
+      ConfigError: a joint the model lacks, or without an actuator with a torque range.
+    """
+    adr, dof, tau = [], [], []
+    for name in joint_names:
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if jid < 0:
+            raise ConfigError(f"the MJCF has no joint named {name!r}")
+        acts = [a for a in range(model.nu) if int(model.actuator_trnid[a, 0]) == jid]
+        peak = max((float(np.max(np.abs(model.actuator_forcerange[a]))) for a in acts), default=0)
+        if not peak > 0:
+            raise ConfigError(f"joint {name!r}: no actuator with a forcerange (peak torque)")
+        adr.append(int(model.jnt_qposadr[jid]))
+        dof.append(int(model.jnt_dofadr[jid]))
+        tau.append(peak)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(lower, np.float64), np.asarray(upper, np.float64)
+    poses = np.concatenate([np.zeros((1, len(adr))), rng.uniform(lo, hi, (samples, len(adr)))])
+    full = np.zeros((model.nv, model.nv))
+    most = np.zeros(len(adr))
+    for q in poses:
+        data.qpos[adr] = q
+        mujoco.mj_forward(model, data)
+        mujoco.mj_fullM(model, data, full)
+        most = np.maximum(most, full[dof, dof])
+    return (np.asarray(tau) / most).astype(np.float32)

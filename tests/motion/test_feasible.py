@@ -9,11 +9,13 @@ import pytest
 
 from jaxproj.errors import ConfigError
 from jaxproj.motion.feasible import (
+    ACCEL_LIMIT,
     DEFAULT_FEASIBLE,
     FeasibleConfig,
     feasibility_report,
     make_feasible,
 )
+from jaxproj import robots
 from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
 
@@ -55,7 +57,7 @@ def test_output_respects_limits_speed_and_acceleration(zero_phase: bool, fps: fl
     assert (speed <= cfg.speed_fraction * robot.RATED_SPEEDS * (1 + 1e-4) + 1e-4).all()
     assert (speed <= robot.RATED_SPEEDS).all() and rep["rated_speed_ratio"] <= 1.0
     assert before["rated_speed_ratio"] > 1.0
-    assert rep["accel_violation_frames"] == 0 and rep["max_accel"] <= cfg.accel * 1.01
+    assert rep["accel_violation_frames"] == 0 and rep["max_accel"] <= ACCEL_LIMIT * 1.01
     # joints that never move are left exactly as they are
     still = np.setdiff1d(np.arange(len(robot.JOINT_NAMES)), DRIVEN)
     np.testing.assert_array_equal(out[:, still], q[:, still])
@@ -173,7 +175,7 @@ def test_irregular_time_steps_are_respected() -> None:
     out = make_feasible(q, times, robot=NAO_H25)
     rep = feasibility_report(out, times, robot=NAO_H25)
     assert rep["speed_violation_frames"] == 0 and rep["limit_violation_frames"] == 0
-    assert rep["max_accel"] <= DEFAULT_FEASIBLE.accel * 1.01
+    assert rep["max_accel"] <= ACCEL_LIMIT * 1.01
 
 
 def test_bad_arguments_raise_config_errors() -> None:
@@ -196,3 +198,29 @@ def test_bad_arguments_raise_config_errors() -> None:
                {"wrap_band": -0.1}, {"wrap_patience": -1.0}):  # fmt: skip
         with pytest.raises(ConfigError):
             FeasibleConfig(**kw)
+
+
+def test_a_robots_own_acceleration_limits_bound_each_of_its_joints() -> None:
+    g1 = robots.get("unitree_g1")
+    assert (DEFAULT_FEASIBLE.accel_limits(NAO_H25) == ACCEL_LIMIT).all()  # none of its own
+    np.testing.assert_array_equal(DEFAULT_FEASIBLE.accel_limits(g1), g1.acceleration_limits)
+    assert (FeasibleConfig(accel=50.0).accel_limits(g1) == 50.0).all()  # one bound: every joint
+    rng = np.random.default_rng(0)
+    t = 90
+    q = np.tile(g1.standing, (t, 1)).astype(np.float32)
+    idx = g1.driven_index
+    lo, hi = g1.lower[idx], g1.upper[idx]
+    q[:, idx] = rng.uniform(lo, hi, size=(t, len(idx))) * (rng.random((t, 1)) < 0.2)
+    q[:, idx] = np.clip(np.cumsum(q[:, idx], axis=0) * 0.3, lo, hi)
+    times = np.arange(t) / 30.0
+    out = make_feasible(q, times, robot=g1)
+    v = np.diff(out.astype(np.float64), axis=0) * 30.0
+    acc = np.abs(np.diff(v, axis=0)) * 30.0
+    bound = g1.acceleration_limits.astype(np.float64)
+    assert (acc <= 1.01 * bound).all()
+    rep = feasibility_report(out, times, robot=g1)
+    assert rep["accel_violation_frames"] == 0 and rep["max_accel_ratio"] <= 1.01
+    # per joint, not one number: the waist stays under the NAO's 80 while an arm goes past it
+    waist = [g1.index(n) for n in ("waist_roll_joint", "waist_pitch_joint")]
+    arm = [g1.index(n) for n in ("left_elbow_joint", "right_elbow_joint")]
+    assert acc[:, waist].max() <= 1.01 * 30.0 and acc[:, arm].max() > ACCEL_LIMIT

@@ -278,3 +278,15 @@ def test_playable_clips_then_separates_then_clips(toy: Robot) -> None:
     out = np.asarray(pipeline.clip_to_limits(q, moved))
     np.testing.assert_array_equal(seen[0], toy.clip_driven(q))  # separate sees clipped angles
     np.testing.assert_array_equal(out, toy.clip_driven(toy.clip_driven(q) - 0.05))
+
+
+def test_g1_acceleration_limits_are_its_torques_over_its_inertias() -> None:
+    from jaxproj.robots.mjcf import torque_accelerations
+
+    g1 = robots.get("unitree_g1")
+    assert g1.acceleration_limits is not None and NAO_H25.acceleration_limits is None
+    got = torque_accelerations(g1.load_model("fixed"), g1.joint_names, g1.lower, g1.upper)
+    # the table: the smaller side, rounded down (so never above what the physics gives)
+    assert (g1.acceleration_limits <= got).all() and (got - g1.acceleration_limits < 2.0).all()
+    # the bound of a joint falls with what it carries: the waist (the upper body) < the elbow
+    assert got[g1.index("waist_pitch_joint")] < got[g1.index("left_elbow_joint")] / 10

@@ -88,6 +88,25 @@ VELOCITY_LIMITS = np.array([_row(n)[2] for n in JOINT_NAMES], np.float32)
 """(29,) maximum joint speeds, rad/s (Unitree's URDF, the module doc; no rated speeds published:
 the rated speeds are ``base.RATED_FRACTION`` of these)."""
 
+_ACCEL: dict[str, float] = {
+    "hip_pitch": 92.0, "hip_roll": 163.0, "hip_yaw": 342.0, "knee": 807.0,
+    "ankle_pitch": 4368.0, "ankle_roll": 6334.0,
+    "shoulder_pitch": 133.0, "shoulder_roll": 144.0, "shoulder_yaw": 501.0, "elbow": 577.0,
+    "wrist_roll": 2139.0, "wrist_pitch": 406.0, "wrist_yaw": 630.0,
+    "waist_yaw": 85.0, "waist_roll": 27.0, "waist_pitch": 29.0,
+}  # fmt: skip
+ACCELERATION_LIMITS = np.array(
+    [_ACCEL[n.removesuffix("_joint").removeprefix("left_").removeprefix("right_")]
+     for n in JOINT_NAMES], np.float32,
+)  # fmt: skip
+"""(29,) rad/s^2: each joint's peak torque (Unitree's URDF, the fact sheet's table) over the
+largest joint-space inertia it moves (this MJCF's masses and armatures, fixed base, 4,096
+postures within the limits): ``jaxproj.robots.mjcf.torque_accelerations``, the smaller
+of the two sides rounded down to whole rad/s^2 (``tests/robots/test_robots.py`` recomputes
+them). An upper bound (no gravity, no
+load): the waist moves the whole upper body (27-85 rad/s^2), the ankles almost nothing. The
+feasibility filter's bound for the G1 (``FeasibleConfig.accel`` left out)."""
+
 STANDING_POSTURE = np.zeros(len(JOINT_NAMES), np.float32)
 """(29,) zero angles: legs straight, upper arms hanging, elbows bent 90 deg (forearms forward),
 wrists straight; inside every limit."""

@@ -336,6 +336,7 @@ UNITREE_G1 = Robot(
     chains=CHAINS,
     ik=solve_driven,
     velocity_limits=robot.VELOCITY_LIMITS,
+    acceleration_limits=robot.ACCELERATION_LIMITS,
     mjcf=MJCF,
     traced_ik=traced_ik,
     separate=separate,
