@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from jaxproj import robots
 from jaxproj.errors import ConfigError
 from jaxproj.motion.feasible import (
     ACCEL_LIMIT,
@@ -15,7 +16,6 @@ from jaxproj.motion.feasible import (
     feasibility_report,
     make_feasible,
 )
-from jaxproj import robots
 from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
 
