@@ -6,9 +6,12 @@
 (``feasible.feasibility_report``: rated-speed ratio, acceleration above the bound the variant
 judged by):
 
-* ``filter_sep_filter``: filter -> separation -> filter (``retarget`` before this experiment);
-* ``filter_sep``: filter -> separation (the separation last);
-each with the acceleration bound ``N`` rad/s^2 on every joint (``_a<N>``, ``--accels``).
+stage orders (``--orders``, ``f`` the filter, ``s`` the separation): ``fsf`` filter ->
+separation -> filter (``retarget`` before this experiment); ``fs`` (the separation last);
+``fsfs`` (two rounds);
+each with the acceleration bound ``N`` rad/s^2 on every joint (``_a<N>``, ``--accels``) or the
+robot's own (``_arobot``, ``Robot.acceleration_limits``). The separation is
+``pipeline.playable_full``: ``Robot.playable_motion``, frame by frame in time order.
 
     python -m benchmarks.experiments.g1_last_stage [FILES...] [--data DIR] [--json OUT] [--save DIR]
 """
@@ -38,7 +41,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("files", nargs="*", type=Path)
     p.add_argument("--data", type=Path, default=None)
     p.add_argument("--json", default=None)
-    p.add_argument("--accels", default="80,200,400")
+    p.add_argument("--accels", default="robot,80", help="bounds, rad/s^2, or robot's own")
+    p.add_argument("--orders", default="fs,fsf", help="stages after smoothing: f filter, s sep")
     p.add_argument("--save", type=Path, default=None, help="folder: the smoothed angles (NPZ)")
     a = p.parse_args(argv)
     g1 = robots.get(gp.ROBOT)
@@ -48,10 +52,11 @@ def main(argv: list[str] | None = None) -> int:
         return np.asarray(call_bucketed(functools.partial(_playable_jit, robot=robot), q, 1))
 
     variants: dict[str, tuple[robots.Robot, FeasibleConfig, str]] = {}
-    for acc in (float(x) for x in a.accels.split(",")):
-        cfg = FeasibleConfig(accel=acc)
-        variants[f"filter_sep_filter_a{acc:g}"] = (g1, cfg, "fsf")
-        variants[f"filter_sep_a{acc:g}"] = (g1, cfg, "fs")
+    for acc in a.accels.split(","):
+        cfg = FeasibleConfig(accel=None if acc == "robot" else float(acc))
+        for order in a.orders.split(","):
+            name = "_".join({"f": "filter", "s": "sep"}[c] for c in order)
+            variants[f"{name}_a{acc}"] = (g1, cfg, order)
     rows = []
     for f in a.files or gp.default_files(a.data):
         rec = output_rate(read_skeleton(f), "auto")
@@ -64,10 +69,12 @@ def main(argv: list[str] | None = None) -> int:
                      times=res.times, positions=rec.positions)  # fmt: skip
         bones, ok, frames = gp._bones(np.asarray(rec.positions, np.float32))
         for name, (robot, cfg, order) in variants.items():
-            q = make_feasible(smooth, res.times, config=cfg, robot=robot)
-            q = separate(q, robot)
-            if order == "fsf":
-                q = make_feasible(q, res.times, config=cfg, robot=robot)
+            q = smooth
+            for stage in order:
+                if stage == "f":
+                    q = make_feasible(q, res.times, config=cfg, robot=robot)
+                else:
+                    q = separate(q, robot)
             motion = Motion(q, res.times, res.valid, rec.positions, robot=g1)
             r = {"file": f.name, "variant": name}
             fl = gp.flips(motion, bones, ok, g1)

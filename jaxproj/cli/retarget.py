@@ -260,8 +260,8 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"  speed-limit frames {before['speed_violation_frames']} -> "
         f"{after['speed_violation_frames']}, max step {before['max_step_deg']:.1f} -> "
-        f"{after['max_step_deg']:.1f} deg, max accel {before['max_accel']:.0f} -> "
-        f"{after['max_accel']:.0f} rad/s^2, max speed / rated {before['rated_speed_ratio']:.2f} "
+        f"{after['max_step_deg']:.1f} deg, max accel / bound {before['max_accel_ratio']:.2f} -> "
+        f"{after['max_accel_ratio']:.2f}, max speed / rated {before['rated_speed_ratio']:.2f} "
         f"-> {after['rated_speed_ratio']:.2f} [{label}]"
     )
     if result.valid_share < MIN_VALID_SHARE:

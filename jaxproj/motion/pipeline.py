@@ -14,13 +14,17 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``) and
                         its coupled ranges (``Robot.coupled_limits``: the NAO's head envelope),
                         and out of self-collision where the robot says how (``Robot.separate``:
-                        the G1's; ``Robot.playable`` does all three)
+                        the G1's; ``Robot.playable`` does all three; over a motion
+                        ``Robot.playable_motion``: each frame's separation also searched from
+                        the previous frame's answer)
     stand_if_lost       a motion with no valid frame -> the robot's standing posture
     feasible            ``feasible.make_feasible`` on the full configuration (host side: it
                         resamples irregular times on a grid before its own jitted filter)
-    playable_full       after the filter, ``Robot.playable`` once more and the filter again
+    playable_full       after the filter, ``Robot.playable_motion`` once more, last
                         (``retarget``): the filter moves joints, and a contact it brings back
-                        is pushed apart; the second filter keeps its bounds for the output
+                        is pushed apart (what is written is free of self-contact; the
+                        separation's small moves can exceed the filter's bounds on a few
+                        frames, which ``retarget``'s report counts)
 
 ``finish`` composes track -> fill -> smooth -> clip -> stand for one motion (``track``:
 ``Robot.continuous``, the robot's continuity pass over the per-frame answers, where it has one; the
@@ -256,7 +260,7 @@ def finish(
     filled = q
     if gains is not None:
         q = smooth_any(q, valid, length, gains, smoother)
-    q = clip_to_limits(q, robot)
+    q = robot.playable_motion(q)  # clip_to_limits over the motion, in time order
     if standing == "last":
         q = stand_if_lost(q, valid, robot)
     return filled, q
@@ -382,13 +386,14 @@ def frame(
 
 
 def playable_full(angles: jax.Array, robot: Robot) -> jax.Array:
-    """``(..., n_joints)`` configurations -> the same with the driven joints made playable
-    (``Robot.playable``: clipped, and out of self-collision where the robot has ``separate``),
-    the others as given: the last stage of ``retarget`` after the feasibility filter, which
-    moves joints and so could bring a contact back."""
+    """One motion's ``(T, n_joints)`` configurations -> the same with the driven joints made
+    playable (``Robot.playable_motion``: clipped, and out of self-collision where the robot has
+    ``separate``, frame by frame in time order), the others as given: the last stage of
+    ``retarget`` after the feasibility filter, which moves joints and so could bring a contact
+    back."""
     q = jnp.asarray(angles, jnp.float32)
     idx = robot.driven_index
-    return q.at[..., idx].set(robot.playable(q[..., idx]))
+    return q.at[:, idx].set(robot.playable_motion(q[:, idx]))
 
 
 def standing_driven(robot: Robot) -> np.ndarray:

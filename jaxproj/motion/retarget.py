@@ -30,8 +30,11 @@ known here, so it need not lag), or the paper's causal double exponential smooth
 (``jaxproj.motion.smoothing``, ``smoothing=PAPER_SMOOTHING``), with each frame's own time step;
 the result is clipped to the joint limits (a smoother can overshoot them). With ``feasible``
 (off by default here; on by default for what ``jaxproj retarget`` writes for the robot) the
-motion last goes through ``jaxproj.motion.feasible``: joint limits, speed limits and an
-acceleration bound.
+motion then goes through ``jaxproj.motion.feasible``: joint limits, speed limits and an
+acceleration bound; for a robot with ``Robot.separate`` (the G1) a last pass pushes apart the
+self-contacts the filter brought back (``pipeline.playable_full``), so what is written has
+none; its small moves can go past the filter's bounds on a few frames (the command line's
+report is of what is written).
 
 The head: the neck bone's forward tilt that means "head level" depends on the capture set-up
 (the Kinect's Head joint sits differently under another camera height and pitch), so by default
@@ -301,12 +304,11 @@ def retarget(
         unfiltered = angles
         angles = make_feasible(angles, stamps, config=feasible, robot=spec)
         if spec.separate is not None:
-            # the filter moves joints, and a contact can come back: pushed apart again, then
-            # the filter once more, so that its bounds hold for what is written
+            # the filter moves joints, and a contact can come back: pushed apart again, last,
+            # frame by frame in time order (the rows padded at the end: a causal pass)
             angles = np.asarray(
                 call_bucketed(functools.partial(_playable_jit, robot=spec), angles, 1)
             )
-            angles = make_feasible(angles, stamps, config=feasible, robot=spec)
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
         conf = rescale(conf, spec.deviation_scale or DEVIATION_SCALE, model.confidence_scale)
     conf_t = np.asarray(conf, np.float32)[:t]

@@ -367,9 +367,11 @@ class Robot:
       coupled_limits: ranges of joints that depend on another joint's angle (``CoupledLimit``,
         e.g. the NAO's head anti-collision envelope), applied by ``clip`` / ``clip_driven``
         (``clip_coupled``); a follower is limited by one leader, never itself a leader.
-      separate: a traceable ``(..., n_driven) -> (..., n_driven)`` function that moves a pose
-        out of the robot's self-collisions, changing it as little as it can (the G1's:
-        ``GenericIK.separate``), applied by ``playable`` after the clip; ``None``: no such step.
+      separate: a traceable ``separate(q, start=None)``: ``(..., n_driven) -> (..., n_driven)``
+        that moves a pose out of the robot's self-collisions, changing it as little as it can,
+        searching from ``q`` and, given a ``start`` of ``q``'s shape, from there too (the
+        G1's: ``GenericIK.separate``), applied by ``playable`` after the clip (and by
+        ``playable_motion`` from the previous frame's answer); ``None``: no such step.
       deviation_scale: the ``projection.confidence`` scale of the robot's default model (the
         p90 of its relaxed deviation on training people it did not see), or ``None``: the
         NAO's ``DEVIATION_SCALE``.
@@ -409,7 +411,7 @@ class Robot:
     elbow_pairs: tuple[tuple[str, str], ...] = ()
     ik_constants: Mapping[str, float] = field(default_factory=dict)
     coupled_limits: tuple[CoupledLimit, ...] = ()
-    separate: Callable[[jax.Array], jax.Array] | None = field(default=None, compare=False)
+    separate: Callable[..., jax.Array] | None = field(default=None, compare=False)
     deviation_scale: float | None = None
     track: Callable[..., jax.Array] | None = field(default=None, compare=False)
     track_step: Callable[..., jax.Array] | None = field(default=None, compare=False)
@@ -682,6 +684,25 @@ class Robot:
         if self.separate is None:
             return q
         return self.clip_driven(self.separate(q))
+
+    def playable_motion(self, angles: jax.Array) -> jax.Array:
+        """One motion's ``(T, n_driven)`` driven angles -> ``playable`` frame by frame in time
+        order, each frame's ``separate`` also started from the previous frame's answer
+        (``lax.scan``; the first frame from its own angles): where a limb went deep into
+        another, a search from the given pose alone can stop inside, while one from the
+        previous answer (already clear) stops at the robot's margin, next to it. A robot
+        without ``separate``: ``clip_driven``. jnp, float32, traceable."""
+        q = self.clip_driven(angles)
+        separate = self.separate
+        if separate is None:
+            return q
+
+        def step(prev: jax.Array, row: jax.Array) -> tuple[jax.Array, jax.Array]:
+            out = self.clip_driven(separate(row, start=prev))
+            return out, out
+
+        _, out = jax.lax.scan(step, q[0], q)
+        return out
 
     def continuous(
         self,

@@ -566,12 +566,17 @@ class GenericIK:
 
     @full_precision
     def separate(
-        self, q: jax.typing.ArrayLike, iterations: int = 8, stay: float = 1.0
+        self,
+        q: jax.typing.ArrayLike,
+        iterations: int = 8,
+        stay: float = 1.0,
+        start: jax.typing.ArrayLike | None = None,
     ) -> jax.Array:
         """Push a robot pose's collision pairs apart, moving its joints as little as it can.
 
         Per chain, in chain order (later chains see earlier chains' answers), from the given
-        angles ``x_in``, ``iterations`` Levenberg-Marquardt steps on::
+        angles ``x_in`` (and, with ``start``, from ``start``'s angles too, keeping the end
+        with the lower objective), ``iterations`` Levenberg-Marquardt steps on::
 
             minimise   stay * |x - x_in|^2  +  collision(x)     x within the robot's limits
 
@@ -580,10 +585,16 @@ class GenericIK:
         is not touched. For poses that did not come from this IK (a projection's answers),
         which the IK's collision term never saw. Traceable.
 
+        From ``x_in`` alone a limb deep inside another (a forearm 4-6 cm into the torso, joints
+        at their limits) can end in a local minimum still inside; ``start``, a pose without
+        contact nearby (the previous frame's answer: ``Robot.playable_motion``), approaches
+        ``x_in`` from outside and stops at the margin.
+
         Args:
           q: ``(..., n_driven)`` angles, rad (``Robot.driven_joints`` order).
           iterations: LM steps per chain.
           stay: weight of the pull toward the given angles (rad^-2).
+          start: ``(..., n_driven)`` a second start per pose, or ``None`` (``x_in`` only).
 
         Returns:
           ``(..., n_driven)`` float32 angles within the robot's limits.
@@ -599,11 +610,19 @@ class GenericIK:
             raise ConfigError(f"separate: angles must be (..., {n_driven}), got {q.shape}")
         batch = q.shape[:-1]
         flat = q.reshape(-1, n_driven)
+        if start is None:
+            starts = flat[:, None]
+        else:
+            st = jnp.broadcast_to(jnp.asarray(start, jnp.float32), q.shape).reshape(-1, n_driven)
+            starts = jnp.stack([flat, st], axis=1)  # (B, 2, n_driven)
         sq = np.float32(math.sqrt(stay))
         lower, upper = self.robot.lower, self.robot.upper
+        standing = jnp.asarray(self.robot.standing)
 
-        def one(row: jax.Array) -> jax.Array:
-            q_full = jnp.asarray(self.robot.standing).at[self.robot.driven_index].set(row)
+        def one(row: jax.Array, from_rows: jax.Array) -> jax.Array:
+            q_full = standing.at[self.robot.driven_index].set(row)
+            from_full = jnp.tile(standing, (from_rows.shape[0], 1))
+            from_full = from_full.at[:, self.robot.driven_index].set(from_rows)  # (S, n_joints)
             for prob in self.problems:
                 if not len(prob.collide):
                     continue
@@ -625,13 +644,25 @@ class GenericIK:
                         jnp.concatenate([sq * eye, dpen], axis=0),
                     )
 
-                x, _, _ = _levenberg_marquardt(
-                    res_jac, x_in, lo, hi, iterations, self.config.damping
-                )
+                def run(
+                    x_start: jax.Array, res_jac: Callable = res_jac, lo: jax.Array = lo,
+                    hi: jax.Array = hi,
+                ) -> tuple[jax.Array, jax.Array]:  # fmt: skip
+                    x, r, _ = _levenberg_marquardt(
+                        res_jac, x_start, lo, hi, iterations, self.config.damping
+                    )
+                    return x, jnp.sum(r * r)
+
+                if from_rows.shape[0] == 1:  # no second start: the plain solve
+                    x = run(x_in)[0]
+                else:
+                    x0 = jnp.clip(from_full[:, prob.joints], lo[None], hi[None]).at[0].set(x_in)
+                    xs, fs = jax.vmap(run)(x0)
+                    x = xs[jnp.argmin(fs)]
                 q_full = q_full.at[prob.joints].set(x)
             return q_full[self.robot.driven_index]
 
-        out = jax.vmap(one)(flat)
+        out = jax.vmap(one)(flat, starts)
         lo_d, hi_d = self.robot.lower_driven[None], self.robot.upper_driven[None]
         out = jnp.where(jnp.isfinite(out), out, jnp.clip(flat, lo_d, hi_d))
         return out.reshape(*batch, n_driven)

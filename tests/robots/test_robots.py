@@ -270,7 +270,7 @@ def test_playable_clips_then_separates_then_clips(toy: Robot) -> None:
     np.testing.assert_array_equal(pipeline.clip_to_limits(q, toy), toy.clip_driven(q))
     seen = []
 
-    def separate(x: jax.Array) -> jax.Array:
+    def separate(x: jax.Array, start: jax.Array | None = None) -> jax.Array:
         seen.append(np.asarray(x))
         return x - 0.05
 
@@ -278,6 +278,27 @@ def test_playable_clips_then_separates_then_clips(toy: Robot) -> None:
     out = np.asarray(pipeline.clip_to_limits(q, moved))
     np.testing.assert_array_equal(seen[0], toy.clip_driven(q))  # separate sees clipped angles
     np.testing.assert_array_equal(out, toy.clip_driven(toy.clip_driven(q) - 0.05))
+
+
+def test_playable_motion_starts_each_frame_from_the_last_answer(toy: Robot) -> None:
+    """``Robot.playable_motion``: ``playable`` in time order, each frame's ``separate`` given
+    the previous frame's answer as a second start (the first frame: its own angles)."""
+    rng = np.random.default_rng(0)
+    lo, hi = toy.lower_driven, toy.upper_driven
+    q = rng.uniform(lo - 0.5, hi + 0.5, size=(6, toy.n_driven)).astype(np.float32)
+    assert np.array_equal(np.asarray(toy.playable_motion(q)), np.asarray(toy.clip_driven(q)))
+
+    def separate(x: jax.Array, start: jax.Array | None = None) -> jax.Array:
+        assert start is not None and start.shape == x.shape
+        return 0.5 * (x + start)  # depends on the start: the test sees which one it got
+
+    moved = dataclasses.replace(toy, separate=separate)
+    out = np.asarray(jax.jit(moved.playable_motion)(q))
+    c = np.asarray(toy.clip_driven(q))
+    want = [c[0]]
+    for t in range(1, len(q)):
+        want.append(np.asarray(toy.clip_driven(0.5 * (c[t] + want[-1]))))
+    np.testing.assert_allclose(out, np.stack(want), rtol=0, atol=1e-6)
 
 
 def test_g1_acceleration_limits_are_its_torques_over_its_inertias() -> None:

@@ -257,11 +257,12 @@ def track_step(
     return generic_ik().track_step(y, q_prev, q_t, None, (d_prev, d_t, resolve_bones(bones)))
 
 
-def separate(q: jax.Array) -> jax.Array:
-    """``Robot.separate`` of the G1: ``(..., 21)`` driven angles -> the same with the
-    collision pairs (``collision_pairs="mjcf"``) pushed ``IK_CONFIG.margin`` apart
-    (``GenericIK.separate``, 8 steps per chain). Traceable."""
-    return generic_ik().separate(q)
+def separate(q: jax.Array, start: jax.Array | None = None) -> jax.Array:
+    """``Robot.separate`` of the G1: ``(..., 21)`` driven angles (and optionally a second
+    start per pose, e.g. the previous frame's answer) -> the same with the collision pairs
+    (``collision_pairs="mjcf"``) pushed ``IK_CONFIG.margin`` apart (``GenericIK.separate``, 8
+    steps per chain). Traceable."""
+    return generic_ik().separate(q, start=start)
 
 
 @functools.cache
