@@ -44,7 +44,7 @@ import numpy as np
 
 from jaxproj import robots
 from jaxproj.cli.main import main as cli
-from jaxproj.human.skeleton import BONE_NAMES, J, descriptor, level_body
+from jaxproj.human.skeleton import BONE_NAMES, J, descriptor, level_body, world_up
 from jaxproj.io.motion_files import load_motion
 
 ROBOT = "unitree_g1"
@@ -88,7 +88,7 @@ def _bones(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     d, ok = descriptor(positions, bones="full")
     frame, ok_f = body_frame(positions)
     ok = np.asarray(ok & ok_f)
-    d = np.asarray(level_body(d, ok, "full"))
+    d = np.asarray(level_body(d, ok, "full", up=world_up(positions)))
     return d.reshape(len(d), -1, 3), ok, np.asarray(frame)
 
 

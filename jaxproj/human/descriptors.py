@@ -19,7 +19,7 @@ from jaxproj._internal.buckets import bucket, pad_rows
 from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human import skeletons
-from jaxproj.human.skeleton import descriptor, level_body
+from jaxproj.human.skeleton import descriptor, level_body, world_up
 from jaxproj.human.skeletons import SkeletonLike
 
 _level_jit = jit(level_body, static_argnames=("bones", "skeleton"))
@@ -42,9 +42,9 @@ def valid_descriptors(
         are ``(T, n_joints, 3)`` in ``skeleton``'s order (20: Kinect v1, the default).
       bones, mirror, skeleton: descriptor options (``skeleton.descriptor``); ignored for
         descriptors.
-      level: each sequence levelled against its own medians (``skeleton.level_body``, as
-        ``retarget`` levels a recording; a no-op for bones without both shins); ignored for
-        arrays.
+      level: each sequence levelled against its own medians and its feet against the floor
+        (``skeleton.level_body`` with ``up``, as ``retarget`` levels a recording; a no-op for
+        bones without both shins); ignored for arrays.
 
     Returns:
       ``(N, 3 * n_bones)`` float32 descriptors of the frames that are valid both in the sequence
@@ -84,11 +84,14 @@ def valid_descriptors(
     if level and lengths and {"shin_left", "shin_right"} <= set(names):
         start = 0
         levelled = []
+        up = np.asarray(world_up(positions, skeleton=skeleton), np.float32)
         for t in lengths:  # each recording on its own medians; padded to few shapes
             rows = bucket(t)
-            seg = _level_jit(pad_rows(d[start : start + t], rows),
-                             pad_rows(keep[start : start + t], rows, False), bones=names,
-                             skeleton=skeleton)  # fmt: skip
+            part = slice(start, start + t)
+            seg = _level_jit(
+                pad_rows(d[part], rows), pad_rows(keep[part], rows, False), bones=names,
+                skeleton=skeleton, up=pad_rows(up[part], rows),
+            )  # fmt: skip
             levelled.append(np.asarray(seg)[:t])
             start += t
         d = np.concatenate(levelled)

@@ -41,7 +41,7 @@ from jaxproj.human.skeletons import (
 __all__ = [
     "BONES", "BONE_NAMES", "BONE_SUBSETS", "FULL_BODY", "JOINT_NAMES", "J", "MIN_BONE_LENGTH",
     "NECK_TILT_REFERENCE", "N_JOINTS", "SkeletonLike", "UPPER_BODY", "body_frame", "descriptor",
-    "level_body", "level_neck", "neck_tilt", "recording_neck_tilt", "resolve_bones",
+    "level_body", "level_neck", "neck_tilt", "recording_neck_tilt", "resolve_bones", "world_up",
 ]  # fmt: skip
 
 JOINT_NAMES: tuple[str, ...] = KINECT_V1.joints
@@ -322,12 +322,21 @@ def _turn(v: jax.Array, angle: jax.Array) -> jax.Array:
     return jnp.stack([c * x + s * z, v[..., 1], c * z - s * x], axis=-1)
 
 
+def world_up(positions: ArrayLike, *, skeleton: SkeletonLike = skeletons.DEFAULT) -> jax.Array:
+    """``(..., n_joints, 3)`` positions -> ``(..., 3)`` the capture's up axis (+y: Kinect v1
+    camera space and every reader's output) in each frame's body frame (``body_frame``; the
+    identity's where the frame is degenerate). A camera's own pitch is not removed."""
+    rot, _ = body_frame(jnp.asarray(positions, jnp.float32), skeleton=skeleton)
+    return rot[..., :, 1]
+
+
 def level_body(
     d: ArrayLike,
     valid: ArrayLike,
     bones: str | tuple[str, ...] = "full",
     *,
     skeleton: SkeletonLike = skeletons.DEFAULT,
+    up: ArrayLike | None = None,
 ) -> jax.Array:
     """One recording's descriptors levelled against its own medians, for robots that read the
     legs: (1) every bone turned about the body's left axis so that the median shin (both sides,
@@ -337,6 +346,17 @@ def level_body(
     person's legs hang below the trunk and their feet stand flat for most of a recording, and
     levelling keeps every frame's deviation from the recording's own median.
 
+    With ``up`` (each frame's capture up axis in the body frame, ``world_up``) the feet are
+    levelled against the floor instead of the body: each foot's median tilt measured from the
+    capture's horizontal (its tilt less ``up``'s, before step 1) is what moves to the
+    reference, so a foot flat on the floor corresponds to the robot's flat sole whatever the
+    trunk's lean, and a robot that stands on its soles leans as the person does. Without it
+    (``None``) the feet's median in the body frame moves to the reference: the robot stands
+    upright over flat soles, leaning or not. Measured on the per-frame G1 IK, the trunk's lean on
+    flat soles minus the person's, deg: UTKinect s07 e01 / e02 / s09 e01 -9.9 / -5.9 / -14.9
+    against the body, -7.5 / -4.7 / -10.7 against the floor; CMU 131_01 -10.0 / -2.3 (every 3rd
+    frame; the 2-core VM, 2026-11-28).
+
     Without both shins in ``bones`` (the upper-body descriptors) ``d`` is returned as it is. A
     recording with no valid frame is left as it is. Traceable (sorts, no host sync).
 
@@ -344,6 +364,7 @@ def level_body(
       d: ``(T, 3 * n_bones)`` one recording's descriptors.
       valid: ``(T,)`` bool.
       bones, skeleton: the descriptor's bones and skeleton.
+      up: ``(T, 3)`` the capture's up axis in each frame's body frame, or ``None``.
 
     Returns:
       ``(T, 3 * n_bones)`` float32.
@@ -359,9 +380,18 @@ def level_body(
     )
     neutral = _median(_tilt(shins), jnp.concatenate([valid, valid]), LEG_TILT_REFERENCE)
     v = _turn(v, jnp.float32(LEG_TILT_REFERENCE) - neutral)
+    floor = None if up is None else _tilt(jnp.asarray(up, jnp.float32))  # (T,), unturned
     for bone, reference in BONE_TILT_REFERENCES.items():
         if bone in names:
             i = names.index(bone)
-            own = _median(_tilt(v[:, i]), valid, reference)
+            tilt = _tilt(v[:, i])
+            if floor is not None and bone.startswith("foot"):  # wrapped far from the data
+                tilt = _wrap(tilt - floor - reference) + reference
+            own = _median(tilt, valid, reference)
             v = v.at[:, i].set(_turn(v[:, i], jnp.float32(reference) - own))
     return v.reshape(d.shape)
+
+
+def _wrap(angle: jax.Array) -> jax.Array:
+    """Angles wrapped to ``(-pi, pi]``."""
+    return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))

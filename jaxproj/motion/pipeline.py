@@ -79,6 +79,7 @@ from jaxproj.human.skeleton import (
     level_neck,
     recording_neck_tilt,
     resolve_bones,
+    world_up,
 )
 from jaxproj.motion.smoothing import smooth_any
 from jaxproj.motion.smoothing import step as smoothing_step
@@ -130,10 +131,12 @@ def level(
     neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
     *,
     bones: str | tuple[str, ...],
+    up: jax.Array | None = None,
 ) -> jax.Array:
     """One motion's descriptors levelled: for descriptors with legs the body frame and the
-    spine and feet against the motion's own medians (``skeleton.level_body``, with ``neck``
-    ``"recording"`` or ``"given"``), and the neck (``skeleton.level_neck``): its neutral
+    spine against the motion's own medians and the feet against the floor (``up``, the
+    capture's up axis per frame: ``skeleton.level_body``; with ``neck`` ``"recording"`` or
+    ``"given"``), and the neck (``skeleton.level_neck``): its neutral
     tilt moved to ``skeleton.NECK_TILT_REFERENCE``, before the IK or the projection reads it
     (both then see the same levelled descriptor, so they stay consistent, and the IK stays a
     pure function of one descriptor).
@@ -144,10 +147,12 @@ def level(
         (``skeleton.recording_neck_tilt``); ``"given"``: ``neck_neutral`` (rad); ``"off"``:
         ``d`` unchanged (the fixed reference, as before levelling existed).
       bones: the descriptor's bones (no neck bone: ``d`` unchanged).
+      up: ``(T, 3)`` the capture's up axis in each frame's body frame (``skeleton.world_up``),
+        or ``None``: the feet against the body's medians.
     """
     if neck == "off":
         return d
-    d = level_body(d, ok, bones)
+    d = level_body(d, ok, bones, up=up)
     if "neck" not in resolve_bones(bones):
         return d
     if neck == "recording":
@@ -307,7 +312,7 @@ def motion(
       ``projection.confidence`` of each frame (0 where invalid, 1 for the IK).
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
-    d = level(d, ok, neck, neck_neutral, bones=bones)
+    d = level(d, ok, neck, neck_neutral, bones=bones, up=world_up(positions))
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,

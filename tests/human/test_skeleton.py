@@ -13,6 +13,7 @@ from jaxproj.human.skeleton import (
     body_frame,
     descriptor,
     level_body,
+    world_up,
 )
 from jaxproj.io import datasets
 
@@ -155,3 +156,35 @@ def test_level_body_takes_out_a_trackers_trunk_tilt_and_keeps_the_motion(frames)
     assert np.allclose(np.linalg.norm(v, axis=-1), 1.0, atol=1e-5)  # lengths kept
     upper, ok_u = descriptor(frames, bones="upper")
     assert np.array_equal(np.asarray(level_body(upper, ok_u, "upper")), np.asarray(upper))
+
+
+def test_level_body_with_up_levels_the_feet_against_the_floor(frames):
+    """``level_body(up=)``: a person leaning 10 deg further forward in the world (each frame
+    turned about its own body-left axis) has the same body-frame descriptors, so against the
+    body the levelled feet are the same; against the floor (``world_up``) the feet, flat on it,
+    turn 10 deg towards the toes-up side of the body frame; no other bone moves."""
+    d, ok = (np.asarray(a) for a in descriptor(frames, bones="full"))
+    rot = np.asarray(body_frame(frames)[0], np.float64)  # rows: forward, left, up
+    k = rot[:, 1]  # each frame's left axis, camera coordinates
+    a = np.radians(10.0)  # forward: up towards forward, a right-hand turn about left
+    kx = np.zeros((len(k), 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    kx -= kx.transpose(0, 2, 1)
+    turn = np.eye(3) + np.sin(a) * kx + (1 - np.cos(a)) * kx @ kx  # Rodrigues, per frame
+    centre = frames.mean(axis=1, keepdims=True)
+    leaning = (np.einsum("tij,tnj->tni", turn, frames - centre) + centre).astype(np.float32)
+    d2, ok2 = (np.asarray(x) for x in descriptor(leaning, bones="full"))
+    np.testing.assert_allclose(d2, d, atol=2e-5)  # the body frame leans with the person
+    up, up2 = np.asarray(world_up(frames)), np.asarray(world_up(leaning))
+    tilt = lambda u: np.degrees(np.arctan2(u[..., 0], u[..., 2]))  # noqa: E731
+    assert abs(np.median(tilt(up) - tilt(up2)) - 10.0) < 0.1  # up tilts back in the body
+    body = np.asarray(level_body(d, ok, "full")).reshape(len(d), -1, 3)
+    flat, flat2 = (np.asarray(level_body(d, ok, "full", up=u)).reshape(len(d), -1, 3)
+                   for u in (up, up2))  # fmt: skip
+    feet = [BONE_NAMES.index(f"foot_{side}") for side in ("left", "right")]
+    others = [i for i in range(len(BONE_NAMES)) if i not in feet]
+    np.testing.assert_allclose(flat[:, others], body[:, others], atol=1e-6)
+    np.testing.assert_allclose(flat2[:, others], body[:, others], atol=1e-6)
+    for i in feet:
+        change = tilt(flat2[ok, i]) - tilt(flat[ok, i])
+        assert np.allclose(change, -10.0, atol=0.1)  # the foot stays flat on the tilted floor
