@@ -19,7 +19,6 @@ robot's own (``_arobot``, ``Robot.acceleration_limits``). The separation is
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import sys
 from pathlib import Path
@@ -28,12 +27,11 @@ import numpy as np
 
 from benchmarks import g1_playable as gp
 from jaxproj import robots
-from jaxproj._internal.buckets import call_bucketed
 from jaxproj.io.motion_files import Motion
 from jaxproj.io.readers import read_skeleton
 from jaxproj.motion.feasible import FeasibleConfig, feasibility_report, make_feasible
 from jaxproj.motion.offline import OFFLINE_SMOOTHING
-from jaxproj.motion.retarget import _playable_jit, retarget
+from jaxproj.motion.retarget import retarget, separate_motion
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,9 +45,6 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     g1 = robots.get(gp.ROBOT)
     from jaxproj.cli.retarget import output_rate
-
-    def separate(q: np.ndarray, robot: robots.Robot) -> np.ndarray:
-        return np.asarray(call_bucketed(functools.partial(_playable_jit, robot=robot), q, 1))
 
     variants: dict[str, tuple[robots.Robot, FeasibleConfig, str]] = {}
     for acc in a.accels.split(","):
@@ -74,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
                 if stage == "f":
                     q = make_feasible(q, res.times, config=cfg, robot=robot)
                 else:
-                    q = separate(q, robot)
+                    q = separate_motion(q, robot)
             motion = Motion(q, res.times, res.valid, rec.positions, robot=g1)
             r = {"file": f.name, "variant": name}
             fl = gp.flips(motion, bones, ok, g1)

@@ -12,7 +12,6 @@ moved a joint.
 from __future__ import annotations
 
 import argparse
-import functools
 import sys
 from pathlib import Path
 
@@ -21,9 +20,8 @@ import numpy as np
 
 from benchmarks import g1_playable as gp
 from jaxproj import robots
-from jaxproj._internal.buckets import call_bucketed
 from jaxproj.motion.feasible import FeasibleConfig, make_feasible
-from jaxproj.motion.retarget import _playable_jit
+from jaxproj.motion.retarget import separate_motion
 
 
 def contact_frames(q: np.ndarray, robot: robots.Robot) -> int:
@@ -48,12 +46,11 @@ def main(argv: list[str] | None = None) -> int:
     z = np.load(a.motion)
     q, times = np.asarray(z["angles"], np.float32), np.asarray(z["times"])
     cfg = FeasibleConfig()
-    separate = functools.partial(_playable_jit, robot=robot)
     print(f"smoothed: {contact_frames(q, robot)} contact frames")
     f = make_feasible(q, times, config=cfg, robot=robot)
     print(f"filter: {contact_frames(f, robot)} contact frames, moved {np.abs(f - q).max():.2f} rad")
     for r in range(a.rounds):
-        s = np.asarray(call_bucketed(separate, f, 1))
+        s = separate_motion(f, robot)
         print(f"round {r}: separation {contact_frames(s, robot)} contact frames, "
               f"moved {np.abs(s - f).max():.2f} rad", end="; ")  # fmt: skip
         f = make_feasible(s, times, config=cfg, robot=robot)

@@ -137,6 +137,14 @@ def _bucket(t: int) -> int:
 
 _playable_jit = jit(pipeline.playable_full, static_argnames=("robot",))
 
+
+def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
+    """``retarget``'s last stage on the host: one motion's ``(T, n_joints)`` angles made
+    playable in time order (``pipeline.playable_full``), compiled once per row bucket (the
+    padding rows come after the motion's: the pass is causal, they change nothing)."""
+    return np.asarray(call_bucketed(functools.partial(_playable_jit, robot=robot), angles, 1))
+
+
 _motion_jit = jit(
     pipeline.motion,
     static_argnames=(
@@ -306,9 +314,7 @@ def retarget(
         if spec.separate is not None:
             # the filter moves joints, and a contact can come back: pushed apart again, last,
             # frame by frame in time order (the rows padded at the end: a causal pass)
-            angles = np.asarray(
-                call_bucketed(functools.partial(_playable_jit, robot=spec), angles, 1)
-            )
+            angles = separate_motion(angles, spec)
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
         conf = rescale(conf, spec.deviation_scale or DEVIATION_SCALE, model.confidence_scale)
     conf_t = np.asarray(conf, np.float32)[:t]

@@ -610,19 +610,13 @@ class GenericIK:
             raise ConfigError(f"separate: angles must be (..., {n_driven}), got {q.shape}")
         batch = q.shape[:-1]
         flat = q.reshape(-1, n_driven)
-        if start is None:
-            starts = flat[:, None]
-        else:
-            st = jnp.broadcast_to(jnp.asarray(start, jnp.float32), q.shape).reshape(-1, n_driven)
-            starts = jnp.stack([flat, st], axis=1)  # (B, 2, n_driven)
         sq = np.float32(math.sqrt(stay))
         lower, upper = self.robot.lower, self.robot.upper
         standing = jnp.asarray(self.robot.standing)
 
-        def one(row: jax.Array, from_rows: jax.Array) -> jax.Array:
+        def one(row: jax.Array, other: jax.Array | None = None) -> jax.Array:
             q_full = standing.at[self.robot.driven_index].set(row)
-            from_full = jnp.tile(standing, (from_rows.shape[0], 1))
-            from_full = from_full.at[:, self.robot.driven_index].set(from_rows)  # (S, n_joints)
+            other_full = None if other is None else standing.at[self.robot.driven_index].set(other)
             for prob in self.problems:
                 if not len(prob.collide):
                     continue
@@ -653,16 +647,20 @@ class GenericIK:
                     )
                     return x, jnp.sum(r * r)
 
-                if from_rows.shape[0] == 1:  # no second start: the plain solve
+                if other_full is None:  # no second start: the plain solve
                     x = run(x_in)[0]
                 else:
-                    x0 = jnp.clip(from_full[:, prob.joints], lo[None], hi[None]).at[0].set(x_in)
+                    x0 = jnp.stack([x_in, jnp.clip(other_full[prob.joints], lo, hi)])
                     xs, fs = jax.vmap(run)(x0)
                     x = xs[jnp.argmin(fs)]
                 q_full = q_full.at[prob.joints].set(x)
             return q_full[self.robot.driven_index]
 
-        out = jax.vmap(one)(flat, starts)
+        if start is None:
+            out = jax.vmap(one)(flat)
+        else:
+            st = jnp.broadcast_to(jnp.asarray(start, jnp.float32), q.shape).reshape(-1, n_driven)
+            out = jax.vmap(one)(flat, st)
         lo_d, hi_d = self.robot.lower_driven[None], self.robot.upper_driven[None]
         out = jnp.where(jnp.isfinite(out), out, jnp.clip(flat, lo_d, hi_d))
         return out.reshape(*batch, n_driven)
