@@ -189,14 +189,16 @@ class TreeFK:
             )
         lv = self._levels
         batch = q.shape[:-1]
-        n = lv.n_frames
-        rots = jnp.broadcast_to(jnp.eye(3, dtype=jnp.float32), (*batch, n + 1, 3, 3))
-        poss = jnp.zeros((*batch, n + 1, 3), jnp.float32)
+        lead = (1,) * len(batch)  # explicit ranks (jax_numpy_rank_promotion='raise')
+        rots: list[jax.Array] = []
+        poss: list[jax.Array] = []
+        r_p = jnp.broadcast_to(jnp.eye(3, dtype=jnp.float32), (*batch, 1, 3, 3))  # the world
+        p_p = jnp.zeros((*batch, 1, 3), jnp.float32)
         for lev in lv.levels:  # all frames of one depth at once: a small program per depth
-            r_p, p_p = rots[..., lev.parent, :, :], poss[..., lev.parent, :]
+            # each frame's parent is in the level before (the world for the first)
+            r_p, p_p = r_p[..., lev.parent, :, :], p_p[..., lev.parent, :]
             pos = p_p + jnp.einsum("...lij,lj->...li", r_p, lev.pos, precision=_HIGHEST)
             rot = jnp.einsum("...lij,ljk->...lik", r_p, lev.rot, precision=_HIGHEST)
-            lead = (1,) * len(batch)  # explicit ranks (jax_numpy_rank_promotion='raise')
             angle = (q[..., lev.joint] - lev.qpos0.reshape(*lead, -1)) * lev.hinge.reshape(
                 *lead, -1
             )  # 0 without a hinge: the identity
@@ -206,9 +208,14 @@ class TreeFK:
             anchor = pos + jnp.einsum("...lij,lj->...li", rot, lev.anchor, precision=_HIGHEST)
             rot = jnp.einsum("...lij,...ljk->...lik", rot, turn, precision=_HIGHEST)
             pos = anchor - jnp.einsum("...lij,lj->...li", rot, lev.anchor, precision=_HIGHEST)
-            rots = rots.at[..., lev.frames, :, :].set(rot)
-            poss = poss.at[..., lev.frames, :].set(pos)
-        return rots, poss
+            rots.append(rot)
+            poss.append(pos)
+            r_p, p_p = rot, pos
+        # frames are numbered level by level (``_Levels.of``), the world last: one
+        # concatenation instead of a scatter per level into a (..., F + 1, 3, 3) buffer
+        rots.append(jnp.broadcast_to(jnp.eye(3, dtype=jnp.float32), (*batch, 1, 3, 3)))
+        poss.append(jnp.zeros((*batch, 1, 3), jnp.float32))
+        return jnp.concatenate(rots, axis=-3), jnp.concatenate(poss, axis=-2)
 
     def _world_points(self, rots: jax.Array, poss: jax.Array) -> jax.Array:
         frames = self._levels.body_frame[np.asarray(self.point_body, np.int32)]
@@ -231,6 +238,29 @@ class TreeFK:
         # world -> base frame: R_b^T (p - p_b)
         return jnp.einsum("...ji,...pj->...pi", r_b, pts - p_b[..., None, :], precision=_HIGHEST)
 
+    def columns(
+        self, columns: Sequence[int]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What ``jacobian_columns`` needs of the joints ``columns`` (positions in ``q``; a
+        position that is no hinge of this tree, e.g. ``-1`` for padding, gives a zero column):
+        ``((c,) int32 frames, (c, 3) axes, (c, 3) anchors, (c, n_points) float32 signs)``."""
+        lv = self._levels
+        cols = list(columns)
+        frame = np.array([lv.joint_frame.get(qi, lv.n_frames) for qi in cols], np.int32)
+        zero = np.zeros(3, np.float32)
+        axis = np.stack([lv.joint_axis.get(qi, zero) for qi in cols]).reshape(len(cols), 3)
+        anchor = np.stack([lv.joint_anchor.get(qi, zero) for qi in cols]).reshape(len(cols), 3)
+        sign = np.stack(
+            [
+                self._moves(lv.joint_body[qi], self.point_body)
+                - float(self._moves(lv.joint_body[qi], (self.base_body,))[0])
+                if qi in lv.joint_frame
+                else np.zeros(len(self.point_body), np.float32)
+                for qi in cols
+            ]
+        ).reshape(len(cols), len(self.point_body))  # (c, P)
+        return frame, axis.astype(np.float32), anchor.astype(np.float32), sign
+
     def jacobian(
         self, q: jax.typing.ArrayLike, columns: Sequence[int]
     ) -> tuple[jax.Array, jax.Array]:
@@ -244,28 +274,37 @@ class TreeFK:
           ``((..., n_points, 3) points, (..., n_points, 3, len(columns)) derivatives)`` in the
           base frame (a joint not on the way to any point, or not a hinge here: zeros).
         """
+        return self.jacobian_columns(q, *self.columns(columns))
+
+    def jacobian_columns(
+        self,
+        q: jax.typing.ArrayLike,
+        frame: jax.typing.ArrayLike,
+        axis: jax.typing.ArrayLike,
+        anchor: jax.typing.ArrayLike,
+        sign: jax.typing.ArrayLike,
+        moved: jax.typing.ArrayLike | None = None,
+    ) -> tuple[jax.Array, jax.Array]:
+        """``jacobian`` with the columns given by ``columns``' arrays, which may be traced
+        (one compiled program for the columns of several chains: ``GenericIK`` scans its
+        chains). ``q``: ``(..., n_joints)``; the arrays unbatched.
+
+        ``moved``: ``(m,)`` indices of the points whose derivatives are wanted (``sign`` then
+        ``(c, m)``, its columns for them): the derivatives are ``(..., m, 3, c)``, of those
+        points only (the others' are zero when ``sign`` is zero for them: a smaller product).
+        The positions are always every point's."""
         q = jnp.asarray(q, jnp.float32)
         rots, poss = self._forward(q)
         pts = self._world_points(rots, poss)
         r_b, p_b = self._base(rots, poss)
         local = jnp.einsum("...ji,...pj->...pi", r_b, pts - p_b[..., None, :], precision=_HIGHEST)
-        lv = self._levels
-        cols = list(columns)
-        frame = np.array([lv.joint_frame.get(qi, lv.n_frames) for qi in cols], np.int32)
-        axis = np.stack([lv.joint_axis.get(qi, np.zeros(3, np.float32)) for qi in cols])
-        anchor = np.stack([lv.joint_anchor.get(qi, np.zeros(3, np.float32)) for qi in cols])
-        sign = np.stack(
-            [
-                self._moves(lv.joint_body[qi], self.point_body)
-                - float(self._moves(lv.joint_body[qi], (self.base_body,))[0])
-                if qi in lv.joint_frame
-                else np.zeros(len(self.point_body), np.float32)
-                for qi in cols
-            ]
-        ).reshape(len(cols), len(self.point_body))  # (c, P)
+        frame = jnp.asarray(frame, jnp.int32)
+        sign = jnp.asarray(sign, jnp.float32)
+        if moved is not None:
+            pts = pts[..., jnp.asarray(moved, jnp.int32), :]
         r_j, p_j = rots[..., frame, :, :], poss[..., frame, :]
-        w = jnp.einsum("...cij,cj->...ci", r_j, axis, precision=_HIGHEST)  # (..., c, 3)
-        a = p_j + jnp.einsum("...cij,cj->...ci", r_j, anchor, precision=_HIGHEST)
+        w = jnp.einsum("...cij,cj->...ci", r_j, jnp.asarray(axis), precision=_HIGHEST)
+        a = p_j + jnp.einsum("...cij,cj->...ci", r_j, jnp.asarray(anchor), precision=_HIGHEST)
         rel = pts[..., None, :, :] - a[..., :, None, :]  # (..., c, P, 3)
         lead = (1,) * (rel.ndim - 3)
         v = jnp.cross(jnp.broadcast_to(w[..., :, None, :], rel.shape), rel) * sign.reshape(
@@ -298,8 +337,8 @@ def _axis_rotations(kx: np.ndarray, kk: np.ndarray, angle: jax.Array) -> jax.Arr
 class _Level:
     """The frames of one depth: indices and constants, ``l`` frames."""
 
-    frames: np.ndarray  # (l,) their indices
-    parent: np.ndarray  # (l,) their parents' indices (the world: n_frames)
+    frames: np.ndarray  # (l,) their indices (contiguous: frames are numbered level by level)
+    parent: np.ndarray  # (l,) their parents' positions in the level before (the world: 0)
     pos: np.ndarray  # (l, 3) offset in the parent
     rot: np.ndarray  # (l, 3, 3) rotation in the parent
     joint: np.ndarray  # (l,) q index of the hinge (0 where none)
@@ -361,9 +400,13 @@ class _Levels:
                 parent = frame
             body_frame.append(len(rows) - 1)
         n = len(rows)
+        # number the frames level by level (a level's frames contiguous, the world last)
+        order = sorted(range(n), key=lambda i: depth[i])  # stable: tree order within a level
+        new = {old: k for k, old in enumerate(order)}
+        start = {d: order.index(next(i for i in order if depth[i] == d)) for d in set(depth)}
         levels = []
         for d in range(max(depth) + 1 if depth else 0):
-            idx = [i for i in range(n) if depth[i] == d]
+            idx = [i for i in order if depth[i] == d]
             pick = [rows[i] for i in idx]
             axes = np.stack([r["axis"] for r in pick])
             kx = np.zeros((len(pick), 3, 3))
@@ -372,9 +415,10 @@ class _Levels:
             kx[:, 2, 0], kx[:, 2, 1] = -axes[:, 1], axes[:, 0]
             levels.append(
                 _Level(
-                    frames=np.array(idx, np.int32),
+                    frames=np.array([new[i] for i in idx], np.int32),
                     parent=np.array(
-                        [n if r["parent"] < 0 else r["parent"] for r in pick], np.int32
+                        [0 if r["parent"] < 0 else new[r["parent"]] - start[d - 1] for r in pick],
+                        np.int32,
                     ),
                     pos=np.stack([r["pos"] for r in pick]).astype(np.float32),
                     rot=np.stack([r["rot"] for r in pick]).astype(np.float32),
@@ -386,6 +430,8 @@ class _Levels:
                     kk=(kx @ kx).astype(np.float32),
                 )
             )
+        body_frame = [new[f] for f in body_frame]
+        joint_frame = {qi: new[f] for qi, f in joint_frame.items()}
         return cls(
             n_frames=n,
             levels=tuple(levels),
