@@ -71,7 +71,7 @@ from jaxproj._internal.jit import full_precision
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
 from jaxproj.robots.base import Chain, Robot
-from jaxproj.robots.kinematics import Point, TreeFK, _point
+from jaxproj.robots.kinematics import Point, TreeFK, _point, points_at
 
 _HIGHEST = jax.lax.Precision.HIGHEST
 _A = TypeVar("_A", np.ndarray, jax.Array)
@@ -447,8 +447,8 @@ class GenericIK:
                 }
             )
         fk = TreeFK.from_model(model, robot.joint_names, names, correspondence.base)
-        with jax.ensure_compile_time_eval():  # a build inside a caller's trace too
-            at_rest = np.asarray(fk.points(robot.standing), np.float64)
+        # on the host (MuJoCo): no JAX operation at build time, inside a caller's trace or not
+        at_rest = points_at(model, robot.joint_names, robot.standing, names, correspondence.base)
         n_j = max(len(p["joints"]) for p in per)
         n_r = max(len(p["weights"]) for p in per)
         n_k = max(len(p["radii"]) for p in per)

@@ -63,6 +63,30 @@ def _point(model: mujoco.MjModel, name: Point) -> tuple[int, np.ndarray]:
     raise ConfigError(f"the MJCF has no site or body named {name!r}")
 
 
+def points_at(
+    model: mujoco.MjModel,
+    joint_names: Sequence[str],
+    q: np.ndarray,
+    points: Sequence[Point],
+    base: Point,
+) -> np.ndarray:
+    """``TreeFK.from_model(model, joint_names, points, base).points(q)`` for ONE configuration
+    on the host, by ``mujoco.mj_kinematics`` (build-time constants without a JAX program):
+    ``(n_joints,)`` angles -> ``(n_points, 3)`` float64 positions in ``base``'s frame."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    for joint, v in zip(joint_names, np.asarray(q, np.float64), strict=True):
+        data.qpos[model.jnt_qposadr[model.joint(joint).id]] = v
+    mujoco.mj_kinematics(model, data)
+    b = _point(model, base)[0]
+    out = []
+    for point in points:
+        bid, off = _point(model, point)
+        world = data.xpos[bid] + data.xmat[bid].reshape(3, 3) @ off
+        out.append(data.xmat[b].reshape(3, 3).T @ (world - data.xpos[b]))
+    return np.array(out, np.float64).reshape(len(out), 3)
+
+
 @dataclass(frozen=True, eq=False)
 class _Body:
     parent: int  # index into TreeFK.bodies, -1: the world
