@@ -30,34 +30,13 @@ from jaxproj.robots.generic_ik import (
     mjcf_collision_pairs,
     row_turned_by,
 )
-from jaxproj.robots.kinematics import TreeFK
+from jaxproj.robots.kinematics import TreeFK, points_at
 from jaxproj.robots.nao_h25 import spec as nao_spec
 from jaxproj.robots.unitree_g1 import spec as g1
 
 NAO_ARMS = nao_spec.ARM_CORRESPONDENCE
 
 N_FRAMES = 512
-
-
-def _mj_points(model: mujoco.MjModel, joints, q: np.ndarray, names, base: str) -> np.ndarray:
-    """Positions of sites / bodies ``names`` in ``base``'s frame by ``mujoco.mj_kinematics``."""
-    data = mujoco.MjData(model)
-    adr = [
-        model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in joints
-    ]
-    out = np.empty((len(q), len(names), 3))
-    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base)
-    for k, row in enumerate(q):
-        data.qpos[:] = model.qpos0
-        data.qpos[adr] = row
-        mujoco.mj_kinematics(model, data)
-        rot, org = data.xmat[b].reshape(3, 3), data.xpos[b]
-        for i, name in enumerate(names):
-            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-            x = data.site_xpos[sid] if sid >= 0 else data.xpos[
-                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)]  # fmt: skip
-            out[k, i] = rot.T @ (x - org)
-    return out
 
 
 @pytest.mark.parametrize(
@@ -75,7 +54,7 @@ def test_tree_fk_matches_mujoco(robot, points, base) -> None:
     fk = TreeFK.from_model(model, robot.joint_names, points, base)
     rng = np.random.default_rng(0)
     q = rng.uniform(robot.lower, robot.upper, (40, robot.n_joints)).astype(np.float32)
-    want = _mj_points(model, robot.joint_names, q, points, base)
+    want = np.stack([points_at(model, robot.joint_names, r, points, base) for r in q])
     assert np.abs(np.asarray(fk.points(q)) - want).max() < 2e-6  # m, float32 chains of ~1 m
     # the analytic Jacobian against forward-mode differentiation, joints moving the base too
     cols = tuple(range(robot.n_joints))
@@ -83,6 +62,13 @@ def test_tree_fk_matches_mujoco(robot, points, base) -> None:
     ref = jax.vmap(jax.jacfwd(fk.points))(jnp.asarray(q[:8]))
     assert np.abs(np.asarray(jac) - np.asarray(ref)).max() < 1e-5
     assert np.array_equal(np.asarray(p), np.asarray(fk.points(q[:8])))
+    # the generic IK's form: some points' derivatives only, a padding column (-1) all zeros
+    frame, axis, anchor, sign = fk.columns((*cols[:3], -1))
+    moved = np.array([len(points) - 1, 0])
+    pm, dm = fk.jacobian_columns(q[:8], frame, axis, anchor, sign[:, moved], moved=moved)
+    assert np.array_equal(np.asarray(pm), np.asarray(p))
+    assert np.abs(np.asarray(dm)[..., :3] - np.asarray(jac)[:, moved, :, :3]).max() < 1e-6
+    assert not np.asarray(dm)[..., 3].any()
 
 
 @pytest.fixture(scope="module")
@@ -309,7 +295,7 @@ def test_rows_each_chain_reads(name: str) -> None:
     h = 1e-4
     steps = np.concatenate([q[:, None] + h * np.eye(robot.n_joints), q[:, None] - h * np.eye(
         robot.n_joints)], axis=1).reshape(-1, robot.n_joints)  # fmt: skip
-    pts = _mj_points(model, robot.joint_names, steps, points, corr.base)
+    pts = np.stack([points_at(model, robot.joint_names, s, points, corr.base) for s in steps])
     pts = pts.reshape(len(q), 2, robot.n_joints, len(points), 3)
     for r in corr.pairs:
         seg = pts[..., points.index(r.end), :] - pts[..., points.index(r.start), :]
@@ -340,6 +326,32 @@ def _twisted_skeleton(turn: float) -> np.ndarray:
     upper = [j(n) for n in skeleton.JOINT_NAMES[1:12]]  # Spine .. HandRight
     pos[upper] = pos[upper] @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
     return pos
+
+
+def test_the_stacked_chains_padding_is_inert() -> None:
+    """The chains are padded to the largest's sizes and stacked (one scanned program): a padded
+    joint has the box [0, 0], no Jacobian column and no start value, a padded row and pair
+    weight 0, and a derivative slot points at the row's own moved point (no compile)."""
+    ik = g1.generic_ik()
+    data, n_joints = ik.problems.data, UNITREE_G1.n_joints
+    for i, (chain, rows) in enumerate(zip(ik.problems.chains, ik.problems.rows, strict=True)):
+        n, r = len(chain.joints), len(rows)
+        assert [UNITREE_G1.joint_names[j] for j in data.joints[i, :n]] == list(chain.joints)
+        assert (data.joints[i, n:] == n_joints).all()
+        for pad in (data.lo, data.hi, data.lim_lo, data.lim_hi):
+            assert not pad[i, n:].any()
+        assert not data.sign[i, n:].any() and not data.starts[i, :, n:].any()
+        assert data.row_mask[i].sum() == r and not data.weights[i, r:].any()
+        assert (data.weights[i, :r] > 0).all()
+        m = len(data.moved[i])
+        pairs = ((data.row_points[i, :r], data.row_slots[i, :r]),
+                 (data.capsule_points[i], data.capsule_slots[i]))  # fmt: skip
+        for points, slots in pairs:
+            hit = slots.reshape(-1) < m
+            assert hit.any()
+            assert (data.moved[i][slots.reshape(-1)[hit]] == points.reshape(-1)[hit]).all()
+    n_pairs = data.pair_mask.sum(axis=1)
+    assert (n_pairs > 0).all() and n_pairs.max() == data.pair_mask.shape[1]
 
 
 def test_g1_waist_yaw_follows_the_shoulders_turn_against_the_hips() -> None:
