@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxproj._internal.buckets import LINEAR_FROM, MIN_ROWS, bucket, pad_rows
+from jaxproj._internal.buckets import LINEAR_FROM, MIN_ROWS, bucket, fine_bucket, pad_rows
 from jaxproj.errors import ConfigError
 from jaxproj.human import skeleton
 from jaxproj.io import datasets
@@ -23,6 +23,17 @@ from jaxproj.robots.nao_h25 import ik
 def test_bucket(n, want):
     assert bucket(n) == want
     assert bucket(n, minimum=256) == max(want, 256)
+
+
+@pytest.mark.parametrize(
+    ("n", "want"),
+    [(0, 64), (64, 64), (65, 80), (81, 96), (97, 112), (113, 128), (1018, 1024), (1025, 1280),
+     (1157, 1280), (1283, 1536), (1537, 1792), (1793, 2048)],
+)  # fmt: skip
+def test_fine_bucket_pads_at_most_a_quarter(n, want):
+    assert fine_bucket(n) == want
+    assert fine_bucket(n, minimum=4) == want or n <= 64
+    assert all(fine_bucket(m) - m <= m // 4 for m in range(64, 5000))
 
 
 def test_pad_rows_keeps_the_rows_and_fills_the_rest():
