@@ -1,10 +1,11 @@
 """The command line's persistent compilation cache: XLA programs kept on disk between runs.
 
 Much of a first run's time on a CPU is XLA compiling (a first G1 retarget of ~1,000 frames:
-~40 s of its ~90 s on two cores); JAX's persistent compilation cache writes every compiled program to a folder and reads
-it back the next time the same program is needed, in this process or a later one. Every
-``jaxproj`` subcommand runs with it (``compilation_cache``, entered by ``jaxproj.cli.main.main``
-only: importing the library never changes JAX's configuration), in the first of:
+~40 s of its ~90 s on two cores); JAX's persistent compilation cache writes every compiled
+program to a folder and reads it back the next time the same program is needed, in this
+process or a later one. Every ``jaxproj`` subcommand runs with it (``compilation_cache``,
+entered by ``jaxproj.cli.main.main`` only: importing the library never changes JAX's
+configuration), in the first of:
 
 1. ``$JAXPROJ_CACHE_DIR``;
 2. JAX's own cache folder, where one is set (``$JAX_COMPILATION_CACHE_DIR``);
