@@ -427,7 +427,9 @@ class _Levels:
         # number the frames level by level (a level's frames contiguous, the world last)
         order = sorted(range(n), key=lambda i: depth[i])  # stable: tree order within a level
         new = {old: k for k, old in enumerate(order)}
-        start = {d: order.index(next(i for i in order if depth[i] == d)) for d in set(depth)}
+        start: dict[int, int] = {}  # each level's first frame
+        for k, i in enumerate(order):
+            start.setdefault(depth[i], k)
         levels = []
         for d in range(max(depth) + 1 if depth else 0):
             idx = [i for i in order if depth[i] == d]
