@@ -131,6 +131,7 @@ def main() -> None:
             engine.save(model, args.save)
     build_s = time.perf_counter() - t0
     cfg = model.config
+    _write({"model_build_s": build_s}, args.json)
     print(f"model: {model.landmarks} landmarks ({build_s:.0f} s)", file=sys.stderr)
     out: dict = {
         "robot": args.robot,
@@ -177,7 +178,11 @@ def main() -> None:
         )
     for set_name, d in sets.items():
         res: dict = {"frames": len(d)}
-        answers = {name: fn(d) for name, fn in methods.items()}
+        answers = {}
+        for name, fn in methods.items():
+            t1 = time.perf_counter()
+            answers[name] = fn(d)
+            print(f"{set_name}: {name} {time.perf_counter() - t1:.1f} s", file=sys.stderr)
         truth = answers["ik"]
         for name, q in answers.items():
             entry: dict = {}
@@ -207,14 +212,21 @@ def main() -> None:
             res[name] = entry
         out[set_name] = res
         print(set_name, json.dumps(res, indent=1), file=sys.stderr)
+        _write(out, args.json)
     msr = sets["msr_held_out"]
     d = np.tile(msr, (args.poses // len(msr) + 1, 1))[: args.poses]
     out["speed"] = {"poses": len(d)}
     for name, fn in methods.items():
         out["speed"][name] = timed(lambda fn=fn: fn(d), len(d))
+        print(f"speed: {name} {out['speed'][name]}", file=sys.stderr)
+        _write(out, args.json)
     print(json.dumps(out["speed"], indent=1))
-    if args.json:
-        with open(args.json, "w") as f:
+
+
+def _write(out: dict, path: str | None) -> None:
+    """Write what is measured so far (a run cut short keeps it)."""
+    if path:
+        with open(path, "w") as f:
             json.dump(out, f, indent=1)
 
 

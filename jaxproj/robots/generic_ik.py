@@ -12,6 +12,15 @@ waist turns the base). Chains after it see its answer (a leg chain solved after 
 the waist's angles), chains before it do not see it. Building the IK fails (``ConfigError``)
 for a chain that reads no row and for a row that no chain reads.
 
+A chain's per-frame answer depends on its own descriptor columns only: its collision term counts
+the pairs that its joints and those of its ``own_chains`` move (an arm against the torso and
+the head; a leg against the pelvis and, through the waist it reads, the torso), not the pairs
+that another chain's joints move too (an arm against a leg or the pelvis, which the waist turns;
+the two arms; the two legs). So the IK of a chain alone from its columns (``Chain.ik``: the
+landmarks' ground truth of a per-chain model) is the whole IK's answer for that chain, and a
+per-chain projection can learn it. The pairs between chains are ``separate``'s and ``track``'s,
+which count every pair.
+
 The problem of one chain with joints ``x`` (box ``[lo, hi]``, the robot's limits)::
 
     minimise   sum_k w_k |dir_k(x) - t_k|^2  +  lam * |x - x_0|^2  +  collision(x)
@@ -26,8 +35,8 @@ solved by box-constrained Levenberg-Marquardt: Gauss-Newton steps on the free jo
 a bound whose gradient points outward is held: the active set), the damping adapted by the
 gain of each step (accept a step only if it lowers the objective), a fixed number of iterations
 (``IKConfig.iterations``) from ``IKConfig.starts`` deterministic starting points (the standing
-posture and quasi-random points of the box drawn once from ``IKConfig.seed``); the start with
-the least final objective wins (the first on exact ties). Bones whose input is zero-length or
+posture and quasi-random points of the box drawn once from ``IKConfig.seed`` and the chain's
+name); the start with the least final objective wins (the first on exact ties). Bones whose input is zero-length or
 non-finite get weight 0 (the pull holds their joints at standing): never NaN.
 
 Stationarity, stated: a solution is *stationary* when its projected gradient ``|x - clip(x -
@@ -58,6 +67,7 @@ geometry out when a second kind of penalty comes.
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Generic, Literal, NamedTuple, TypeVar
@@ -313,6 +323,7 @@ class _ChainData(NamedTuple, Generic[_A]):
     radii: _A  # (K,)
     collide: _A  # (Q, 2) indices into the chain's capsules
     pair_mask: _A  # (Q,) bool: a real pair
+    own_mask: _A  # (Q,) bool: a pair the per-frame solve counts (``GenericIK.build``)
     starts: _A  # (S, N) starting points
 
 
@@ -398,7 +409,6 @@ class GenericIK:
         if model is None:
             model = robot.load_model("fixed")
         read = _rows_read(model, correspondence, chains, every)
-        rng = np.random.default_rng(config.seed)
         collision_pairs = (
             mjcf_collision_pairs(model)
             if isinstance(correspondence.collision_pairs, str)
@@ -417,10 +427,14 @@ class GenericIK:
             lo, hi = correspondence.box(robot, chain.joints)
             # capsules this chain can move, and the pairs among the correspondence's
             pairs = [pr for pr in collision_pairs if set(chain.joints) & _pair_moved_by(model, pr)]
+            others = _other_chains_joints(robot, chains, chain)
             used = sorted({n for p in pairs for n in p})
             caps = {n: capsule_points(model, n) for n in used}
             cap_idx = {n: i for i, n in enumerate(used)}
             starts = [np.clip(robot.standing[joints], lo, hi)]
+            # drawn per chain from the seed and the chain's name: the same starts whichever
+            # chains are built with it (a chain's own IK is the whole IK's answer for it)
+            rng = np.random.default_rng([config.seed, zlib.crc32(chain.name.encode())])
             for _ in range(config.starts - 1):
                 starts.append(
                     lo + rng.uniform(0.1, 0.9, len(joints)).astype(np.float32) * (hi - lo)
@@ -443,6 +457,9 @@ class GenericIK:
                     "collide": np.array(
                         [[cap_idx[a], cap_idx[b]] for a, b in pairs], np.int32
                     ).reshape(len(pairs), 2),
+                    "own": np.array(
+                        [not (_pair_moved_by(model, pr) & others) for pr in pairs], bool
+                    ),
                     "starts": np.stack(starts).astype(np.float32),
                 }
             )
@@ -501,6 +518,7 @@ class GenericIK:
             radii=stack("radii", (n_k,)),
             collide=stack("collide", (n_q, 2)),
             pair_mask=_pad([np.ones(len(p["collide"]), bool) for p in per], (n_q,), False),
+            own_mask=_pad([p["own"] for p in per], (n_q,), False),
             starts=stack("starts", (n_s, n_j)),
         )
         problems = _Chains(
@@ -551,10 +569,17 @@ class GenericIK:
         return p, jnp.concatenate([dm, jnp.zeros((1, *dm.shape[1:]), dm.dtype)])
 
     def _residual(
-        self, x: jax.Array, q_ext: jax.Array, t: jax.Array, w: jax.Array, c: _ChainData[jax.Array]
+        self,
+        x: jax.Array,
+        q_ext: jax.Array,
+        t: jax.Array,
+        w: jax.Array,
+        c: _ChainData[jax.Array],
+        own: bool = False,
     ) -> tuple[jax.Array, jax.Array]:
         """The chain's residual vector at chain angles ``x`` (one pose) and its derivative
-        ``(n_res, N)`` (analytic: ``TreeFK.jacobian_columns``)."""
+        ``(n_res, N)`` (analytic: ``TreeFK.jacobian_columns``); ``own``: only the pairs the
+        per-frame solve counts (``own_mask``), else every pair."""
         n = x.shape[-1]
         p, dp = self._chain_points(x, q_ext, c)
         sw = jnp.sqrt(w)
@@ -571,19 +596,20 @@ class GenericIK:
         parts.append(lam * (x - c.starts[0]))
         jacs.append(lam * jnp.eye(n, dtype=jnp.float32))
         if self.config.collision > 0 and self.problems.has_pairs.any():
-            pen, dpen = self._collision_terms(p, dp, c)
+            pen, dpen = self._collision_terms(p, dp, c, own)
             assert dpen is not None
             parts.append(pen)
             jacs.append(dpen)
         return jnp.concatenate(parts), jnp.concatenate(jacs, axis=0)
 
     def _collision_terms(
-        self, p: jax.Array, dp: jax.Array | None, c: _ChainData[jax.Array]
+        self, p: jax.Array, dp: jax.Array | None, c: _ChainData[jax.Array], own: bool = False
     ) -> tuple[jax.Array, jax.Array | None]:
         """The collision residuals ``sqrt(w_c) max(0, margin - gap)`` of a chain at FK points
-        ``p``: without ``dp``, ``(Q,)``, one per pair (0 for padding); with ``dp``, the
-        ``COLLISION_ROWS`` deepest pairs' and one row for the rest (the root of their squares'
-        sum: the objective stays exact), ``(COLLISION_ROWS + 1,)``, and their derivative
+        ``p`` (``own``: of the pairs ``own_mask`` keeps, else of every pair): without ``dp``,
+        ``(Q,)``, one per pair (0 for padding); with ``dp``, the ``COLLISION_ROWS`` deepest
+        pairs' and one row for the rest (the root of their squares' sum: the objective stays
+        exact), ``(COLLISION_ROWS + 1,)``, and their derivative
         ``(COLLISION_ROWS + 1, N)`` (the rest's row 0: exact while at most ``COLLISION_ROWS``
         pairs are closer than the margin; a chain's Q is 85-149 pairs on the G1, of which a
         pose has a few in contact, so the derivatives of the others, all zero, are not
@@ -598,7 +624,7 @@ class GenericIK:
         dist = jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
         gap = dist - c.radii[i] - c.radii[j]
         pen = jnp.maximum(np.float32(self.config.margin) - gap, 0.0)
-        pen = jnp.where(c.pair_mask, pen, 0.0)
+        pen = jnp.where(c.own_mask if own else c.pair_mask, pen, 0.0)
         sc = np.float32(math.sqrt(self.config.collision))
         if dp is None:
             return sc * pen, None
@@ -624,7 +650,7 @@ class GenericIK:
         """One pose, one chain: ``(x, objective, stationary)``."""
 
         def res_jac(x: jax.Array) -> tuple[jax.Array, jax.Array]:
-            return self._residual(x, q_ext, t, w, c)
+            return self._residual(x, q_ext, t, w, c, own=True)
 
         def run(x0: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
             x, r, jac = _levenberg_marquardt(
@@ -1055,6 +1081,22 @@ def mjcf_collision_pairs(model: mujoco.MjModel) -> tuple[tuple[str, str], ...]:
                 )
             )
     return tuple(out)
+
+
+def own_chains(chains: Sequence[Chain], chain: Chain) -> tuple[Chain, ...]:
+    """The chains whose answers ``chain``'s per-frame solve may depend on: itself and the
+    chains before it in ``chains`` whose bones it reads too (the waist's for a G1 leg). Its IK
+    from its own descriptor columns (``Chain.ik``) solves these."""
+    before = chains[: chains.index(chain)]
+    return (*(c for c in before if set(c.bones) <= set(chain.bones)), chain)
+
+
+def _other_chains_joints(robot: Robot, chains: Sequence[Chain], chain: Chain) -> set[str]:
+    """The joints of the robot's chains outside ``own_chains(robot.chains, chain)`` (of
+    ``chains`` where ``chain`` is not one of the robot's)."""
+    pool = tuple(robot.chains) if chain in robot.chains else tuple(chains)
+    own = {j for c in own_chains(pool, chain) for j in c.joints}
+    return {j for c in pool for j in c.joints} - own
 
 
 def _pair_moved_by(model: mujoco.MjModel, pair: tuple[str, str]) -> set[str]:

@@ -28,6 +28,7 @@ from jaxproj.robots.generic_ik import (
     TrackConfig,
     chain_rows,
     mjcf_collision_pairs,
+    own_chains,
     row_turned_by,
 )
 from jaxproj.robots.kinematics import TreeFK, points_at
@@ -352,6 +353,54 @@ def test_the_stacked_chains_padding_is_inert() -> None:
             assert (data.moved[i][slots.reshape(-1)[hit]] == points.reshape(-1)[hit]).all()
     n_pairs = data.pair_mask.sum(axis=1)
     assert (n_pairs > 0).all() and n_pairs.max() == data.pair_mask.shape[1]
+
+
+def test_a_chains_own_ik_is_the_whole_iks_problem_for_it() -> None:
+    """A per-chain model's landmarks are labelled by the chain's own IK (``Chain.ik``: the
+    chain and its ``own_chains``, from its descriptor columns); the projection stands in for the
+    whole IK only if that is the whole IK's answer for the chain. So per chain both build the
+    same problem (no compile): the same box, rows, starts and pairs, the same pairs counted per
+    frame, and none of those moved by another chain's joints (an arm against a leg)."""
+    whole = g1.generic_ik()
+    model = UNITREE_G1.load_model("fixed")
+    pairs = mjcf_collision_pairs(model)
+    for i, chain in enumerate(whole.problems.chains):
+        own = own_chains(UNITREE_G1.chains, chain)
+        alone = GenericIK.build(UNITREE_G1, g1.CORRESPONDENCE, g1.IK_CONFIG, chains=own)
+        a, w = alone.problems.take(np.array([-1])), whole.problems.take(np.array([i]))
+        assert alone.problems.rows[-1] == whole.problems.rows[i]
+        n, r, q = len(chain.joints), len(whole.problems.rows[i]), int(w.pair_mask[0].sum())
+        assert int(a.pair_mask[0].sum()) == q
+        for key, x, y in (
+            ("box", np.stack([a.lo[0, :n], a.hi[0, :n]]), np.stack([w.lo[0, :n], w.hi[0, :n]])),
+            ("weights", a.weights[0, :r], w.weights[0, :r]),
+            ("starts", a.starts[0, :, :n], w.starts[0, :, :n]),
+            ("pairs", a.collide[0, :q], w.collide[0, :q]),
+            ("counted", a.own_mask[0, :q], w.own_mask[0, :q]),
+        ):
+            np.testing.assert_array_equal(x, y, err_msg=f"{chain.name}: {key}")
+        # the counted pairs: moved by this chain, and by no joint of a chain outside its own
+        mine = [pr for pr in pairs if set(chain.joints) & _moved(model, pr)]
+        others = {j for c in UNITREE_G1.chains if c not in own for j in c.joints}
+        expect = np.array([not (_moved(model, pr) & others) for pr in mine])
+        np.testing.assert_array_equal(w.own_mask[0, :q], expect, err_msg=chain.name)
+        if chain.name != "waist":  # a limb against the body counts, a limb against a limb not
+            assert 0 < expect.sum() < len(expect), chain.name
+
+
+def _moved(model: mujoco.MjModel, pair: tuple[str, str]) -> set[str]:
+    """Joints that move one geom of ``pair`` against the other (on the path between them)."""
+
+    def joints(geom: str) -> set[str]:
+        b = int(model.geom_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)])
+        out = set()
+        while b > 0:
+            adr, num = model.body_jntadr[b], model.body_jntnum[b]
+            out |= {model.joint(j).name for j in range(adr, adr + num)}
+            b = int(model.body_parentid[b])
+        return out
+
+    return joints(pair[0]) ^ joints(pair[1])
 
 
 def test_g1_waist_yaw_follows_the_shoulders_turn_against_the_hips() -> None:

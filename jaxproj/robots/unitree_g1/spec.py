@@ -55,7 +55,7 @@ from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import resolve_bones
 from jaxproj.robots.base import Chain, Figure, Mjcf, Robot
-from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig
+from jaxproj.robots.generic_ik import BonePair, Correspondence, GenericIK, IKConfig, own_chains
 from jaxproj.robots.unitree_g1 import robot
 
 _WAIST_BONES = ("pelvis_left", "pelvis_right", "spine_lower")
@@ -141,8 +141,7 @@ def _chain_ik(x: np.ndarray, *, name: str) -> np.ndarray:
 @functools.cache
 def _chain_solver(name: str) -> jax.stages.Wrapped:
     chain = UNITREE_G1.chain(name)
-    before = UNITREE_G1.chains[: UNITREE_G1.chains.index(chain)]
-    needed = (*(c for c in before if set(c.bones) <= set(chain.bones)), chain)
+    needed = own_chains(UNITREE_G1.chains, chain)
     ik = GenericIK.build(UNITREE_G1, CORRESPONDENCE, IK_CONFIG, chains=needed)
     cols = np.array(UNITREE_G1.chain_joints(chain), np.int32)
     return jit(lambda d: ik.solve(d, chain.bones)[..., cols])
