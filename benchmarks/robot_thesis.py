@@ -22,7 +22,7 @@ For ``--robot nao_h25`` the IK is the closed form, and the generic IK (arms, dir
 ``tests/robots/test_generic_ik.py``'s table) is timed beside it.
 
     python -m benchmarks.robot_thesis [--robot unitree_g1] [--model M.npz] [--save M.npz]
-        [--poses 8192] [--json OUT]
+        [--poses 8192] [--sets msr_held_out,utkinect_held_out] [--json OUT]
 """
 
 from __future__ import annotations
@@ -116,6 +116,8 @@ def main() -> None:
     ap.add_argument("--model", help="the robot's model (else built with BuildConfig(robot=...))")
     ap.add_argument("--save", help="write the built model here")
     ap.add_argument("--poses", type=int, default=8192)
+    ap.add_argument("--sets", default="msr_held_out,utkinect_held_out",
+                    help="which held-out sets to score (comma-separated)")  # fmt: skip
     ap.add_argument("--json")
     args = ap.parse_args()
     robot = robots.get(args.robot)
@@ -177,6 +179,8 @@ def main() -> None:
             separate(jaxproj.project(model, x, "relaxed")[0])
         )
     for set_name, d in sets.items():
+        if set_name not in args.sets.split(","):
+            continue
         res: dict = {"frames": len(d)}
         answers = {}
         for name, fn in methods.items():
