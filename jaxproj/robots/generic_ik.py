@@ -19,7 +19,8 @@ that another chain's joints move too (an arm against a leg or the pelvis, which 
 the two arms; the two legs). So the IK of a chain alone from its columns (``Chain.ik``: the
 landmarks' ground truth of a per-chain model) is the whole IK's answer for that chain, and a
 per-chain projection can learn it. The pairs between chains are ``separate``'s and ``track``'s,
-which count every pair.
+which count every pair. The solve computes its own pairs only (a chain's pairs are built with
+them first): on the G1 1 / 9 / 9 / 28 / 28 of the chains' 149 / 85 / 85 / 133 / 133.
 
 The problem of one chain with joints ``x`` (box ``[lo, hi]``, the robot's limits)::
 
@@ -36,8 +37,9 @@ a bound whose gradient points outward is held: the active set), the damping adap
 gain of each step (accept a step only if it lowers the objective), a fixed number of iterations
 (``IKConfig.iterations``) from ``IKConfig.starts`` deterministic starting points (the standing
 posture and quasi-random points of the box drawn once from ``IKConfig.seed`` and the chain's
-name); the start with the least final objective wins (the first on exact ties). Bones whose input is zero-length or
-non-finite get weight 0 (the pull holds their joints at standing): never NaN.
+name); the start with the least final objective wins (the first on exact ties). Bones whose
+input is zero-length or non-finite get weight 0 (the pull holds their joints at standing): never
+NaN.
 
 Stationarity, stated: a solution is *stationary* when its projected gradient ``|x - clip(x -
 g)|_inf`` is below ``IKConfig.gtol`` (``g`` the objective's gradient); ``solve_info`` returns it
@@ -323,7 +325,7 @@ class _ChainData(NamedTuple, Generic[_A]):
     radii: _A  # (K,)
     collide: _A  # (Q, 2) indices into the chain's capsules
     pair_mask: _A  # (Q,) bool: a real pair
-    own_mask: _A  # (Q,) bool: a pair the per-frame solve counts (``GenericIK.build``)
+    own_mask: _A  # (Q,) bool: a pair the per-frame solve counts (they come first)
     starts: _A  # (S, N) starting points
 
 
@@ -337,6 +339,7 @@ class _Chains:
     fk: TreeFK  # every chain's points, base frame
     data: _ChainData[np.ndarray]  # stacked: (C, ...)
     has_pairs: np.ndarray  # (C,) bool: the chain moves a collision pair
+    n_own: int  # the most pairs a chain's per-frame solve counts (its first pairs: own_mask)
 
     def __len__(self) -> int:
         return len(self.chains)
@@ -427,7 +430,9 @@ class GenericIK:
             lo, hi = correspondence.box(robot, chain.joints)
             # capsules this chain can move, and the pairs among the correspondence's
             pairs = [pr for pr in collision_pairs if set(chain.joints) & _pair_moved_by(model, pr)]
+            # the pairs the per-frame solve counts first (it reads only the first ``n_own``)
             others = _other_chains_joints(robot, chains, chain)
+            pairs.sort(key=lambda pr: bool(_pair_moved_by(model, pr) & others))
             used = sorted({n for p in pairs for n in p})
             caps = {n: capsule_points(model, n) for n in used}
             cap_idx = {n: i for i, n in enumerate(used)}
@@ -527,6 +532,7 @@ class GenericIK:
             fk=fk,
             data=data,
             has_pairs=np.array([len(p["collide"]) > 0 for p in per], bool),
+            n_own=max(1, max(int(p["own"].sum()) for p in per)),
         )
         return cls(robot, correspondence, config, problems)
 
@@ -614,7 +620,8 @@ class GenericIK:
         pairs are closer than the margin; a chain's Q is 85-149 pairs on the G1, of which a
         pose has a few in contact, so the derivatives of the others, all zero, are not
         computed)."""
-        i, j = c.collide[:, 0], c.collide[:, 1]
+        q = self.problems.n_own if own else c.collide.shape[0]
+        i, j = c.collide[:q, 0], c.collide[:q, 1]
         ca, cb = c.capsule_points[:, 0], c.capsule_points[:, 1]
         a1, b1, a2, b2 = p[ca[i]], p[cb[i]], p[ca[j]], p[cb[j]]
         s1, s2 = _closest(a1, b1, a2, b2)
@@ -624,7 +631,7 @@ class GenericIK:
         dist = jnp.sqrt(jnp.sum(diff * diff, -1) + 1e-12)
         gap = dist - c.radii[i] - c.radii[j]
         pen = jnp.maximum(np.float32(self.config.margin) - gap, 0.0)
-        pen = jnp.where(c.own_mask if own else c.pair_mask, pen, 0.0)
+        pen = jnp.where((c.own_mask if own else c.pair_mask)[:q], pen, 0.0)
         sc = np.float32(math.sqrt(self.config.collision))
         if dp is None:
             return sc * pen, None
