@@ -26,15 +26,25 @@ def _us(poses_per_s: float) -> float:
 
 G1_CPU = "robot_thesis_g1_cpu.json"
 G1_H100 = "g1_time_split_h100.json"
+G1_H200 = "robot_thesis_g1_msr_h200.json"
 
 NUMBERS: list[tuple[str, str, str, Callable[[dict], float], str]] = [
     # (page, pattern with the figure as group 1, result file, reader, format)
-    ("docs/index.md", r"([\d.]+)x on an H100 \(relaxed", G1_H100,
-     lambda r: r["ik"]["whole"]["us_per_pose"] / r["projection"]["whole"]["us_per_pose"], "{:.1f}"),
-    ("docs/index.md", r"relaxed, ([\d.]+) vs [\d.]+ us per pose", G1_H100,
-     lambda r: r["projection"]["whole"]["us_per_pose"], "{:.2f}"),
-    ("docs/index.md", r"relaxed, [\d.]+ vs ([\d.]+) us per pose", G1_H100,
-     lambda r: r["ik"]["whole"]["us_per_pose"], "{:.1f}"),
+    ("docs/index.md", r"(\d+)x on an H200 \(relaxed", G1_H200,
+     lambda r: r["speed"]["ik"]["us_per_pose"] / r["speed"]["relaxed"]["us_per_pose"], "{:.0f}"),
+    ("docs/index.md", r"relaxed, ([\d.]+) vs [\d.]+ us per pose", G1_H200,
+     lambda r: r["speed"]["relaxed"]["us_per_pose"], "{:.2f}"),
+    ("docs/index.md", r"relaxed, [\d.]+ vs ([\d.]+) us per pose", G1_H200,
+     lambda r: r["speed"]["ik"]["us_per_pose"], "{:.1f}"),
+    ("docs/index.md", r"([\d.]+)x with `separate`", G1_H200,
+     lambda r: r["speed"]["ik"]["us_per_pose"] / r["speed"]["relaxed_separated"]["us_per_pose"],
+     "{:.1f}"),
+    ("docs/index.md", r"median M_avg ([\d.]+) deg against it", G1_H200,
+     lambda r: r["msr_held_out"]["relaxed"]["vs_ik_M_avg_median"], "{:.2f}"),
+    ("docs/results.md", r"vs the IK: median M_avg \| \*\*([\d.]+)\*\*", G1_H200,
+     lambda r: r["msr_held_out"]["relaxed"]["vs_ik_M_avg_median"], "{:.2f}"),
+    ("docs/results.md", r"against the IK's 27.1 us per pose \| \*\*([\d.]+)x\*\*", G1_H200,
+     lambda r: r["speed"]["ik"]["us_per_pose"] / r["speed"]["relaxed"]["us_per_pose"], "{:.1f}"),
     ("docs/results.md", r"relaxed projection \*\*([\d.]+) us\*\* per pose", G1_H100,
      lambda r: r["projection"]["whole"]["us_per_pose"], "{:.2f}"),
     ("docs/results.md", r"collision-aware IK [\d.]+ us: \*\*([\d.]+)x\*\*", G1_H100,
@@ -71,7 +81,7 @@ def test_the_docs_quote_the_result_files(
 
 
 def test_the_table_can_fail() -> None:
-    """A quoted figure that differs from its file is caught (here: the old 3.1x)."""
+    """A quoted figure that differs from its file is caught (here: the 14x of the H100 run)."""
     page, pattern, result, read, fmt = NUMBERS[0]
     want = fmt.format(read(json.loads((RESULTS / result).read_text(encoding="utf-8"))))
-    assert re.findall(pattern, "3.1x on an H100 (relaxed") == ["3.1"] != [want]
+    assert re.findall(pattern, "14x on an H200 (relaxed") == ["14"] != [want]
