@@ -168,7 +168,9 @@ NVIDIA H200, ``benchmarks/results/g1_landmarks_h200.json``)."""
 
 DEVIATION_SCALE = 0.965
 """``Robot.deviation_scale``: the p90 of the relaxed deviation of the 4,000-landmark model of
-that experiment on the people it did not see (0.9652; the NAO's default model: 0.174)."""
+that experiment on the people it did not see (0.9652; the NAO's default model: 0.174). Measured
+with the IK of 2026-11-26, before the waist read the hip line and before a chain's per-frame
+answer depended on its own columns only (both 2026-11-28): not re-measured since."""
 
 LOOSE_JOINTS: tuple[str, ...] = tuple(
     f"{s}_{j}_joint" for s in ("left", "right") for j in ("hip_yaw", "shoulder_yaw")
