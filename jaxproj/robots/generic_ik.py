@@ -417,6 +417,7 @@ class GenericIK:
             if isinstance(correspondence.collision_pairs, str)
             else correspondence.collision_pairs
         )
+        moved_by = {pr: _pair_moved_by(model, pr) for pr in collision_pairs}
         names: list[Point] = []  # every chain's FK points, in one list
 
         def point(name: Point) -> int:
@@ -429,10 +430,11 @@ class GenericIK:
             joints = np.array([robot.index(j) for j in chain.joints], np.int32)
             lo, hi = correspondence.box(robot, chain.joints)
             # capsules this chain can move, and the pairs among the correspondence's
-            pairs = [pr for pr in collision_pairs if set(chain.joints) & _pair_moved_by(model, pr)]
+            pairs = [pr for pr in collision_pairs if set(chain.joints) & moved_by[pr]]
             # the pairs the per-frame solve counts first (it reads only the first ``n_own``)
             others = _other_chains_joints(robot, chains, chain)
-            pairs.sort(key=lambda pr: bool(_pair_moved_by(model, pr) & others))
+            own = [pr for pr in pairs if not (moved_by[pr] & others)]
+            pairs = own + [pr for pr in pairs if pr not in own]
             used = sorted({n for p in pairs for n in p})
             caps = {n: capsule_points(model, n) for n in used}
             cap_idx = {n: i for i, n in enumerate(used)}
@@ -462,9 +464,7 @@ class GenericIK:
                     "collide": np.array(
                         [[cap_idx[a], cap_idx[b]] for a, b in pairs], np.int32
                     ).reshape(len(pairs), 2),
-                    "own": np.array(
-                        [not (_pair_moved_by(model, pr) & others) for pr in pairs], bool
-                    ),
+                    "own": np.arange(len(pairs)) < len(own),
                     "starts": np.stack(starts).astype(np.float32),
                 }
             )
