@@ -4,6 +4,8 @@ Stages, each a small pure (traceable) function written for ONE motion (``(T, 20,
 positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
 
     frame_descriptors   (T, 20, 3) positions -> (T, m) descriptors, (T,) valid
+    glitch_frames       (T,) frames where a bone the robot reads jumps out and back in one
+                        frame (a tracker's glitch): ``motion`` marks them invalid (offline only)
     level               the neck's neutral tilt moved to the reference (``skeleton.level_neck``;
                         ``retarget``: each recording's own median tilt, see ``level``)
     map_frames          (T, m) -> (T, n) driven angles: analytic IK or a projector
@@ -118,6 +120,50 @@ def frame_descriptors(
     if valid is not None:
         ok = ok & valid
     return d, ok
+
+
+GLITCH_DEG = 60.0
+"""``glitch_frames``' threshold: a bone that turns more than this into a frame and more than this
+out of it, while the frames on either side differ by less than half as much."""
+
+
+def glitch_frames(
+    d: jax.Array, ok: jax.Array, *, bones: str | tuple[str, ...], read: tuple[str, ...]
+) -> jax.Array:
+    """The frames of one motion where a tracker glitched for one frame: some bone of ``read``
+    turns by more than ``GLITCH_DEG`` into the frame and by more than that out of it, while its
+    directions in the frames on either side are less than half the smaller turn apart (it went
+    out and came back). A limb does not do that within two frames: on UTKinect-Action3D (7.5
+    fps after resampling) a forearm turns 131 deg into one frame and 168 deg out of it, and
+    the robot's shoulder, following it, swings 238 deg and back. Only frames whose neighbours
+    are both valid are judged; the first and last frames never are.
+
+    Args:
+      d: ``(T, 3 * n_bones)`` descriptors of ``bones``; ok: ``(T,)`` their validity.
+      bones: the descriptor's bones.
+      read: the bones to judge (the robot's, ``Robot.ik_bones``); bones the descriptor lacks
+        are skipped.
+
+    Returns:
+      ``(T,)`` bool, true at a glitch frame.
+    """
+    names = resolve_bones(bones)
+    idx = [names.index(b) for b in read if b in names]
+    t = d.shape[0]
+    if not idx or t < 3:
+        return jnp.zeros(ok.shape, bool)
+    v = d.reshape(t, -1, 3)[:, np.asarray(idx)]
+    n = jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
+    u = v / jnp.where(n > 1e-6, n, 1.0)
+
+    def angle(a: jax.Array, b: jax.Array) -> jax.Array:
+        return jnp.arccos(jnp.clip(jnp.sum(a * b, axis=-1), -1.0, 1.0))
+
+    into, out = angle(u[1:-1], u[:-2]), angle(u[2:], u[1:-1])
+    smaller = jnp.minimum(into, out)
+    jump = (smaller > np.float32(np.radians(GLITCH_DEG))) & (angle(u[2:], u[:-2]) < smaller / 2)
+    inner = jnp.any(jump, axis=-1) & ok[:-2] & ok[1:-1] & ok[2:]
+    return jnp.concatenate([jnp.zeros((1,), bool), inner, jnp.zeros((1,), bool)])
 
 
 NeckLevel = Literal["recording", "given", "off"]
@@ -312,6 +358,7 @@ def motion(
       ``projection.confidence`` of each frame (0 where invalid, 1 for the IK).
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
+    ok = ok & ~glitch_frames(d, ok, bones=bones, read=robot.ik_bones)
     d = level(d, ok, neck, neck_neutral, bones=bones, up=world_up(positions))
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot)  # fmt: skip

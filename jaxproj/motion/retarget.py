@@ -9,8 +9,10 @@ function (``jaxproj.motion.pipeline.motion``, the one pipeline): descriptor -> p
 (``_bucket``) so recordings of similar length share one compilation. Options are checked here,
 in Python, before tracing.
 
-Invalid frames (lost tracking, non-finite values, degenerate bones) are kept and filled by a
-documented rule, so a motion never dies halfway and never contains NaN:
+Invalid frames (lost tracking, non-finite values, degenerate bones, and one-frame glitches: a
+bone the robot reads that turns more than 60 deg into a frame and back out of it,
+``pipeline.glitch_frames``) are kept and filled by a documented rule, so a motion never dies
+halfway and never contains NaN:
 
 * an invalid frame holds the last valid frame's angles (unsmoothed output, and the paper's
   smoother's input); the default offline smoother instead skips its value and bridges the gap

@@ -272,12 +272,26 @@ class TrackConfig:
       min_step: ``r_0``, rad: how far a joint may move in one frame whatever its limb did.
       step_gain: ``g``: how far a joint may move in one frame per radian its limb turned. With
         15 deg and 1.8, a joint whose limb turned less than 10 deg moves at most 18 deg.
+      follow: ``p``, the weight of ``|x - q_t|^2`` (rad^-2): a pull toward the frame's own
+        answer, for a chain whose last output is off the answer's directions. Without it a
+        chain that took another branch during a fast move (another solution of the same
+        directions, e.g. the shoulder's other Euler branch) keeps it while it fits; where that
+        branch then meets a joint limit the output is stuck in a local minimum of the
+        direction fit, the limb 30-40 deg off for seconds (measured, UTKinect s07: the arms'
+        p90 27 deg, 7 deg per frame). The pull walks it back, at most the step bound a frame.
+        0 turns it off.
+      follow_error: ``e``, rad: the pull's full weight applies where the last output's worst
+        row is ``e`` or more off the answer's directions, none below ``e / 2``, linear
+        between: a loose joint whose answers flip while the directions stay (a straight arm's
+        yaw) is not pulled along.
     """
 
     continuity: float = 0.05
     iterations: int = 12
     min_step: float = math.radians(15.0)
     step_gain: float = 1.8
+    follow: float = 0.05
+    follow_error: float = math.radians(10.0)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.continuity) and self.continuity > 0):
@@ -288,6 +302,11 @@ class TrackConfig:
             raise ConfigError("TrackConfig.iterations must be >= 1")
         if not (0 < self.min_step <= math.pi and 0 < self.step_gain < math.inf):
             raise ConfigError("TrackConfig: min_step in (0, pi] rad and step_gain > 0")
+        if not (math.isfinite(self.follow) and self.follow >= 0):
+            raise ConfigError(f"TrackConfig.follow must be finite and >= 0, got {self.follow}")
+        if not 0 < self.follow_error <= math.pi:
+            raise ConfigError(f"TrackConfig.follow_error must be in (0, pi] rad, "
+                              f"got {self.follow_error}")  # fmt: skip
 
 
 class IKInfo(NamedTuple):
@@ -825,7 +844,7 @@ class GenericIK:
         (``y``'s angles and the frame's own answer ``q_t``) by the IK's Levenberg-Marquardt::
 
             minimise   sum_k w_k |dir_k(x) - dir_k(q_t)|^2  +  c * |x - y|^2
-                       +  lam * |x - x_0|^2  +  collision(x)
+                       +  p * s(err) * |x - q_t|^2  +  lam * |x - x_0|^2  +  collision(x)
             within     the IK's box  and  |x - y|_inf <= max(r_0, g * turn)
 
         (``dir_k(q)``: the chain's row directions at ``q``, base frame; ``turn``: how far the
@@ -913,14 +932,20 @@ class GenericIK:
         turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (C,)
         radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
         sc = np.float32(math.sqrt(cfg.continuity))
+        # the pull toward the answer, per chain: by how far the last output is off its rows
+        mask = jnp.asarray(self.problems.data.row_mask)
+        cos_y = jnp.where(mask, jnp.sum(self._directions(standing.at[didx].set(y)) * t, -1), 1.0)
+        off = jnp.max(jnp.arccos(jnp.clip(cos_y, -1.0, 1.0)), axis=-1)  # (C,)
+        half = np.float32(cfg.follow_error / 2)
+        sp = jnp.sqrt(np.float32(cfg.follow) * jnp.clip((off - half) / half, 0.0, 1.0))
         data = jax.tree.map(jnp.asarray, self.problems.data)
         q_ext = self._extended(q_full)
 
         def chain(
-            out: jax.Array, xs: tuple[_ChainData[jax.Array], jax.Array, jax.Array]
+            out: jax.Array, xs: tuple[_ChainData[jax.Array], jax.Array, jax.Array, jax.Array]
         ) -> tuple[jax.Array, None]:
-            c, t_c, radius_c = xs
-            anchor = out[c.joints]
+            c, t_c, radius_c, sp_c = xs
+            anchor, answer = out[c.joints], q_ext[c.joints]
             lo = jnp.maximum(c.lo, anchor - radius_c)
             hi = jnp.minimum(c.hi, anchor + radius_c)
 
@@ -928,8 +953,8 @@ class GenericIK:
                 r, jac = self._residual(x, out, t_c, c.weights, c)
                 eye = jnp.eye(x.shape[-1], dtype=jnp.float32)
                 return (
-                    jnp.concatenate([r, sc * (x - anchor)]),
-                    jnp.concatenate([jac, sc * eye], axis=0),
+                    jnp.concatenate([r, sc * (x - anchor), sp_c * (x - answer)]),
+                    jnp.concatenate([jac, sc * eye, sp_c * eye], axis=0),
                 )
 
             def run(x0: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -938,11 +963,13 @@ class GenericIK:
                 )
                 return x, jnp.sum(r * r)
 
-            starts = jnp.stack([jnp.clip(anchor, lo, hi), jnp.clip(q_ext[c.joints], lo, hi)])
+            starts = jnp.stack([jnp.clip(anchor, lo, hi), jnp.clip(answer, lo, hi)])
             xs_, fs = jax.vmap(run)(starts)
             return out.at[c.joints].set(xs_[jnp.argmin(fs)]), None
 
-        out, _ = jax.lax.scan(chain, self._extended(standing.at[didx].set(y)), (data, t, radius))
+        out, _ = jax.lax.scan(
+            chain, self._extended(standing.at[didx].set(y)), (data, t, radius, sp)
+        )
         res = out[didx]
         return jnp.where(jnp.isfinite(res), res, q_t)
 

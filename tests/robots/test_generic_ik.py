@@ -8,6 +8,8 @@ left arm twice (with and without the collision term).
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -210,6 +212,8 @@ def test_ranges_narrow_the_box_to_the_human_branch() -> None:
         (lambda: BonePair("neck", "a", "b", rest=(0.0, 0.0, 0.0)), "rest"),
         (lambda: Correspondence("torso", ()), "at least one"),
         (lambda: IKConfig(starts=0), "starts"),
+        (lambda: TrackConfig(follow=-1.0), "follow must"),
+        (lambda: TrackConfig(follow_error=0.0), "follow_error"),
         (lambda: Correspondence("torso", NAO_ARMS.pairs, ranges=(("HeadYaw", 1.0, 0.0),)), "lower"),
         (
             lambda: Correspondence("torso", NAO_ARMS.pairs, ranges=(("Tail", 0.0, 1.0),)).box(
@@ -467,6 +471,13 @@ def test_track_holds_a_loose_joint_the_limb_does_not_justify(nao_case) -> None:
     track = jax.jit(lambda a, v, h: ik.track(a, v, h, "upper", cfg))
     out = np.asarray(track(flips, np.ones(10, bool), still))
     assert np.abs(np.diff(out[:, yaw])).max() <= cfg.min_step + 1e-4
+    # the pull toward the answer (TrackConfig.follow) is off while the output's directions are
+    # the answer's: the loose yaw is held, not dragged along by the flipping answers ...
+    assert np.abs(out[1:, yaw] - out[1, yaw]).max() < np.radians(1.0)
+    # ... which it is where the pull's threshold is 0: a step bound a frame, back and forth
+    eager = dataclasses.replace(cfg, follow_error=1e-6)
+    dragged = np.asarray(ik.track(flips, np.ones(10, bool), still, "upper", eager))
+    assert np.abs(np.diff(dragged[1:, yaw])).min() > np.radians(5.0)
 
     def off(a: np.ndarray, b: np.ndarray) -> float:  # deg, the worst row direction of an arm
         u = np.asarray(ik._directions(jnp.asarray(NAO_H25.driven_to_full(a))))
