@@ -292,3 +292,38 @@ def test_frame_gains_of_one_motion_and_of_a_batch_agree():
                                rtol=1e-6)  # fmt: skip
     params = SmoothingParams(alpha=0.5)
     np.testing.assert_array_equal(np.asarray(frame_gains(params, None, 3)), params.gains())
+
+
+def _turned(v: np.ndarray, deg: float) -> np.ndarray:
+    """``v`` (3,) turned by ``deg`` about z."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]], np.float32)
+
+
+def test_glitch_frames_marks_a_bone_that_jumps_out_and_back_in_one_frame():
+    """A read bone out by 120 deg on one frame and back: that frame (and only it) is a glitch;
+    a bone turning 70 deg a frame steadily, one jumping out and staying, a glitch of a bone
+    the robot does not read, and one beside an invalid frame are not."""
+    bones = ("upper_arm_left", "forearm_left")
+    base = np.array([1.0, 0.0, 0.0], np.float32)
+    d = np.tile(np.concatenate([base, base]), (8, 1))
+    d[3, 3:] = _turned(base, 120.0)  # the forearm out and back
+    steady = d.copy()
+    steady[:, :3] = np.stack([_turned(base, 70.0 * t) for t in range(8)])
+    stays = np.tile(np.concatenate([base, base]), (8, 1))
+    stays[3:, 3:] = _turned(base, 120.0)
+    ok = np.ones(8, bool)
+
+    def glitches(x: np.ndarray, valid: np.ndarray = ok, read: tuple[str, ...] = bones) -> list:
+        g = pipeline.glitch_frames(jnp.asarray(x), jnp.asarray(valid), bones=bones, read=read)
+        return np.flatnonzero(np.asarray(g)).tolist()
+
+    assert glitches(d) == [3]
+    assert glitches(steady) == [3]  # the forearm's glitch still; the steady upper arm is not one
+    steady[3, 3:] = base
+    assert glitches(steady) == []
+    assert glitches(stays) == []
+    assert glitches(d, read=("upper_arm_left",)) == []
+    beside = ok.copy()
+    beside[4] = False
+    assert glitches(d, beside) == []
