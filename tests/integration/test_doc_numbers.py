@@ -88,3 +88,54 @@ def test_the_table_can_fail() -> None:
     page, pattern, result, read, fmt = NUMBERS[0]
     want = fmt.format(read(json.loads((RESULTS / result).read_text(encoding="utf-8"))))
     assert re.findall(pattern, "14x on an H200 (relaxed") == ["14"] != [want]
+
+
+PLAYABLE_FILES = {
+    "UTKinect s07 e01": "joints_s07_e01.txt",
+    "UTKinect s07 e02": "joints_s07_e02.txt",
+    "UTKinect s09 e01": "joints_s09_e01.txt",
+    "UTKinect s09 e02": "joints_s09_e02.txt",
+    "CMU 131_01": "131_01.bvh",
+    "CMU 131_03": "131_03.bvh",
+}
+
+
+def _playable_rows(heading: str) -> dict[str, list[str]]:
+    """The rows of the first table after ``heading`` in docs/results.md: recording -> cells."""
+    text = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+    after = text[text.index(heading) :]
+    rows = {}
+    for line in after.split("\n| recording", 1)[1].splitlines()[2:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        name = re.sub(r" \(.*\)$", "", cells[0])
+        if name in PLAYABLE_FILES:
+            rows[name] = cells[1:]
+    return rows
+
+
+@pytest.mark.parametrize(
+    ("heading", "result"),
+    [
+        ("## The Unitree G1's output as a G1 would play it", "g1_playable_ik_cpu.json"),
+        ("With `--method relaxed --model G1.npz`", "g1_playable_relaxed_h200.json"),
+    ],
+)
+def test_the_g1_playable_tables_are_the_result_files(heading: str, result: str) -> None:
+    """Flip steps, steps over 90 deg, contact frames, the lean and the arms' median / p90 of
+    each recording, as the results page's table quotes them."""
+    rows = _playable_rows(heading)
+    assert set(rows) == set(PLAYABLE_FILES), f"{heading}: rows {sorted(rows)}"
+    got = json.loads((RESULTS / result).read_text(encoding="utf-8"))["rows"]
+    by_file = {r["file"]: r for r in got}
+    for name, cells in rows.items():
+        r = by_file[PLAYABLE_FILES[name]]
+        want = [
+            str(r["flip_steps"]),
+            str(r["steps_over_90"]),
+            str(r["contact_frames"]),
+            f"{r['lean_robot_median']:.1f} / {r['lean_person_median']:.1f}",
+            f"{r['arm_median']:.1f} / {r['arm_p90']:.1f}",
+        ]
+        assert cells[:5] == want, f"{result}, {name}: the page says {cells[:5]}, the file {want}"
