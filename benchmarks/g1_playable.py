@@ -22,6 +22,11 @@ and against the robot's own geometry:
 * ``arms``: the angle between the robot's upper arm / forearm (torso frame) and the person's
   (the body frame as ``retarget`` levels it, ``skeleton.level_body``), deg: median and p90 over
   valid frames and both arms.
+* ``foot_pitch``: each foot's pitch (deg, toes down positive) against its own flat-footed
+  standing, in the trunk's frame: the robot's ankle -> toe direction in the torso frame against
+  the same at the standing posture; the person's levelled foot bone against the direction the
+  correspondence matches to the robot's flat foot (the foot row's ``rest``): medians over valid
+  frames and both feet, and their difference.
 
 Inputs (default): the UTKinect-Action3D people 7 and 9 (the default model trains on 3, 4, 6) and
 the two CMU BVH clips at their full 120 fps, from ``../shared/data`` when it is there, else the
@@ -53,6 +58,7 @@ FLIP_BONE_DEG = 10.0
 CONTACT_MM = 1.0
 TORSO = "torso_link"
 FEET = ("left_ankle_roll_link", "right_ankle_roll_link")
+FOOT_SITES = ("ankle_site", "toe_site")
 ARM_SITES = {
     "upper_arm": ("shoulder_site", "elbow_site"),
     "forearm": ("elbow_site", "wrist_site"),
@@ -79,6 +85,21 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     na = a / np.linalg.norm(a, axis=-1, keepdims=True)
     nb = b / np.linalg.norm(b, axis=-1, keepdims=True)
     return np.degrees(np.arccos(np.clip(np.sum(na * nb, -1), -1.0, 1.0)))
+
+
+def _pitch(v: np.ndarray) -> float:
+    """Pitch (deg) of a direction in a frame with x forward and z up: positive below the
+    horizontal (toes down)."""
+    return float(np.degrees(np.arctan2(-v[2], np.hypot(v[0], v[1]))))
+
+
+def robot_correspondence(robot: robots.Robot):  # noqa: ANN201
+    """The robot's correspondence (its bone pairs and their ``rest`` directions)."""
+    from jaxproj.robots.unitree_g1 import spec
+
+    if robot.name != ROBOT:
+        raise SystemExit(f"{robot.name}: this benchmark measures the G1")
+    return spec.CORRESPONDENCE
 
 
 def _bones(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -160,8 +181,24 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
     qadr = qpos_addresses(model, robot)
     bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (TORSO, *FEET)}
     site = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n)
-            for s in ("left", "right") for a, b in ARM_SITES.values()
+            for s in ("left", "right") for a, b in (*ARM_SITES.values(), FOOT_SITES)
             for n in (f"{s}_{a}", f"{s}_{b}")}  # fmt: skip
+    rest = {r.bone: r.rest for r in robot_correspondence(robot).pairs if r.rest is not None}
+
+    def sole_pitch() -> list[float]:  # deg, each foot's ankle -> toe in the torso frame
+        r_t = data.xmat[bid[TORSO]].reshape(3, 3)
+        out = []
+        for s in ("left", "right"):
+            a, b = (data.site_xpos[site[f"{s}_{n}"]] for n in FOOT_SITES)
+            out.append(_pitch(r_t.T @ (b - a)))
+        return out
+
+    data.qpos[qadr] = robot.standing
+    mujoco.mj_forward(model, data)
+    standing_pitch = sole_pitch()
+    foot_diff: list[float] = []
+    foot_robot: list[float] = []
+    foot_person: list[float] = []
     t_n = len(motion.angles)
     contact = np.zeros(t_n, bool)
     pairs: dict[str, int] = {}
@@ -183,6 +220,14 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
             rolls.append(np.degrees(np.arctan2(-z[1], z[2])))
         lean[t], roll[t] = float(np.mean(leans)), float(np.mean(rolls))
         if ok[t] and motion.valid[t]:
+            for k, (s, p) in enumerate(zip(("left", "right"), sole_pitch(), strict=True)):
+                mine = p - standing_pitch[k]
+                theirs = _pitch(bones[t, BONE_NAMES.index(f"foot_{s}")]) - _pitch(
+                    np.asarray(rest[f"foot_{s}"])
+                )
+                foot_robot.append(mine)
+                foot_person.append(theirs)
+                foot_diff.append(mine - theirs)
             for s in ("left", "right"):
                 for bone, (a, b) in ARM_SITES.items():
                     xs = data.site_xpos
@@ -206,6 +251,11 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
         "lean_diff": round(float(np.nanmedian(lean[use]) - np.nanmedian(person_lean[use])), 1),
         "lean_roll_median": round(float(np.nanmedian(np.abs(roll[use]))), 1),
         "ankle_pitch_at_limit_share": round(float(at_limit[use].any(axis=1).mean()), 3),
+        "foot_pitch_robot_median": round(float(np.median(foot_robot)), 1) if foot_robot else None,
+        "foot_pitch_person_median": round(float(np.median(foot_person)), 1)
+        if foot_person
+        else None,
+        "foot_pitch_diff": round(float(np.median(foot_diff)), 1) if foot_diff else None,
         "arm_median": round(float(np.median(err)), 2) if len(err) else None,
         "arm_p90": round(float(np.percentile(err, 90)), 2) if len(err) else None,
     }
@@ -249,7 +299,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(r)
             print(json.dumps(r), flush=True)
     keys = ("flip_steps", "steps_over_90", "max_step_deg", "contact_frames", "lean_diff",
-            "lean_roll_median", "arm_median", "arm_p90")  # fmt: skip
+            "foot_pitch_diff", "arm_median", "arm_p90")  # fmt: skip
     print(f"{'file':24s} " + " ".join(f"{k:>16s}" for k in keys), file=sys.stderr)
     for r in rows:
         print(f"{r['file']:24s} " + " ".join(f"{r.get(k)!s:>16s}" for k in keys), file=sys.stderr)
