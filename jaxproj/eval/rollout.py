@@ -385,7 +385,8 @@ def summarize(
       * ``tracking_error_deg``: ``mean``, ``p95``, ``max`` of |achieved - target| at frame ends
         (all driven joints of all valid frames pooled), and ``per_joint_p95`` (name -> deg);
       * ``self_collision_frames``: frames with self-contact per group (``arm_torso``,
-        ``arm_head``, ``arm_arm``), ``any`` (a frame counted once), ``motions`` with any,
+        ``arm_head``, ``arm_arm``: the groups found from the robot's kinematic tree,
+        ``rollout_model._geom_classes``), ``any`` (a frame counted once), ``motions`` with any,
         and ``max_penetration_mm``;
       * ``joint_limit_violations``: ``achieved_frames`` / ``target_frames``, frames where some
         joint is more than ``LIMIT_TOLERANCE`` outside [lower, upper] in the simulation / in the

@@ -5,8 +5,12 @@ Part of ``jaxproj.eval.rollout`` (see its docstring for the protocol): ``Rollout
 and index tables of one part (``"whole"``, or the two halves of ``RolloutConfig.split_legs``:
 ``robot.mjcf.split``), with the split's certificate (``_head_ball``, ``_guard``).
 
-The contact groups are read from the MJCF's geom names (``torso_*``, ``head_*``, ``l_upperarm*``
-/ ``l_forearm*`` / ``l_hand*`` and the ``r_`` twins), the naming of the bundled NAO model.
+The contact groups come from the robot's kinematic tree, not from geom names
+(``_geom_classes``): an arm is every geom below the trunk on the way to that side's elbow site
+(``Mjcf.arm_sites``), the torso the geoms of the trunk body itself (the deepest body both
+elbows hang from), the head every geom below the figure's head body (``Figure.head``). On the
+bundled NAO that is exactly its ``torso_*`` / ``head_*`` / ``l_upperarm*`` ... geoms; on the G1,
+whose geoms are named otherwise, it is what the names missed.
 """
 
 from __future__ import annotations
@@ -26,8 +30,6 @@ from jaxproj.robots import Robot
 
 CONTACT_GROUPS: tuple[str, ...] = ("arm_torso", "arm_head", "arm_arm")
 """The self-contact groups reported, in the order of the last axis of ``RolloutResult.contact``."""
-
-_ARM_PARTS = frozenset({"upperarm", "forearm", "hand"})
 
 
 @dataclass(frozen=True)
@@ -156,22 +158,51 @@ class _Setup(NamedTuple):
     ramp: jax.Array  # (substeps,) float32 share of the step to this frame's target per physics step
 
 
-def _geom_class(name: str) -> str:
-    """ "torso" | "head" | "arm_l" | "arm_r" | "other" from an MJCF geom name."""
-    parts = name.split("_")
-    if parts[0] in ("torso", "head"):
-        return parts[0]
-    if parts[0] in ("l", "r") and len(parts) > 1 and parts[1] in _ARM_PARTS:
-        return "arm_" + parts[0]
-    return "other"
+def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:
+    """``body`` and its ancestors up to (not including) the world body, deepest first."""
+    out = []
+    while body > 0:
+        out.append(body)
+        body = int(model.body_parentid[body])
+    return out
 
 
-def _pair_group(model: mujoco.MjModel) -> np.ndarray:
+def _geom_classes(model: mujoco.MjModel, robot: Robot) -> list[str]:
+    """Each geom's contact class, ``"torso"`` | ``"head"`` | ``"arm_<side>"`` | ``"other"``, from
+    the kinematic tree (the module doc). A model without both elbow sites (a legs part) has no
+    arm, so no geom is reported."""
+    classes = ["other"] * model.ngeom
+    paths = {}
+    for side, (_, elbow, _) in robot.mjcf.arm_sites.items():
+        site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, elbow)
+        if site >= 0:
+            paths[side] = _ancestors(model, int(model.site_bodyid[site]))
+    if len(paths) < 2:
+        return classes
+    first = next(iter(paths.values()))
+    trunk = next((b for b in first if all(b in p for p in paths.values())), -1)
+    if trunk < 0:
+        return classes
+    roots = {side: p[p.index(trunk) - 1] for side, p in paths.items() if p[0] != trunk}
+    figure = robot.mjcf.figure
+    head_body = None if figure is None or figure.head is None else figure.head[0]
+    body = mujoco.mjtObj.mjOBJ_BODY
+    head = -1 if head_body is None else mujoco.mj_name2id(model, body, head_body)
+    for g in range(model.ngeom):
+        chain = _ancestors(model, int(model.geom_bodyid[g]))
+        side = next((s for s, r in roots.items() if r in chain), None)
+        if side is not None:
+            classes[g] = f"arm_{side}"
+        elif chain and chain[0] == trunk:
+            classes[g] = "torso"
+        elif head > 0 and head != trunk and head in chain:
+            classes[g] = "head"
+    return classes
+
+
+def _pair_group(model: mujoco.MjModel, robot: Robot) -> np.ndarray:
     """(ngeom, ngeom) int32: the CONTACT_GROUPS index of a geom pair, -1 when not reported."""
-    names = [
-        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in range(model.ngeom)
-    ]
-    cls = [_geom_class(n) for n in names]
+    cls = _geom_classes(model, robot)
     out = np.full((model.ngeom, model.ngeom), -1, dtype=np.int32)
     for i, a in enumerate(cls):
         for j, b in enumerate(cls):
@@ -353,7 +384,7 @@ def _tables(config: RolloutConfig, part: str, robot: Robot) -> _Tables:
     jids = _part_joints(model, robot)
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in jids]
     leader = {follower: lead for lead, follower in robot.coupled_joints}
-    pair_group = _pair_group(model)
+    pair_group = _pair_group(model, robot)
     if part == "legs" and np.any(pair_group >= 0):
         raise ConfigError("split_legs: a reported contact group involves the legs")
     return _Tables(
