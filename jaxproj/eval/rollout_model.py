@@ -172,6 +172,8 @@ def _geom_classes(model: mujoco.MjModel, robot: Robot) -> list[str]:
     the kinematic tree (the module doc). A model without both elbow sites (a legs part) has no
     arm, so no geom is reported."""
     classes = ["other"] * model.ngeom
+    if robot.mjcf is None:
+        return classes
     paths = {}
     for side, (_, elbow, _) in robot.mjcf.arm_sites.items():
         site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, elbow)
