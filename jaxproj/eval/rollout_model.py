@@ -192,9 +192,9 @@ def _geom_classes(model: mujoco.MjModel, robot: Robot) -> list[str]:
     head = -1 if head_body is None else mujoco.mj_name2id(model, body, head_body)
     for g in range(model.ngeom):
         chain = _ancestors(model, int(model.geom_bodyid[g]))
-        side = next((s for s, r in roots.items() if r in chain), None)
-        if side is not None:
-            classes[g] = f"arm_{side}"
+        arm = next((s for s, r in roots.items() if r in chain), None)
+        if arm is not None:
+            classes[g] = f"arm_{arm}"
         elif chain and chain[0] == trunk:
             classes[g] = "torso"
         elif head > 0 and head != trunk and head in chain:
