@@ -183,7 +183,8 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
     site = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n)
             for s in ("left", "right") for a, b in (*ARM_SITES.values(), FOOT_SITES)
             for n in (f"{s}_{a}", f"{s}_{b}")}  # fmt: skip
-    rest = {r.bone: r.rest for r in robot_correspondence(robot).pairs if r.rest is not None}
+    rests = {r.bone: r.rest for r in robot_correspondence(robot).pairs if r.rest is not None}
+    flat = {s: _pitch(np.asarray(rests[f"foot_{s}"])) for s in ("left", "right")}  # person's
 
     def sole_pitch() -> list[float]:  # deg, each foot's ankle -> toe in the torso frame
         r_t = data.xmat[bid[TORSO]].reshape(3, 3)
@@ -222,9 +223,7 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
         if ok[t] and motion.valid[t]:
             for k, (s, p) in enumerate(zip(("left", "right"), sole_pitch(), strict=True)):
                 mine = p - standing_pitch[k]
-                theirs = _pitch(bones[t, BONE_NAMES.index(f"foot_{s}")]) - _pitch(
-                    np.asarray(rest[f"foot_{s}"])
-                )
+                theirs = _pitch(bones[t, BONE_NAMES.index(f"foot_{s}")]) - flat[s]
                 foot_robot.append(mine)
                 foot_person.append(theirs)
                 foot_diff.append(mine - theirs)

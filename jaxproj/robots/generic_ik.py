@@ -920,24 +920,29 @@ class GenericIK:
         standing = jnp.asarray(self.robot.standing)
         didx = self.robot.driven_index
         q_full = standing.at[didx].set(q_t)
+        y_full = standing.at[didx].set(y)
         t = self._directions(q_full)  # (C, R, 3): every chain's targets at once
+        mask = jnp.asarray(self.problems.data.row_mask)
+
+        def worst_row(cos: jax.Array, use: jax.Array) -> jax.Array:  # (C,) rad
+            return jnp.max(jnp.arccos(jnp.clip(jnp.where(use, cos, 1.0), -1.0, 1.0)), axis=-1)
+
+        def off_targets(q: jax.Array) -> jax.Array:  # (C,) rad: q's rows against t's
+            return worst_row(jnp.sum(self._directions(q) * t, axis=-1), mask)
+
         if human is None:
-            cos = jnp.sum(t * self._directions(standing.at[didx].set(q_prev)), axis=-1)
-            cos = jnp.where(jnp.asarray(self.problems.data.row_mask), cos, 1.0)
+            turn = off_targets(standing.at[didx].set(q_prev))
         else:
             h_prev, h_t, names = human
             a, wa = self._targets(h_prev, names)
             b, wb = self._targets(h_t, names)
-            cos = jnp.where((wa > 0) & (wb > 0), jnp.sum(a * b, axis=-1), 1.0)
-        turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (C,)
+            turn = worst_row(jnp.sum(a * b, axis=-1), (wa > 0) & (wb > 0))
         radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
         sc = np.float32(math.sqrt(cfg.continuity))
         # the pull toward the answer, per chain: by how far the last output is off its rows
-        mask = jnp.asarray(self.problems.data.row_mask)
-        cos_y = jnp.where(mask, jnp.sum(self._directions(standing.at[didx].set(y)) * t, -1), 1.0)
-        off = jnp.max(jnp.arccos(jnp.clip(cos_y, -1.0, 1.0)), axis=-1)  # (C,)
         half = np.float32(cfg.follow_error / 2)
-        sp = jnp.sqrt(np.float32(cfg.follow) * jnp.clip((off - half) / half, 0.0, 1.0))
+        ramp = jnp.clip((off_targets(y_full) - half) / half, 0.0, 1.0)
+        sp = jnp.sqrt(np.float32(cfg.follow) * ramp)
         data = jax.tree.map(jnp.asarray, self.problems.data)
         q_ext = self._extended(q_full)
 
@@ -967,9 +972,7 @@ class GenericIK:
             xs_, fs = jax.vmap(run)(starts)
             return out.at[c.joints].set(xs_[jnp.argmin(fs)]), None
 
-        out, _ = jax.lax.scan(
-            chain, self._extended(standing.at[didx].set(y)), (data, t, radius, sp)
-        )
+        out, _ = jax.lax.scan(chain, self._extended(y_full), (data, t, radius, sp))
         res = out[didx]
         return jnp.where(jnp.isfinite(res), res, q_t)
 
