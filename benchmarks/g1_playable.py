@@ -95,11 +95,9 @@ def _pitch(v: np.ndarray) -> float:
 
 def robot_correspondence(robot: robots.Robot):  # noqa: ANN201
     """The robot's correspondence (its bone pairs and their ``rest`` directions)."""
-    from jaxproj.robots.unitree_g1 import spec
-
-    if robot.name != ROBOT:
+    if robot.name != ROBOT or robot.generic is None:
         raise SystemExit(f"{robot.name}: this benchmark measures the G1")
-    return spec.CORRESPONDENCE
+    return robot.generic.correspondence
 
 
 def _bones(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -145,10 +145,9 @@ def main() -> None:
     }
     sets = held_out(robot, cfg.bones, cfg.utkinect_people)
     if args.robot == "unitree_g1":
-        from jaxproj.robots.unitree_g1 import spec
-
-        corr = spec.CORRESPONDENCE
-        direction_only = spec.generic_ik(collision=False)
+        assert robot.generic is not None
+        corr = robot.generic.correspondence
+        direction_only = robot.generic.build(collision=False)
         solve_dir = jax.jit(lambda x: direction_only.solve(x, cfg.bones))
         methods: dict[str, Callable[[np.ndarray], np.ndarray]] = {
             "ik": lambda x: np.asarray(robot.solve_ik(x, cfg.bones)),
@@ -174,7 +173,7 @@ def main() -> None:
         }
     methods["relaxed"] = lambda x: np.asarray(jaxproj.project(model, x, "relaxed")[0])
     if args.robot == "unitree_g1":
-        separate = jax.jit(spec.generic_ik().separate)
+        separate = jax.jit(robot.generic.build().separate)
         methods["relaxed_separated"] = lambda x: np.asarray(
             separate(jaxproj.project(model, x, "relaxed")[0])
         )

@@ -35,18 +35,22 @@ import numpy as np
 import jaxproj
 from jaxproj import robots
 from jaxproj.io import datasets
-from jaxproj.robots.unitree_g1 import spec
+from jaxproj.robots.generic import with_generic_ik
 
 TRAIN_MSR, TRAIN_UTK = (1, 3, 5), (3, 4)
 VALID_MSR, VALID_UTK = (7, 9), (6,)
 
 
+_G1 = robots.UNITREE_G1
+
+
 def _use_ranges(on: bool) -> None:
-    """Switch the G1's correspondence (its module global, read by its cached IK builders)."""
-    ranges = spec.HUMAN_RANGES if on else ()
-    spec.CORRESPONDENCE = dataclasses.replace(spec.CORRESPONDENCE, ranges=ranges)
-    for cached in (spec._chain_solver, spec.generic_ik, spec._jitted):
-        cached.cache_clear()
+    """Register the G1 with its human ranges or without them (a variant of its generic IK)."""
+    solver = _G1.generic
+    assert solver is not None
+    ranges = solver.correspondence.ranges if on else ()
+    corr = dataclasses.replace(solver.correspondence, ranges=ranges)
+    robots.register(_G1 if on else with_generic_ik(_G1, corr, solver.config), replace=True)
 
 
 def _descriptors(seqs: list) -> np.ndarray:

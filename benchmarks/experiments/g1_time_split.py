@@ -32,7 +32,6 @@ from jaxproj import robots
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
 from jaxproj.robots.generic_ik import GenericIK
-from jaxproj.robots.unitree_g1 import spec
 from jaxproj.timing import time_calls
 
 
@@ -71,18 +70,20 @@ def main() -> None:
         out["projection"][name] = timed(lambda p=p, x=x: jaxproj.project(p, x)[0], n)
         print(name, out["projection"][name], flush=True)
     out["ik"] = {}
+    solver = g1.generic
+    assert solver is not None
     for chain in g1.chains:
-        ik = GenericIK.build(g1, spec.CORRESPONDENCE, spec.IK_CONFIG, chains=(chain,))
+        ik = GenericIK.build(g1, solver.correspondence, solver.config, chains=(chain,))
         fn = jax.jit(lambda x, ik=ik: ik.solve(x, bones))
         out["ik"][chain.name] = timed(lambda fn=fn: jax.block_until_ready(fn(d)), n)
         print("ik", chain.name, out["ik"][chain.name], flush=True)
-    whole = jax.jit(lambda x: spec.generic_ik().solve(x, bones))
+    whole = jax.jit(lambda x: solver.build().solve(x, bones))
     truth = np.asarray(whole(d))
     out["ik"]["whole"] = timed(lambda: jax.block_until_ready(whole(d)), n)
     out["cheaper_ik"] = {}
     for starts, iterations in ((1, 24), (2, 24), (4, 12), (2, 12)):
-        cfg = dataclasses.replace(spec.IK_CONFIG, starts=starts, iterations=iterations)
-        ik = GenericIK.build(g1, spec.CORRESPONDENCE, cfg)
+        cfg = dataclasses.replace(solver.config, starts=starts, iterations=iterations)
+        ik = GenericIK.build(g1, solver.correspondence, cfg)
         fn = jax.jit(lambda x, ik=ik: ik.solve(x, bones))
         q = np.asarray(fn(d))
         row = timed(lambda fn=fn: jax.block_until_ready(fn(d)), n)

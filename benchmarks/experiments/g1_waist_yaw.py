@@ -24,16 +24,25 @@ import jaxproj
 from jaxproj import robots
 from jaxproj.human import skeleton
 from jaxproj.io import datasets
-from jaxproj.robots.unitree_g1 import spec
+
+
+def spine_rest() -> tuple[float, float, float]:
+    """The G1's calibrated ``spine_lower`` direction (its correspondence row's ``rest``)."""
+    solver = robots.UNITREE_G1.generic
+    assert solver is not None
+    (row,) = solver.correspondence.rows(("spine_lower",))
+    assert row.rest is not None
+    return row.rest
 
 
 def twisted_skeleton(turn: float) -> np.ndarray:
     """``(20, 3)`` Kinect v1 joints (m; x forward, y left, z up) of a person standing with the
     upper body, from the Spine point up, turned ``turn`` deg about the vertical through the hip
-    centre (the spine at the G1's calibrated rest, ``spec.SPINE_REST``: no waist pitch)."""
+    centre (the spine at the G1's calibrated rest, its ``spine_lower`` row's ``rest``: no waist
+    pitch)."""
     j = skeleton.JOINT_NAMES.index
     pos = np.zeros((20, 3))
-    pos[j("Spine")] = 0.1 * np.asarray(spec.SPINE_REST)
+    pos[j("Spine")] = 0.1 * np.asarray(spine_rest())
     pos[j("ShoulderCenter")] = (0.0, 0.0, 0.45)
     pos[j("Head")] = (0.0, 0.0, 0.65)
     for side, y in (("Left", 1.0), ("Right", -1.0)):

@@ -105,6 +105,17 @@ class Bounded:
         return values
 
 
+def robot_name(text: str) -> str:
+    """``--robot``: a registered robot's name, or a robot file (``.toml``: read, registered,
+    and its robot's name returned)."""
+    from jaxproj import robots
+
+    try:
+        return robots.get(text).name
+    except ConfigError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def parse_ints(text: str) -> list[int]:
     try:
         return [int(t) for t in text.split(",") if t.strip()]

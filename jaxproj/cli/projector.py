@@ -54,8 +54,9 @@ def _add_build(sub: Any) -> None:
     pb.add_argument(
         "--robot",
         default=robots.DEFAULT,
-        choices=robots.names(),
-        help="the robot the projector is for (its chains, limits and IK; the model records it)",
+        type=options.robot_name,
+        help=f"the robot the projector is for: a name ({', '.join(robots.names())}) or a robot "
+        "file (robot.toml; docs: Robots); its chains, limits and IK; the model records it",
     )
     pb.add_argument(
         "--chains",

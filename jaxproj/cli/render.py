@@ -30,6 +30,13 @@ def add_parsers(sub: Any) -> None:
     )
     options.add_force_option(p, "--out")
     p.add_argument(
+        "--robot",
+        type=options.robot_name,
+        default=None,
+        help="the motion's robot: a name or a robot file (robot.toml) (None: the registered "
+        "robot whose joints the file names)",
+    )
+    p.add_argument(
         "--backend",
         default="auto",
         choices=("auto", "mujoco", "matplotlib"),
@@ -70,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     out = options.output_path(
         args.out, "--out", force=args.force, inputs={"the motion file": args.motion}
     )
-    motion = load_motion(args.motion)
+    motion = load_motion(args.motion, robot=args.robot)
     done = render.render_to_file(
         motion, out, fps=args.fps, backend=args.backend, size=args.size, stride=args.stride,
         overwrite=args.force,

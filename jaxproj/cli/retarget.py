@@ -90,8 +90,9 @@ def add_parsers(sub: Any) -> None:
     pr.add_argument(
         "--robot",
         default=None,
-        choices=robots.names(),
-        help="the robot of --method ik (None: the model's robot, which a model records; without "
+        type=options.robot_name,
+        help=f"the robot of --method ik: a name ({', '.join(robots.names())}) or a robot file "
+        "(robot.toml; docs: Robots) (None: the model's robot, which a model records; without "
         f"a model {robots.DEFAULT}); a robot other than the model's is refused",
     )
     options.add_neighbour_options(pr)

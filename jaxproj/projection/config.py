@@ -142,6 +142,8 @@ class BuildConfig:
                 f"UTKinect-Action3D subset {UTK_SUBJECTS} (a tuple; () for none)"
             )
         object.__setattr__(self, "utkinect_people", tuple(int(x) for x in people))
+        if robots.is_file_name(self.robot):  # a robot file: read, registered, named
+            object.__setattr__(self, "robot", robots.get(self.robot).name)
         if not isinstance(self.robot, str) or self.robot not in robots.names():
             raise ConfigError(
                 f"robot={self.robot!r} is not a registered robot; use one of {robots.names()} "

@@ -17,6 +17,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
+from jaxproj import robots
 from jaxproj._internal.atomic import check_output, write_npz
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.projection.build import Model
@@ -24,6 +25,7 @@ from jaxproj.projection.config import BuildConfig
 from jaxproj.projection.elm import ELMBank
 from jaxproj.projection.projector import make_projector
 from jaxproj.projection.stacked import chain_inputs, layout_of, stack_projectors
+from jaxproj.robots import robot_file
 
 FORMAT = "jaxproj-projector"
 FORMAT_VERSION = 3
@@ -91,6 +93,9 @@ def save(model: Model, path: str | Path, *, overwrite: bool = True) -> None:
         "driven_joints": list(spec.driven_joints),
         "ik": dict(spec.ik_constants),
     }
+    robot_doc = robot_file.embed(spec)
+    if robot_doc is not None:  # a robot from a file travels with the model
+        meta["robot_file"] = robot_doc
     arrays = {"meta": np.array(json.dumps(meta)), **arrays}
     write_npz(path, arrays, overwrite=overwrite)
 
@@ -202,6 +207,13 @@ def _read_arrays(path: Path, keys: tuple[str, ...] | None = None) -> dict[str, n
 
 def _config(path: Path, meta: dict) -> BuildConfig:
     """The checked ``BuildConfig`` of a model file's ``meta``."""
+    doc = meta.get("robot_file")
+    name = meta.get("config", {}).get("robot") if isinstance(meta.get("config"), dict) else None
+    if isinstance(doc, dict) and name is not None and name not in robots.names():
+        try:  # a robot from a file, not registered here: the model's own copy
+            robots.register(robot_file.from_embedded(doc))
+        except ConfigError as e:
+            raise InputError(path, f"its embedded robot does not load ({_one_line(e)})") from None
     try:
         # a file written before BuildConfig.utkinect_people existed trained on MSR Action3D
         # (or the user's data) alone: it must not read as trained on the default UTKinect people

@@ -18,14 +18,20 @@ default robot (``"nao_h25"``).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path, PurePath
 
 from jaxproj.errors import ConfigError
 from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_coupled
 from jaxproj.robots.nao_h25.spec import NAO_H25
-from jaxproj.robots.unitree_g1.spec import UNITREE_G1
+from jaxproj.robots.robot_file import load
+
+UNITREE_G1 = load(Path(__file__).parent / "unitree_g1" / "robot.toml")
+"""The Unitree G1 (29 joints, 21 driven: waist, legs to the ankle pitch, arms to the elbow),
+read from its robot file ``unitree_g1/robot.toml`` and MJCF ``unitree_g1/unitree_g1.xml``."""
 
 __all__ = ["DEFAULT", "NAO_H25", "UNITREE_G1", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot",
-           "clip_coupled", "for_joints", "get", "names", "register", "unregister"]  # fmt: skip
+           "clip_coupled", "for_joints", "get", "is_file_name", "load", "names", "register",
+           "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""
@@ -57,14 +63,32 @@ def unregister(name: str) -> None:
     del _REGISTRY[name]
 
 
-def get(name: str | Robot | None = None) -> Robot:
-    """The robot registered as ``name`` (``None``: the default; a ``Robot`` is returned as is).
+def is_file_name(name: object) -> bool:
+    """Whether ``name`` is a robot file's path (a ``Path``, or a str ending in ``.toml``)
+    rather than a registered robot's name."""
+    return isinstance(name, PurePath) or (isinstance(name, str) and name.endswith(".toml"))
+
+
+def get(name: str | PurePath | Robot | None = None) -> Robot:
+    """The robot registered as ``name`` (``None``: the default; a ``Robot`` is returned as is),
+    or the robot of the robot file at ``name`` (``is_file_name``), read (``load``) and
+    registered under its name.
 
     Raises:
-      ConfigError: no robot of that name.
+      ConfigError: no robot of that name; a robot file that does not load, or whose robot's
+        name is taken by another robot (another file, or a built-in robot).
     """
     if isinstance(name, Robot):
         return name
+    if is_file_name(name):
+        robot = load(name)  # type: ignore[arg-type]
+        old = _REGISTRY.get(robot.name)
+        same_file = old is not None and old.file is not None and old.file == robot.file
+        if old is not None and old is not robot and not same_file:
+            where = f"from {old.file}" if old.file is not None else "built in"
+            raise ConfigError(f"{robot.file}: a robot named {robot.name!r} is registered already "
+                              f"({where}); give yours another name")  # fmt: skip
+        return register(robot, replace=True)
     key = DEFAULT if name is None else name
     if key not in _REGISTRY:
         raise ConfigError(f"unknown robot {key!r}; registered robots: {names()}")

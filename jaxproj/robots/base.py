@@ -28,7 +28,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -37,6 +37,9 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
+
+if TYPE_CHECKING:
+    from jaxproj.robots.generic import GenericSolver
 
 ChainIK = Callable[[np.ndarray], np.ndarray]
 """IK of one chain: ``(N, 3 * len(bones))`` bone directions (the chain's descriptor columns,
@@ -384,6 +387,9 @@ class Robot:
         last output, (n_driven,) last valid answer, (n_driven,) this frame's answer, (m,) last
         valid descriptor, (m,) this frame's, bones) -> (n_driven,)`` (the G1's:
         ``GenericIK.track_step``); ``None``: no such pass. A robot with ``track`` gives both.
+      generic: the generic IK behind the hooks above (``jaxproj.robots.generic.GenericSolver``:
+        its correspondence, settings and built solver), or ``None`` (a robot with its own IK).
+      file: the robot file it was read from (``jaxproj.robots.robot_file``), or ``None``.
 
     Raises:
       ConfigError: any inconsistency (shapes, unknown or repeated names, limits, posture outside
@@ -415,6 +421,8 @@ class Robot:
     deviation_scale: float | None = None
     track: Callable[..., jax.Array] | None = field(default=None, compare=False)
     track_step: Callable[..., jax.Array] | None = field(default=None, compare=False)
+    generic: GenericSolver | None = field(default=None, compare=False, repr=False)
+    file: Path | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if (self.track is None) != (self.track_step is None):

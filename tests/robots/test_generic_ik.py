@@ -35,9 +35,10 @@ from jaxproj.robots.generic_ik import (
 )
 from jaxproj.robots.kinematics import TreeFK, points_at
 from jaxproj.robots.nao_h25 import spec as nao_spec
-from jaxproj.robots.unitree_g1 import spec as g1
 
 NAO_ARMS = nao_spec.ARM_CORRESPONDENCE
+assert UNITREE_G1.generic is not None
+G1_IK = UNITREE_G1.generic
 
 N_FRAMES = 512
 
@@ -165,16 +166,16 @@ def test_collision_term_keeps_the_g1_forearm_out_of_its_torso() -> None:
         return worst
 
     answers = {}
-    for weight in (0.0, g1.IK_CONFIG.collision):
-        cfg = IKConfig(collision=weight, starts=2, margin=g1.IK_CONFIG.margin)
+    for weight in (0.0, G1_IK.config.collision):
+        cfg = IKConfig(collision=weight, starts=2, margin=G1_IK.config.margin)
         ik = GenericIK.build(
-            UNITREE_G1, g1.CORRESPONDENCE, cfg, chains=(UNITREE_G1.chain("left_arm"),)
+            UNITREE_G1, G1_IK.correspondence, cfg, chains=(UNITREE_G1.chain("left_arm"),)
         )
         answers[weight] = np.asarray(jax.jit(lambda x, ik=ik: ik.solve(x, bones))(d))
     assert worst_gap(answers[0.0], own=True) < -0.03  # m: the forearm inside the torso
     # no contact (MuJoCo's own) but with the right arm, which the left arm's solve leaves alone
-    assert worst_gap(answers[g1.IK_CONFIG.collision], own=True) == np.inf
-    assert worst_gap(answers[g1.IK_CONFIG.collision]) < 0
+    assert worst_gap(answers[G1_IK.config.collision], own=True) == np.inf
+    assert worst_gap(answers[G1_IK.config.collision]) < 0
     # separate: the direction-only answers pushed out of the torso; a free pose is not moved
     free = np.zeros((1, UNITREE_G1.n_driven), np.float32)  # the left arm held out sideways
     free[0, UNITREE_G1.driven_joints.index("left_shoulder_roll_joint")] = 1.0
@@ -189,14 +190,14 @@ def test_collision_term_keeps_the_g1_forearm_out_of_its_torso() -> None:
 def test_ranges_narrow_the_box_to_the_human_branch() -> None:
     """A straight G1 arm stops at the straight elbow (+90 deg), not past it with the upper arm
     twisted half a turn: ``Correspondence.ranges``."""
-    lo, hi = g1.CORRESPONDENCE.box(UNITREE_G1, ("left_elbow_joint", "left_knee_joint"))
+    lo, hi = G1_IK.correspondence.box(UNITREE_G1, ("left_elbow_joint", "left_knee_joint"))
     np.testing.assert_allclose(hi[0], np.pi / 2, rtol=1e-6)
     assert lo[1] == 0.0 and hi[1] == np.float32(
         UNITREE_G1.upper[UNITREE_G1.index("left_knee_joint")]
     )
     # the yaws a person cannot turn past 45 deg: thighs and trunk (the G1's go to 158 / 150 deg)
     yaws = ("left_hip_yaw_joint", "right_hip_yaw_joint", "waist_yaw_joint")
-    lo, hi = g1.CORRESPONDENCE.box(UNITREE_G1, yaws)
+    lo, hi = G1_IK.correspondence.box(UNITREE_G1, yaws)
     np.testing.assert_allclose(np.stack([lo, hi]), np.broadcast_to(
         np.float32([[-np.pi / 4], [np.pi / 4]]), (2, 3)), rtol=1e-6)  # fmt: skip
     assert all(UNITREE_G1.upper[UNITREE_G1.index(j)] > 2.5 for j in yaws)
@@ -236,7 +237,7 @@ def test_ranges_narrow_the_box_to_the_human_branch() -> None:
                 UNITREE_G1,
                 Correspondence(
                     "torso_link",
-                    (*g1.CORRESPONDENCE.pairs, BonePair("neck", "torso_site", "head_site")),
+                    (*G1_IK.correspondence.pairs, BonePair("neck", "torso_site", "head_site")),
                 ),
             ),
             "read by no chain: 'neck'",
@@ -270,7 +271,7 @@ ROWS_READ: dict[str, tuple[Correspondence, dict[str, tuple[str, ...]]]] = {
     # the waist reads the hip line (its points hang from the hips, but the waist turns the
     # base); the legs list the waist's bones but read none of their rows
     "unitree_g1": (
-        g1.CORRESPONDENCE,
+        G1_IK.correspondence,
         {
             "waist": ("pelvis_left - pelvis_right", "spine_lower"),
             "left_arm": ("upper_arm_left", "forearm_left"),
@@ -326,7 +327,8 @@ def _twisted_skeleton(turn: float) -> np.ndarray:
     Spine point up, turned ``turn`` deg about the vertical through the hip centre."""
     j = skeleton.JOINT_NAMES.index
     pos = np.zeros((20, 3))  # the hip centre at the origin
-    pos[j("Spine")] = 0.1 * np.asarray(g1.SPINE_REST)  # the calibrated rest: no waist pitch
+    (spine,) = G1_IK.correspondence.rows(("spine_lower",))
+    pos[j("Spine")] = 0.1 * np.asarray(spine.rest)  # the calibrated rest: no waist pitch
     pos[j("ShoulderCenter")] = (0.0, 0.0, 0.45)
     pos[j("Head")] = (0.0, 0.0, 0.65)
     for side, y in (("Left", 1.0), ("Right", -1.0)):
@@ -348,7 +350,7 @@ def test_the_stacked_chains_padding_is_inert() -> None:
     """The chains are padded to the largest's sizes and stacked (one scanned program): a padded
     joint has the box [0, 0], no Jacobian column and no start value, a padded row and pair
     weight 0, and a derivative slot points at the row's own moved point (no compile)."""
-    ik = g1.generic_ik()
+    ik = G1_IK.build()
     data, n_joints = ik.problems.data, UNITREE_G1.n_joints
     for i, (chain, rows) in enumerate(zip(ik.problems.chains, ik.problems.rows, strict=True)):
         n, r = len(chain.joints), len(rows)
@@ -376,12 +378,12 @@ def test_a_chains_own_ik_is_the_whole_iks_problem_for_it() -> None:
     whole IK only if that is the whole IK's answer for the chain. So per chain both build the
     same problem (no compile): the same box, rows, starts and pairs, the same pairs counted per
     frame, and none of those moved by another chain's joints (an arm against a leg)."""
-    whole = g1.generic_ik()
+    whole = G1_IK.build()
     model = UNITREE_G1.load_model("fixed")
     pairs = mjcf_collision_pairs(model)
     for i, chain in enumerate(whole.problems.chains):
         own = own_chains(UNITREE_G1.chains, chain)
-        alone = GenericIK.build(UNITREE_G1, g1.CORRESPONDENCE, g1.IK_CONFIG, chains=own)
+        alone = GenericIK.build(UNITREE_G1, G1_IK.correspondence, G1_IK.config, chains=own)
         a, w = alone.problems.take(np.array([-1])), whole.problems.take(np.array([i]))
         assert alone.problems.rows[-1] == whole.problems.rows[i]
         n, r, q = len(chain.joints), len(whole.problems.rows[i]), int(w.pair_mask[0].sum())
@@ -432,7 +434,7 @@ def test_g1_waist_yaw_follows_the_shoulders_turn_against_the_hips() -> None:
     a compile of the IK: ``benchmarks/experiments/g1_waist_yaw.py`` runs the IK itself (the
     same +-20 deg to 0.1 deg)."""
     model = UNITREE_G1.load_model("fixed")
-    (row,) = [r for r in g1.CORRESPONDENCE.pairs if r.minus is not None]
+    (row,) = [r for r in G1_IK.correspondence.pairs if r.minus is not None]
     fk = TreeFK.from_model(model, UNITREE_G1.joint_names, (row.start, row.end), "torso_link")
     yaws = np.radians(np.arange(-45.0, 45.25, 0.25))
     q = np.zeros((len(yaws), UNITREE_G1.n_joints), np.float32)

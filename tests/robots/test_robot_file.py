@@ -1,0 +1,142 @@
+"""Robots as files (``jaxproj.robots.robot_file``): the G1's file, a robot from any folder, and
+broken files refused with one line that names the file and the problem."""
+
+from __future__ import annotations
+
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxproj import robots
+from jaxproj.errors import ConfigError
+from jaxproj.robots import robot_file
+
+TWO_ARMS = Path(__file__).parents[1] / "data" / "robots" / "two_arms"
+
+
+@pytest.fixture
+def two_arms(tmp_path: Path) -> Path:
+    """A copy of the two-armed test robot's folder; its ``robot.toml``."""
+    shutil.copytree(TWO_ARMS, tmp_path / "two_arms")
+    return tmp_path / "two_arms" / "robot.toml"
+
+
+def test_the_g1_file_takes_joints_and_limits_from_its_mjcf_and_speeds_from_its_table():
+    g1 = robots.get("unitree_g1")
+    assert g1.file is not None and g1.file.name == "robot.toml" and g1.mjcf is not None
+    # the MJCF read independently of MuJoCo: every hinge in file order, its range
+    tree = ET.parse(g1.mjcf.path)
+    hinges = [j for j in tree.find("worldbody").iter("joint") if j.get("type", "hinge") == "hinge"]
+    assert g1.joint_names == tuple(j.get("name") for j in hinges)
+    ranges = np.array([[float(v) for v in j.get("range").split()] for j in hinges], np.float32)
+    np.testing.assert_array_equal(g1.lower, ranges[:, 0])
+    np.testing.assert_array_equal(g1.upper, ranges[:, 1])
+    # the file's patterns, resolved per joint (Unitree's URDF: knee 20, waist roll 30, wrist
+    # pitch 22, shoulders 37 rad/s)
+    v = dict(zip(g1.joint_names, g1.velocity_limits.tolist(), strict=True))
+    assert (v["left_knee_joint"], v["waist_roll_joint"], v["right_wrist_pitch_joint"]) == (
+        20,
+        30,
+        22,
+    )
+    assert v["left_shoulder_yaw_joint"] == v["right_shoulder_roll_joint"] == 37
+    assert g1.generic is not None and len(g1.generic.correspondence.pairs) == 12
+    assert [c.name for c in g1.chains] == [
+        "waist",
+        "left_arm",
+        "right_arm",
+        "left_leg",
+        "right_leg",
+    ]
+    assert all(c.ik is not None for c in g1.chains) and g1.track is not None
+
+
+def test_a_robot_file_from_a_folder_registers_once_and_an_edit_reads_again(two_arms):
+    try:
+        robot = robots.get(two_arms)
+        assert robots.get(str(two_arms)) is robot is robots.get("two_arms")
+        assert robot.joint_names[:4] == ("left_shoulder_pitch", "left_shoulder_roll",
+                                         "left_shoulder_yaw", "left_elbow")  # fmt: skip
+        assert robot.acceleration_limits.tolist() == [40, 40, 40, 60] * 2
+        text = two_arms.read_text().replace('"*" = 6.0', '"*" = 5.0')
+        two_arms.write_text(text)
+        edited = robots.get(two_arms)
+        assert edited is not robot and edited.velocity_limits.tolist() == [5.0] * 8
+        assert robots.get("two_arms") is edited
+    finally:
+        robots.unregister("two_arms")
+
+
+def test_a_robot_file_may_not_take_a_registered_robots_name(two_arms):
+    two_arms.write_text(two_arms.read_text().replace('name = "two_arms"', 'name = "unitree_g1"'))
+    with pytest.raises(ConfigError, match="registered already"):
+        robots.get(two_arms)
+    assert robots.get("unitree_g1").file != two_arms
+
+
+BROKEN = {
+    "unknown key": ('title = "Two-armed test robot"', 'title = "x"\ncolour = "red"',
+                    "unknown key(s) ['colour']"),
+    "schema": ("schema = 1", "schema = 2", "schema: this jaxproj reads robot files of schema 1"),
+    "no mjcf": ('mjcf = "two_arms.xml"', 'mjcf = "none.xml"', "mjcf: no such MJCF file"),
+    "driven joint": ('driven = [\n  "left_shoulder_pitch"', 'driven = [\n  "left_shoulder_pich"',
+                     "joints.driven: the MJCF has no joint(s) ['left_shoulder_pich']"),
+    "no speed": ('"*" = 6.0', '"left_*" = 6.0',
+                 "joints.velocity: no key matches the joint 'right_shoulder_pitch'"),
+    "two speeds": ('"*" = 6.0', '"*" = 6.0\n"left_elbow" = 3.0',
+                   "joints.velocity: several keys match (['*', 'left_elbow'])"),
+    "row site": ('end = "left_wrist"', 'end = "left_wirst"',
+                 "ik.rows[1].end: the MJCF has no site or body 'left_wirst'"),
+    "row bone": ('bone = "forearm_left"', 'bone = "forearm_lft"',
+                 "ik.rows[1]: unknown bone 'forearm_lft'"),
+    "ik kind": ('kind = "generic"', 'kind = "closed_form"', "ik.kind: must be \"generic\""),
+    "limits": ("[evaluation]", "[joints.limits]\nleft_elbow = [-2.0, 0.0]\n\n[evaluation]",
+               "joints.limits.left_elbow: [-2.0, 0.0] disagrees with the MJCF's range"),
+    "unread row": ("[evaluation]",
+                   '[[ik.rows]]\nbone = "neck"\nstart = "torso_site"\nend = "neck_site"\n\n'
+                   "[evaluation]", "rows read by no chain"),
+    "chains": ('[[chains]]\nname = "right_arm"', '[[unused]]\nname = "right_arm"',
+               "unknown key(s) ['unused']"),
+    "driven twice": ('joints = ["right_shoulder_pitch"', 'joints = ["left_shoulder_pitch"',
+                     "the robot:"),
+    "figure site": ('["neck_site", "pelvis_site"]', '["neck_site", "hip_site"]',
+                    "figure.links: the MJCF has no site named 'hip_site'"),
+    "iterations": ("iterations = 16", "iterations = 0", "ik: IKConfig: iterations"),
+    "not toml": ("schema = 1", "schema = = 1", "not a TOML file"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_a_broken_robot_file_is_refused_with_one_line_naming_file_and_problem(two_arms, case):
+    old, new, message = BROKEN[case]
+    text = two_arms.read_text()
+    assert old in text
+    two_arms.write_text(text.replace(old, new, 1))
+    with pytest.raises(ConfigError) as err:
+        robot_file.load(two_arms)
+    line = str(err.value)
+    assert "\n" not in line and line.startswith(f"{two_arms.resolve()}: ")
+    assert message in line
+
+
+def test_an_mjcf_that_does_not_compile_is_named(two_arms):
+    xml = two_arms.parent / "two_arms.xml"
+    xml.write_text(xml.read_text().replace("</worldbody>", "</wrldbody>"))
+    with pytest.raises(ConfigError, match=r"robot.toml: mjcf: MuJoCo cannot compile two_arms.xml"):
+        robot_file.load(two_arms)
+
+
+def test_a_model_embeds_a_file_robot_that_loads_without_its_folder(two_arms, tmp_path):
+    robot = robot_file.load(two_arms)
+    doc = robot_file.embed(robot)
+    assert doc is not None and doc["sha256"] == robot_file.digest(two_arms)
+    shutil.rmtree(two_arms.parent)
+    again = robot_file.from_embedded(doc)
+    assert again.file is not None and again.file.parent != two_arms.parent
+    assert again.joint_names == robot.joint_names
+    np.testing.assert_array_equal(again.acceleration_limits, robot.acceleration_limits)
+    with pytest.raises(ConfigError, match="digest"):
+        robot_file.from_embedded({**doc, "sha256": "0" * 64})
