@@ -4,8 +4,9 @@ Subcommands: ``info`` (versions, devices, robot, bundled data), ``retarget`` (a 
 recording or BVH clip -> a robot-feasible joint trajectory of a registered robot as NPZ, CSV or
 the robot's own document),
 ``render`` (a motion file -> MP4 / GIF), ``build`` (a projector), ``evaluate`` (batch
-evaluation against the IK) and ``demo`` (the main job); one module per group
-(``jaxproj.cli.info``, ``.retarget``, ``.render``, ``.projector``, ``.demo``), their shared
+evaluation against the IK), ``demo`` (the main job) and ``robot check|show`` (a robot file);
+one module per group (``jaxproj.cli.info``, ``.retarget``, ``.render``, ``.projector``,
+``.demo``, ``.robot``), their shared
 options in ``jaxproj.cli.options``; every subcommand runs with the persistent compilation cache
 (``jaxproj.cli.cache``; ``--no-cache`` to run without). Every user error prints one line naming
 the file and the problem on stderr and exits with status 2 (a usage error too:
@@ -21,7 +22,7 @@ import sys
 from collections.abc import Sequence
 
 from jaxproj import __version__, robots
-from jaxproj.cli import cache, demo, info, options, projector, render, retarget
+from jaxproj.cli import cache, demo, info, options, projector, render, retarget, robot
 from jaxproj.errors import JaxprojError
 
 DESCRIPTION = (
@@ -38,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"jaxproj {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
-    for group in (info, retarget, projector, demo, render):
+    for group in (info, retarget, projector, demo, render, robot):
         group.add_parsers(sub)
     return p
 

@@ -140,3 +140,32 @@ def test_a_model_embeds_a_file_robot_that_loads_without_its_folder(two_arms, tmp
     np.testing.assert_array_equal(again.acceleration_limits, robot.acceleration_limits)
     with pytest.raises(ConfigError, match="digest"):
         robot_file.from_embedded({**doc, "sha256": "0" * 64})
+
+
+def test_robot_check_names_an_unseen_joint_and_standing_contact(two_arms, capsys):
+    from jaxproj.cli.main import main
+
+    assert main(["robot", "check", str(two_arms)]) == 0
+    assert capsys.readouterr().out.count("ok: two_arms, 8 joints, 8 driven in 2 chains") == 1
+    # the left arm reads its upper arm only: the elbow and the upper arm's own twist are unseen
+    text = two_arms.read_text()
+    text = text.replace('bones = ["upper_arm_left", "forearm_left"]', 'bones = ["upper_arm_left"]')
+    text = text.replace('[[ik.rows]]\nbone = "forearm_left"', '[[unread]]\nbone = "forearm_left"')
+    two_arms.write_text(text.replace("[[unread]]", "[unread_rows]"))
+    with pytest.raises(ConfigError, match="unknown key"):  # the schema is strict
+        robot_file.load(two_arms)
+    two_arms.write_text(text.replace('[[unread]]\nbone = "forearm_left"\nstart = "left_elbow"\n'
+                                     'end = "left_wrist"\n', ""))  # fmt: skip
+    xml = two_arms.parent / "two_arms.xml"  # and the torso as wide as the shoulders
+    xml.write_text(xml.read_text().replace('0 0 0.1" size="0.08"', '0 0 0.1" size="0.19"'))
+    assert main(["robot", "check", str(two_arms)]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(": ", 2)[1] for line in lines] == [
+        "chain 'left_arm'", "chain 'left_arm'", "standing posture", "standing posture",
+    ]  # fmt: skip
+    assert "'left_shoulder_yaw'" in lines[0] and "'left_elbow'" in lines[1]
+    assert "'torso_geom' and 'left_fore_geom'" in lines[2] + lines[3]
+    assert main(["robot", "show", str(two_arms)]) == 0
+    shown = capsys.readouterr().out
+    assert "left_upper (left_shoulder_pitch, left_shoulder_roll, left_shoulder_yaw)" in shown
+    assert "reads upper_arm_right: right_shoulder -> right_elbow (weight 1)" in shown
