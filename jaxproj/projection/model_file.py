@@ -4,8 +4,11 @@ A file holds every chain's arrays unpadded (``chain<c>.human``, ``chain<c>.forwa
 the ``BuildConfig`` (with the robot's name: a file without one is the NAO's; with the
 UTKinect-Action3D people it trained on: a file without them trained on none), the chain
 layout, the robot's driven joints and IK constants and a format version in a JSON ``meta``
-entry. ``load`` refuses (``InputError`` naming the file) anything that is not such a file of
-this jaxproj's format version and chain layout, before an array reaches JAX.
+entry; for a robot read from a robot file, the file and its MJCF too (``meta["robot_file"]``,
+``robot_file.embed``), so that ``load`` registers that robot where it is not registered (another
+machine, a fresh process without the robot's folder). ``load`` refuses (``InputError`` naming
+the file) anything that is not such a file of this jaxproj's format version and chain layout,
+before an array reaches JAX.
 """
 
 from __future__ import annotations
