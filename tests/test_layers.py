@@ -25,6 +25,8 @@ from pathlib import Path
 
 import pytest
 
+from jaxproj import robots
+
 PKG = Path(__file__).resolve().parents[1] / "jaxproj"
 
 LAYERS: dict[str, int] = {
@@ -165,36 +167,61 @@ def test_module_size(module: str) -> None:
     )
 
 
-def _names_the_nao(source: str) -> list[str]:
-    """Where ``source`` imports ``jaxproj.robots.nao_h25`` or refers to ``NAO_H25``."""
+def _robot_words() -> tuple[str, ...]:
+    """Every registered robot's name and its upper-case constant (``nao_h25``, ``NAO_H25``)."""
+    return tuple(w for name in robots.names() for w in (name, name.upper()))
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            first = node.body[0] if node.body else None
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                found.add(id(first.value))
+    return found
+
+
+def _names_a_robot(source: str) -> list[str]:
+    """Where ``source`` imports a robot's package (``jaxproj.robots.<name>``), refers to a
+    robot's constant or names a registered robot in a string (docstrings and comments aside:
+    prose may give a robot as an example)."""
+    words = _robot_words()
+    tree = ast.parse(source)
+    docs = _docstrings(tree)
     found = []
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(tree):
         names: list[str] = []
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module:
             names = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
-        if any(n.startswith("jaxproj.robots.nao_h25") for n in names):
-            found.append(f"line {node.lineno}: imports jaxproj.robots.nao_h25")
-        elif any(n.endswith(".NAO_H25") for n in names):
-            found.append(f"line {node.lineno}: imports NAO_H25")
-        if (isinstance(node, ast.Name) and node.id == "NAO_H25") or (
-            isinstance(node, ast.Attribute) and node.attr == "NAO_H25"
-        ):
-            found.append(f"line {node.lineno}: refers to NAO_H25")
+        for name in robots.names():
+            if any(n.startswith(f"jaxproj.robots.{name}") for n in names):
+                found.append(f"line {node.lineno}: imports jaxproj.robots.{name}")
+        ident = node.id if isinstance(node, ast.Name) else getattr(node, "attr", None)
+        if isinstance(node, (ast.Name, ast.Attribute)) and ident in words:
+            found.append(f"line {node.lineno}: refers to {ident}")
+        text = node.value if isinstance(node, ast.Constant) else None
+        if isinstance(text, str) and id(node) not in docs and any(w in text for w in words):
+            found.append(f"line {node.lineno}: names a robot in {text[:40]!r}")
     return found
 
 
-def test_no_module_above_robots_names_the_nao() -> None:
+def test_no_module_above_robots_names_a_robot() -> None:
     """Above ``robots/`` a robot comes from the caller, a model, a motion or the registry
-    (``robots.get``): no import of ``jaxproj.robots.nao_h25``, no ``NAO_H25`` default or
-    module constant (issue 44)."""
-    probe = "from jaxproj.robots import nao_h25\ndef f(robot=robots.NAO_H25):\n    pass\n"
-    assert len(_names_the_nao(probe)) == 2
+    (``robots.get``): no import of a robot's package, no robot constant as a default, no
+    robot's name in code (issues 44, 58). Every registered robot counts."""
+    probe = (
+        "from jaxproj.robots import nao_h25\n"
+        "def f(robot=robots.UNITREE_G1, name='unitree_g1'):\n"
+        '    """the NAO, nao_h25, in prose"""\n'
+    )
+    assert len(_names_a_robot(probe)) == 3
     bad = [
         f"{m} {where}"
         for m, path in MODULES.items()
         if m != "jaxproj.robots" and not m.startswith("jaxproj.robots.")
-        for where in _names_the_nao(path.read_text())
+        for where in _names_a_robot(path.read_text())
     ]
-    assert not bad, "modules above robots/ that name the NAO:\n" + "\n".join(bad)
+    assert not bad, "modules above robots/ that name a robot:\n" + "\n".join(bad)

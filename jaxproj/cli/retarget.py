@@ -101,8 +101,8 @@ def add_parsers(sub: Any) -> None:
         "--bones",
         default=None,
         choices=("upper", "full"),
-        help="descriptor bones (None: upper, or full for a robot whose IK reads more, e.g. "
-        "unitree_g1; a model fixes its own, a different value is refused)",
+        help="descriptor bones (None: upper, or full for a robot whose IK reads more, e.g. a "
+        "robot with legs; a model fixes its own, a different value is refused)",
     )
     pr.add_argument(
         "--mirror",

@@ -98,7 +98,7 @@ from jaxproj.eval.rollout_model import (
     _leg_motions as _leg_motions,
 )
 from jaxproj.eval.rollout_physics import _legs_jit, _merge_jit, _simulate_jit
-from jaxproj.eval.rollout_warp import VALIDATED_ROBOTS, simulate_warp, warp_usable
+from jaxproj.eval.rollout_warp import simulate_warp, warp_usable
 from jaxproj.robots import Robot
 from jaxproj.robots import get as get_robot
 from jaxproj.robots.base import joint_qpos_index
@@ -172,7 +172,7 @@ def simulate(
         install "jaxproj[warp]"``) or ``"auto"`` (default): ``"mujoco"`` when no ``devices``
         are given and JAX's default backend is the CPU; else ``"warp"`` where it can run (the
         default device or the one device given is a CUDA GPU, warp-lang imports and the robot's
-        Warp rollout was validated against C MuJoCo, ``rollout_warp.VALIDATED_ROBOTS``); else
+        Warp rollout was validated against C MuJoCo, ``Mjcf.warp_validated``); else
         ``"mjx"``. All follow the same protocol. Contact-free motions agree with C MuJoCo to
         float32 round-off on every backend; in self-contact Warp stayed within 6.4e-5 rad of
         C MuJoCo over 206 random motions, where MJX-JAX's own constraint solver parted from
@@ -217,8 +217,8 @@ def resolve_backend(
     robot: Robot | str | None = None,
 ) -> str:
     """``"mjx"``, ``"mujoco"`` or ``"warp"``: the backend ``simulate(backend=..., devices=...,
-    robot=...)`` runs (``"auto"``: see ``simulate``; Warp only for a robot in
-    ``rollout_warp.VALIDATED_ROBOTS``).
+    robot=...)`` runs (``"auto"``: see ``simulate``; Warp only for a robot whose
+    ``Mjcf.warp_validated``).
 
     Raises:
       ConfigError: an unknown backend.
@@ -229,7 +229,8 @@ def resolve_backend(
         return backend
     if not devices and jax.default_backend() == "cpu":
         return "mujoco"
-    validated = get_robot(robot).name in VALIDATED_ROBOTS
+    mj = get_robot(robot).mjcf
+    validated = mj is not None and mj.warp_validated
     return "warp" if validated and warp_usable(devices) else "mjx"
 
 

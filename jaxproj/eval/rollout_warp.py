@@ -80,12 +80,6 @@ def _warp_installed() -> bool:
     return importlib.util.find_spec("warp") is not None
 
 
-VALIDATED_ROBOTS = ("nao_h25",)
-"""Robots whose Warp rollout was checked against C MuJoCo on a GPU (``docs/results.md``: the
-NAO H25, 256 random motions on one H100, 2026-11-26); ``simulate(backend="auto")`` picks Warp
-only for these. ``backend="warp"`` runs any robot."""
-
-
 def warp_usable(devices: Sequence[jax.Device] | None = None) -> bool:
     """Whether ``backend="warp"`` can run on ``devices`` (None: JAX's default device): warp-lang
     imports and the device is a CUDA GPU (one device). Cheap: nothing is compiled or put."""

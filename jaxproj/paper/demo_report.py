@@ -404,21 +404,17 @@ SPEED_WORDS = {
 """``FeasibleConfig.speeds`` in the report's words."""
 
 
-G1_NOTE = (
-    "## The Unitree G1: not in this report",
+OTHER_ROBOTS_NOTE = (
+    "## Other robots: not in this report",
     "",
-    "This report is the NAO H25's (the default robot). The G1 is left out because of its cost "
-    "on a CPU: its default model (five chains, about 4,000 landmarks each) took 178 s to build "
-    "on the 2-core development VM, and its ground truth, the iterative generic IK, answers "
-    "255 poses/s there after a 53-s first call "
-    "(`benchmarks/results/robot_thesis_g1_cpu.json`), so a G1 section would add minutes to "
-    "this demo and more than the CI budget allows to its `--quick` run. The G1's numbers "
-    "(accuracy on held-out people, self-collision, speed against its IK) are on the results "
-    'page, section "The Unitree G1" (`docs/results.md`), from `python -m '
-    "benchmarks.robot_thesis --robot unitree_g1`; for your own run: `jaxproj build --robot "
-    "unitree_g1 --out g1.npz`, then `jaxproj evaluate --model g1.npz`.",
+    "This report is the default robot's. The other registered robots are left out: a robot "
+    "solved by the iterative generic IK costs minutes on a CPU (its default model's build and "
+    "its ground truth), more than the demo's `--quick` run may take. Their numbers (accuracy on "
+    "held-out people, self-collision, speed against their IK) are on the results page "
+    "(`docs/results.md`), from `python -m benchmarks.robot_thesis --robot NAME`; for your own "
+    "run: `jaxproj build --robot NAME --out m.npz`, then `jaxproj evaluate --model m.npz`.",
 )
-"""Why the demo report leaves the G1 out, and where its numbers are."""
+"""Why the demo report holds the default robot only, and where the others' numbers are."""
 
 
 def _feasibility_md(r: dict) -> list[str]:
@@ -619,7 +615,7 @@ def markdown(r: dict) -> str:
     )  # fmt: skip
     lines += _comparison_md(r) + _where_md(r) + _per_action_md(r) + _feasibility_md(r)
     lines += _rollout_md(r) + _experiments_md(r)
-    lines += ["", *G1_NOTE]
+    lines += ["", *OTHER_ROBOTS_NOTE]
     lines += ["", "## Plots", ""]
     lines += [f"![{p}]({p})" for p in r["plots"]]
     lines += [

@@ -28,7 +28,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -37,9 +37,6 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
-
-if TYPE_CHECKING:
-    from jaxproj.robots.generic import GenericSolver
 
 ChainIK = Callable[[np.ndarray], np.ndarray]
 """IK of one chain: ``(N, 3 * len(bones))`` bone directions (the chain's descriptor columns,
@@ -150,6 +147,8 @@ class Mjcf:
         ``"legs"``: the head's and arms' roots); empty: no split rollout.
       head_root: the body the head turns about (the split rollout's certificate), or ``None``.
       figure: how plots and videos draw the robot (``Figure``).
+      warp_validated: whether the robot's Warp rollout was checked against C MuJoCo on a GPU
+        (``jaxproj.eval.rollout``'s ``backend="auto"`` picks Warp only then).
     """
 
     path: Path
@@ -161,6 +160,7 @@ class Mjcf:
     split: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     head_root: str | None = None
     figure: Figure = field(default_factory=Figure)
+    warp_validated: bool = False
 
 
 @dataclass(frozen=True)
@@ -421,7 +421,7 @@ class Robot:
     deviation_scale: float | None = None
     track: Callable[..., jax.Array] | None = field(default=None, compare=False)
     track_step: Callable[..., jax.Array] | None = field(default=None, compare=False)
-    generic: GenericSolver | None = field(default=None, compare=False, repr=False)
+    generic: Any = field(default=None, compare=False, repr=False)  # GenericSolver | None
     file: Path | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:

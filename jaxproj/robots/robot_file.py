@@ -27,9 +27,13 @@ Sections (every key optional unless marked):
   ``minus``, ``rest``; ``[ik.ranges]``: joint -> ``[lower, upper]`` (``inf``: no bound).
 - ``[projection]``: ``deviation_scale``.
 - ``[evaluation]``: ``arm_sites`` (side -> three sites), ``hand_sites``, ``fk_without``,
-  ``split`` (part -> bodies), ``head_root``.
+  ``split`` (part -> bodies), ``head_root``, ``warp_validated`` (a boolean).
 - ``[figure]``: ``label``, ``links``, ``head`` (``[body, length]``), ``parents``, ``feet``,
   ``head_geom``.
+
+Size: over 500 lines: the schema's one reader (a function per section, each error naming the
+file and the key), the embedding in model files and the cache of read files, which a reader
+checks against the schema together.
 """
 
 from __future__ import annotations
@@ -67,7 +71,7 @@ _CHAIN = {"name", "bones", "joints", "bandwidth"}
 _IK_SETTINGS = {"iterations", "starts", "neutral", "collision", "margin", "damping", "gtol", "seed"}
 _IK = {"kind", "base", "collision_pairs", "source", "rows", "ranges", *_IK_SETTINGS}
 _ROW = {"bone", "start", "end", "weight", "minus", "rest"}
-_EVALUATION = {"arm_sites", "hand_sites", "fk_without", "split", "head_root"}
+_EVALUATION = {"arm_sites", "hand_sites", "fk_without", "split", "head_root", "warp_validated"}
 _FIGURE = {"label", "links", "head", "parents", "feet", "head_geom"}
 _SECTIONS = {"projection": {"deviation_scale"}, "evaluation": _EVALUATION, "figure": _FIGURE}
 
@@ -119,6 +123,12 @@ class _File:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(where, f"must be a number, got {value!r}")
         return float(value)
+
+    def flag(self, data: Mapping[str, Any], key: str, where: str) -> bool:
+        value = data.get(key, False)
+        if not isinstance(value, bool):
+            raise self.error(f"{where}.{key}", f"must be true or false, got {value!r}")
+        return value
 
     def string_map(self, value: Any, where: str) -> dict[str, str]:
         if not (isinstance(value, dict) and all(isinstance(v, str) for v in value.values())):
@@ -407,6 +417,7 @@ def _read(path: Path) -> Robot:
             split=split,
             head_root=f.string(ev, "head_root", "evaluation", None),
             figure=figure,
+            warp_validated=f.flag(ev, "warp_validated", "evaluation"),
         )
     proj = f.table(d.get("projection", {}), "projection", _SECTIONS["projection"])
     scale = proj.get("deviation_scale")

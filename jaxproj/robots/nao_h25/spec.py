@@ -98,6 +98,7 @@ MJCF = Mjcf(
     split={"upper": robot.LEG_ROOTS, "legs": robot.UPPER_ROOTS},
     head_root=HEAD_ROOT,
     figure=FIGURE,
+    warp_validated=True,  # 256 random motions on one H100 against C MuJoCo, 2026-11-26 (results)
 )
 
 NAO_H25 = Robot(
