@@ -21,10 +21,11 @@ while staying as close as it can to it:
 * acceleration ``|v_t - v_{t-1}| / ((dt_t + dt_{t-1}) / 2) <= accel`` (``v_t`` the speed of
   step ``t``) per joint: the robot's own ``Robot.acceleration_limits`` where it gives them (the
   G1's: each joint's peak torque over the inertia it moves, ``robots.mjcf.torque_accelerations``),
-  else a documented bound (``ACCEL_LIMIT``, 80 rad/s^2 on every joint; ``FeasibleConfig.accel``
-  sets one bound for every joint of any robot).
-  The NAO's documentation gives no acceleration limit; the bound is ours: full speed in ~0.1 s,
-  so the speed limit is never reached by a jump. Chosen on the training subjects (MSR Action3D
+  else a rule of ours: the no-load speed reached from rest in ``ACCEL_TIME`` (0.1 s), per joint
+  (``FeasibleConfig.accel`` sets one bound for every joint of any robot).
+  The NAO's documentation gives no acceleration limit; its bound is ours (its
+  ``acceleration_limits``: 80 rad/s^2 on every joint, full speed in ~0.1 s), so the speed limit
+  is never reached by a jump. Chosen on the training subjects (MSR Action3D
   1,3,5,7,9, arm actions, relaxed projection, smoothed): median M_avg against the IK 3.42 deg at
   40 rad/s^2, 2.67 at 80, 2.51 at 150 and 2.49 with no bound (speed limits alone); 1.76 before
   the filter. Most of the cost is the speed limit itself: the NAO's arms are slower than a
@@ -89,9 +90,9 @@ from jaxproj.errors import ConfigError
 from jaxproj.io.motion_files import EXPORT_MARGIN
 from jaxproj.robots import Robot, clip_coupled
 
-ACCEL_LIMIT = 80.0
-"""rad/s^2: the acceleration bound on every joint of a robot without ``acceleration_limits``
-(the NAO; ours, see the module doc)."""
+ACCEL_TIME = 0.1
+"""s: a robot without ``acceleration_limits`` gets ``velocity_limits / ACCEL_TIME`` per joint
+(its no-load speed from rest in 0.1 s; the rule behind the NAO's own bound, module doc)."""
 
 SPEED_FRACTIONS: dict[str, float] = {"rated": 0.99, "no-load": 0.9}
 """``FeasibleConfig.speed_fraction`` when left out, per ``speeds``: 99 % of the rated speeds, 90 %
@@ -118,7 +119,7 @@ class FeasibleConfig:
       speed_fraction: fraction of those speeds allowed, in (0, 1]; ``None``:
         ``SPEED_FRACTIONS[speeds]`` (the constructed config holds the number).
       accel: acceleration bound, rad/s^2, every joint; ``None`` (default): the robot's
-        ``acceleration_limits``, or ``ACCEL_LIMIT`` for a robot without them
+        ``acceleration_limits``, or ``velocity_limits / ACCEL_TIME`` for a robot without them
         (``accel_limits``).
       straight_elbow: ``(lo, hi)`` rad of ``|elbow roll|``: below ``lo`` the elbow yaw target is
         the held yaw, above ``hi`` it is the input's, smoothstep in between.
@@ -161,12 +162,13 @@ class FeasibleConfig:
 
     def accel_limits(self, robot: Robot) -> np.ndarray:
         """``(n_joints,)`` float32 rad/s^2: the acceleration bound per joint of ``robot``
-        (``accel`` on every joint, else ``robot.acceleration_limits``, else ``ACCEL_LIMIT``)."""
+        (``accel`` on every joint, else ``robot.acceleration_limits``, else
+        ``robot.velocity_limits / ACCEL_TIME``)."""
         if self.accel is not None:
             return np.full(robot.n_joints, self.accel, np.float32)
         if robot.acceleration_limits is not None:
             return np.asarray(robot.acceleration_limits, np.float32)
-        return np.full(robot.n_joints, ACCEL_LIMIT, np.float32)
+        return (robot.require_velocity_limits() / np.float32(ACCEL_TIME)).astype(np.float32)
 
     def params(self, robot: Robot) -> jax.Array:
         """``(5, n_joints)`` float32 rows of ``robot``: lower and upper (``limit_margin``

@@ -20,13 +20,13 @@ from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
 from jaxproj.robots import Robot
 
 HEAD_BANDWIDTH = 0.01125
-"""The default robot's (the NAO's) ``Chain.bandwidth`` of its head chain (used, as a chain's
-own bandwidth, for a chain called ``head`` when ``BuildConfig.landmarks`` is one number: that
-number is then the count of each arm chain, and of the whole-body chain). The neck direction of
-a Kinect skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count
-target would bisect the bandwidth over many mean-shift runs; one run at this bandwidth (tuned
+"""The default robot's ``Chain.bandwidth`` of its head chain, a chain with
+``Chain.keep_bandwidth`` (kept when ``BuildConfig.landmarks`` is one number: that number is
+then the count of each other chain, and of the whole-body chain). The neck direction of a Kinect
+skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count target would
+bisect the bandwidth over many mean-shift runs; one run at this bandwidth (tuned
 leave-one-training-subject-out, ``benchmarks/TUNING.md``) gives ~800 head landmarks on subjects
-1,3,5,7,9."""
+1,3,5,7,9. ``tests/projection`` checks it is the default robot's."""
 
 DEFAULT_LANDMARKS = 1000
 """Landmarks of a chain of the ``"upper"`` chain set whose robot gives it no tuned bandwidth
@@ -188,9 +188,9 @@ class BuildConfig:
         if self.chains == "upper" and not sizes_given:  # the robot's tuned size, else a count
             tuned = chains[c].bandwidth
             landmarks, bandwidth = (None, tuned) if tuned is not None else (DEFAULT_LANDMARKS, None)
-        tuned_head = chains[c].bandwidth
-        if name == "head" and isinstance(self.landmarks, int) and bandwidth is None and tuned_head:
-            landmarks, bandwidth = None, tuned_head
+        keep = chains[c].bandwidth if chains[c].keep_bandwidth else None
+        if keep is not None and isinstance(self.landmarks, int) and bandwidth is None:
+            landmarks, bandwidth = None, keep
         if (landmarks is None) == (bandwidth is None):
             raise ConfigError(f"chain {name}: give exactly one of landmarks (a count) or bandwidth")
         if landmarks is not None and landmarks < 2:

@@ -87,6 +87,10 @@ class Chain:
       bandwidth: the mean-shift bandwidth its projector's landmarks take by default (tuned on
         training people; ``BuildConfig``), or ``None``: ``config.DEFAULT_LANDMARKS`` landmarks.
         Not part of equality or hash either.
+      keep_bandwidth: the chain keeps ``bandwidth`` when ``BuildConfig.landmarks`` is one
+        number (that number then sizes the other chains): for a chain whose input varies so
+        little that a count target would bisect the bandwidth over many mean-shift runs (the
+        NAO's head: the neck direction lies on a small cap of the sphere).
     """
 
     name: str
@@ -94,6 +98,7 @@ class Chain:
     joints: tuple[str, ...]
     ik: ChainIK | None = field(default=None, compare=False, repr=False)
     bandwidth: float | None = field(default=None, compare=False)
+    keep_bandwidth: bool = field(default=False, compare=False)
 
     def solve(self, x: np.ndarray) -> np.ndarray:
         """``(N, 3 * len(bones))`` -> ``(N, len(joints))`` angles (``ik``); ConfigError if none."""

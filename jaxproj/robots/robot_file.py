@@ -19,7 +19,8 @@ Sections (every key optional unless marked):
   ``[joints.acceleration]``: a ``source`` string and joint name or shell pattern -> value
   (rad/s, rad/s^2), each joint matched by exactly one key; ``[joints.limits]``: joint ->
   ``[lower, upper]`` restated from a source, checked against the MJCF (1e-4 rad).
-- ``[[chains]]``: ``name``, ``bones``, ``joints`` (required), ``bandwidth``.
+- ``[[chains]]``: ``name``, ``bones``, ``joints`` (required), ``bandwidth``,
+  ``keep_bandwidth`` (a boolean: ``Chain.keep_bandwidth``).
 - ``[ik]``: ``kind = "generic"`` (the generic IK; required), ``base`` (required), the
   ``IKConfig`` fields (``iterations``, ``starts``, ``neutral``, ``collision``, ``margin``,
   ``damping``, ``gtol``, ``seed``), ``collision_pairs`` (``"mjcf"`` or pairs of geoms),
@@ -67,7 +68,7 @@ LIMIT_TOLERANCE = 1e-4
 _TOP = {"schema", "name", "title", "mjcf", "free_joint", "root_body", "joints", "chains", "ik",
         "projection", "evaluation", "figure"}  # fmt: skip
 _JOINTS = {"driven", "standing", "loose", "velocity", "rated", "acceleration", "limits"}
-_CHAIN = {"name", "bones", "joints", "bandwidth"}
+_CHAIN = {"name", "bones", "joints", "bandwidth", "keep_bandwidth"}
 _IK_SETTINGS = {"iterations", "starts", "neutral", "collision", "margin", "damping", "gtol", "seed"}
 _IK = {"kind", "base", "collision_pairs", "source", "rows", "ranges", *_IK_SETTINGS}
 _ROW = {"bone", "start", "end", "weight", "minus", "rest"}
@@ -376,6 +377,7 @@ def _read(path: Path) -> Robot:
                     f.names(c, "bones", where),
                     joints_of(f.names(c, "joints", where), f"{where}.joints"),
                     bandwidth=None if bw is None else f.number(bw, f"{where}.bandwidth"),
+                    keep_bandwidth=f.flag(c, "keep_bandwidth", where),
                 )
             )
         except ConfigError as err:

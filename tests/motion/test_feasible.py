@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 from jaxproj import robots
 from jaxproj.errors import ConfigError
 from jaxproj.motion.feasible import (
-    ACCEL_LIMIT,
+    ACCEL_TIME,
     DEFAULT_FEASIBLE,
     FeasibleConfig,
     feasibility_report,
@@ -18,6 +19,9 @@ from jaxproj.motion.feasible import (
 )
 from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import robot
+
+NAO_ACCEL = 80.0
+"""rad/s^2: the NAO's own bound on every joint (``nao_h25.robot.ACCELERATION_LIMITS``)."""
 
 J = robot.JOINT_NAMES.index
 DRIVEN = robot.DRIVEN_INDEX
@@ -57,7 +61,7 @@ def test_output_respects_limits_speed_and_acceleration(zero_phase: bool, fps: fl
     assert (speed <= cfg.speed_fraction * robot.RATED_SPEEDS * (1 + 1e-4) + 1e-4).all()
     assert (speed <= robot.RATED_SPEEDS).all() and rep["rated_speed_ratio"] <= 1.0
     assert before["rated_speed_ratio"] > 1.0
-    assert rep["accel_violation_frames"] == 0 and rep["max_accel"] <= ACCEL_LIMIT * 1.01
+    assert rep["accel_violation_frames"] == 0 and rep["max_accel"] <= NAO_ACCEL * 1.01
     # joints that never move are left exactly as they are
     still = np.setdiff1d(np.arange(len(robot.JOINT_NAMES)), DRIVEN)
     np.testing.assert_array_equal(out[:, still], q[:, still])
@@ -175,7 +179,7 @@ def test_irregular_time_steps_are_respected() -> None:
     out = make_feasible(q, times, robot=NAO_H25)
     rep = feasibility_report(out, times, robot=NAO_H25)
     assert rep["speed_violation_frames"] == 0 and rep["limit_violation_frames"] == 0
-    assert rep["max_accel"] <= ACCEL_LIMIT * 1.01
+    assert rep["max_accel"] <= NAO_ACCEL * 1.01
 
 
 def test_bad_arguments_raise_config_errors() -> None:
@@ -200,9 +204,17 @@ def test_bad_arguments_raise_config_errors() -> None:
             FeasibleConfig(**kw)
 
 
+def test_a_robot_without_acceleration_limits_gets_its_speed_in_a_tenth_of_a_second() -> None:
+    bare = dataclasses.replace(NAO_H25, acceleration_limits=None)
+    np.testing.assert_allclose(
+        DEFAULT_FEASIBLE.accel_limits(bare), NAO_H25.velocity_limits / ACCEL_TIME, rtol=1e-6
+    )
+    assert ACCEL_TIME == 0.1
+
+
 def test_a_robots_own_acceleration_limits_bound_each_of_its_joints() -> None:
     g1 = robots.get("unitree_g1")
-    assert (DEFAULT_FEASIBLE.accel_limits(NAO_H25) == ACCEL_LIMIT).all()  # none of its own
+    assert (DEFAULT_FEASIBLE.accel_limits(NAO_H25) == NAO_ACCEL).all()  # its own, one value
     np.testing.assert_array_equal(DEFAULT_FEASIBLE.accel_limits(g1), g1.acceleration_limits)
     assert (FeasibleConfig(accel=50.0).accel_limits(g1) == 50.0).all()  # one bound: every joint
     rng = np.random.default_rng(0)
@@ -223,4 +235,4 @@ def test_a_robots_own_acceleration_limits_bound_each_of_its_joints() -> None:
     # per joint, not one number: the waist stays under the NAO's 80 while an arm goes past it
     waist = [g1.index(n) for n in ("waist_roll_joint", "waist_pitch_joint")]
     arm = [g1.index(n) for n in ("left_elbow_joint", "right_elbow_joint")]
-    assert acc[:, waist].max() <= 1.01 * 30.0 and acc[:, arm].max() > ACCEL_LIMIT
+    assert acc[:, waist].max() <= 1.01 * 30.0 and acc[:, arm].max() > NAO_ACCEL

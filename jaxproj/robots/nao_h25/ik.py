@@ -119,6 +119,7 @@ CHAINS: tuple[Chain, ...] = (
         ("HeadYaw", "HeadPitch"),
         partial(_chain_ik, name="head"),
         bandwidth=HEAD_BANDWIDTH,
+        keep_bandwidth=True,  # the neck direction varies little: a count would bisect long
     ),
     Chain(
         "left_arm",

@@ -94,6 +94,11 @@ UPPER = np.array([_LIMITS[n][1] for n in JOINT_NAMES], dtype=np.float32)
 VELOCITY_LIMITS = np.array([_VMAX[n] for n in JOINT_NAMES], dtype=np.float32)
 """(26,) no-load maximum joint speeds, rad/s."""
 
+ACCELERATION_LIMITS = np.full(len(JOINT_NAMES), 80.0, np.float32)
+"""(26,) rad/s^2, ours: Aldebaran publishes no acceleration limit. 80 on every joint is full speed
+in about 0.1 s, chosen on the training subjects (``jaxproj.motion.feasible`` module doc: median
+M_avg against the IK 3.42 deg at 40 rad/s^2, 2.67 at 80, 2.51 at 150)."""
+
 # Rated ("nominal") joint speeds at the motors' nominal torque, rad/s: Aldebaran, "Description
 # of the motors" (NAO documentation 2010, hardware/motor_type.html; mirror
 # ii.tudelft.nl/naodoc/site_en/reddoc/hardware/motor_type.html): RE-Max 17 (11,900 rpm no-load,

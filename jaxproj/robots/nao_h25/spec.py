@@ -113,6 +113,7 @@ NAO_H25 = Robot(
     ik=ik.solve_driven,
     velocity_limits=robot.VELOCITY_LIMITS,
     rated_speeds=robot.RATED_SPEEDS,
+    acceleration_limits=robot.ACCELERATION_LIMITS,
     coupled_joints=(robot.COUPLED_JOINTS,),
     loose_joints=LOOSE_JOINTS,
     mjcf=MJCF,
