@@ -67,6 +67,16 @@ def _add_build(sub: Any) -> None:
     )
     size = pb.add_mutually_exclusive_group()
     size.add_argument(
+        "--pairs",
+        nargs=2,
+        metavar=("RECORDING", "MOTION"),
+        help="build from given pairs, no IK and no mean shift (the paper's hand-given pairs): a "
+        "skeleton recording (any format retarget reads) and a motion file of the robot for it "
+        "(.npz / .csv, the same number of frames: another retargeter's output, or poses set by "
+        "hand); every frame valid in both is a landmark (--data, --subjects and "
+        "--utkinect-people are refused)",
+    )
+    size.add_argument(
         "--landmarks",
         type=LANDMARKS,
         help=f"target landmark count, bisected, each {LANDMARKS.RANGE}: one number for each arm "
@@ -179,6 +189,32 @@ def training_people(
     return (), ()
 
 
+def _pairs(args: argparse.Namespace, cfg: Any) -> tuple[Any, Any]:
+    """``(descriptors (K, m), driven angles (K, n_driven))``: the frames of ``--pairs`` valid
+    in both files. ConfigError / InputError naming the file for a mismatch."""
+    from jaxproj.errors import ConfigError
+    from jaxproj.human.descriptors import frame_descriptors
+    from jaxproj.io.motion_files import load_motion
+    from jaxproj.io.readers import read_skeleton
+    from jaxproj.motion.retarget import check_skeleton
+
+    rec_path, motion_path = args.pairs
+    rec = read_skeleton(rec_path, bvh_map=args.bvh_map)
+    robot = cfg.robot_spec
+    check_skeleton(rec.skeleton, robot)
+    motion = load_motion(motion_path, robot=robot)
+    if motion.n_frames != len(rec.valid):
+        raise ConfigError(f"--pairs: {rec_path} has {len(rec.valid)} frames but {motion_path} "
+                          f"has {motion.n_frames}: one robot pose per recording frame")  # fmt: skip
+    d, keep = frame_descriptors([rec], bones=cfg.bones, mirror=cfg.mirror)
+    keep = keep & motion.valid
+    if keep.sum() < 2:
+        raise ConfigError(f"--pairs: {int(keep.sum())} frames valid in both {rec_path} and "
+                          f"{motion_path}: need at least 2")  # fmt: skip
+    q = robot.clip(motion.angles)[:, robot.driven_index]
+    return d[keep], q[keep]
+
+
 def build(args: argparse.Namespace) -> int:
     from jaxproj.io import datasets
     from jaxproj.projection import api as engine
@@ -187,6 +223,15 @@ def build(args: argparse.Namespace) -> int:
         args.out, "--out", (".npz",), force=args.force,
         inputs=options.folder_inputs(args.data, args.out),
     )  # fmt: skip
+    if args.pairs is not None:
+        given = [f for f in ("data", "subjects", "utkinect_people") if getattr(args, f) not in
+                 (None, "bundled")]  # fmt: skip
+        if given:
+            from jaxproj.errors import ConfigError
+
+            flags = ", ".join(f"--{f.replace('_', '-')}" for f in given)
+            raise ConfigError(f"--pairs gives the training pairs: leave {flags} out")
+        return _build_pairs(args, out)
     people, recorded = training_people(args.data, args.subjects, args.utkinect_people)
     cfg = engine.BuildConfig(
         chains=args.chains,
@@ -234,6 +279,26 @@ def build(args: argparse.Namespace) -> int:
         f"(of {n_frames}){utk}, seed={cfg.seed} in {dt:.1f} s -> {out}"
         + options.unreadable_note(contents)
     )
+    return 0
+
+
+def _build_pairs(args: argparse.Namespace, out: Path) -> int:
+    from jaxproj.projection import api as engine
+
+    cfg = engine.BuildConfig(
+        chains=args.chains, k=args.k,
+        hidden=args.hidden if args.hidden is not None or args.k is None else max(args.k, 192),
+        lam=args.lam, input_scale=args.input_scale, seed=args.seed, mirror=args.mirror,
+        utkinect_people=(), robot=args.robot,
+    )  # fmt: skip
+    t0 = time.perf_counter()
+    human, poses = _pairs(args, cfg)
+    model = engine.calibrated(engine.from_landmarks(human, poses, cfg), human)
+    engine.save(model, out, overwrite=args.force)
+    lay = model.projector.layout
+    per_chain = ", ".join(f"{n} {lay.landmarks[c]}" for c, n in enumerate(lay.names))
+    print(f"built {cfg.chains} chains from {len(human)} given pairs ({per_chain} distinct "
+          f"landmarks, no IK) in {time.perf_counter() - t0:.1f} s -> {out}")  # fmt: skip
     return 0
 
 

@@ -53,6 +53,24 @@ def valid_descriptors(
     Raises:
       ConfigError: no valid frame, or an array of the wrong shape or with non-finite values.
     """
+    d, keep = frame_descriptors(
+        sequences_or_points, bones=bones, mirror=mirror, skeleton=skeleton, level=level
+    )
+    return d[keep]
+
+
+def frame_descriptors(
+    sequences_or_points: Any,
+    *,
+    bones: str | tuple[str, ...] = "upper",
+    mirror: bool = False,
+    skeleton: SkeletonLike = skeletons.DEFAULT,
+    level: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``valid_descriptors`` frame by frame: ``(T, 3 * n_bones)`` float32 descriptors of every
+    frame (sequences concatenated) and ``(T,)`` bool, the frames ``valid_descriptors`` keeps
+    (what aligns a frame's descriptor with something else of that frame, e.g. a robot pose).
+    Same arguments and errors."""
     n_joints = skeletons.get(skeleton).n_joints
     lengths: list[int] = []  # per sequence (none for an array: nothing to level)
     if isinstance(sequences_or_points, (np.ndarray, jax.Array)):
@@ -60,7 +78,7 @@ def valid_descriptors(
         if a.ndim == 2:
             if len(a) == 0 or a.shape[1] == 0 or not np.isfinite(a).all():
                 raise ConfigError(f"descriptors must be finite (N >= 1, m >= 1), got {a.shape}")
-            return a
+            return a, np.ones(len(a), bool)
         if a.ndim == 3 and a.shape[1:] == (n_joints, 3):
             positions, valid = a, np.ones(a.shape[0], bool)
         else:
@@ -95,4 +113,4 @@ def valid_descriptors(
             levelled.append(np.asarray(seg)[:t])
             start += t
         d = np.concatenate(levelled)
-    return d[keep].astype(np.float32)
+    return d.astype(np.float32), keep
