@@ -4,7 +4,8 @@
 from one ``GenericIK`` of its MJCF (``jaxproj.robots.generic_ik``): each chain's ``Chain.ik``
 (the IK of that chain alone from its own descriptor columns, the landmarks' ground truth),
 ``Robot.ik`` (all driven joints from host or device descriptors, compiled once per bucketed
-shape), ``traced_ik``, ``separate``, ``track`` and ``track_step``, and ``Robot.generic``, the
+shape), ``traced_ik``, ``separate`` (where the IK has a collision term), ``track`` and
+``track_step``, and ``Robot.generic``, the
 ``GenericSolver`` itself (its correspondence, settings and the built IK), for benchmarks and
 experiments that re-build the IK with other settings. No robot writes this glue again.
 """
@@ -140,12 +141,14 @@ def with_generic_ik(robot: Robot, correspondence: Correspondence, config: IKConf
         dataclasses.replace(c, ik=functools.partial(solver.chain_ik, name=c.name))
         for c in robot.chains
     )
+    pairs = correspondence.collision_pairs
+    colliding = config.collision > 0 and (pairs == "mjcf" or len(pairs) > 0)
     out = dataclasses.replace(
         robot,
         chains=chains,
         ik=solver.solve_driven,
         traced_ik=solver.traced_ik,
-        separate=solver.separate,
+        separate=solver.separate if colliding else None,  # nothing to push apart without
         track=solver.track,
         track_step=solver.track_step,
         generic=solver,

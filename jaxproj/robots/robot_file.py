@@ -223,7 +223,7 @@ def _correspondence(f: _File, ik: dict[str, Any], joints: Sequence[str]) -> Corr
             raise f.error(f"ik.ranges.{joint}", f"must be [lower, upper], got {value!r}")
         lo, hi = (f.number(v, f"ik.ranges.{joint}") for v in value)
         ranges.append((joint, lo, hi))
-    collision = ik.get("collision_pairs", ())
+    collision = ik.get("collision_pairs", [])
     if collision != "mjcf":
         collision = f.pairs(collision, "ik.collision_pairs")
     try:

@@ -104,7 +104,7 @@ BROKEN = {
                      "the robot:"),
     "figure site": ('["neck_site", "pelvis_site"]', '["neck_site", "hip_site"]',
                     "figure.links: the MJCF has no site named 'hip_site'"),
-    "iterations": ("iterations = 16", "iterations = 0", "ik: IKConfig: iterations"),
+    "iterations": ("iterations = 12", "iterations = 0", "ik: IKConfig: iterations"),
     "not toml": ("schema = 1", "schema = = 1", "not a TOML file"),
 }  # fmt: skip
 
