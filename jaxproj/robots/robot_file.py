@@ -74,7 +74,7 @@ _IK = {"kind", "base", "collision_pairs", "source", "rows", "ranges", *_IK_SETTI
 _ROW = {"bone", "start", "end", "weight", "minus", "rest"}
 _EVALUATION = {"arm_sites", "hand_sites", "fk_without", "split", "head_root", "warp_validated"}
 _FIGURE = {"label", "links", "head", "parents", "feet", "head_geom"}
-_SECTIONS = {"projection": {"deviation_scale"}, "evaluation": _EVALUATION, "figure": _FIGURE}
+_PROJECTION = {"deviation_scale"}
 
 
 class _File:
@@ -150,12 +150,11 @@ def _model_names(model: mujoco.MjModel, kind: mujoco.mjtObj, count: int) -> set[
     return {mujoco.mj_id2name(model, kind, i) for i in range(count)} - {None}
 
 
-def _joint_table(
-    f: _File, data: Any, where: str, joints: Sequence[str]
-) -> tuple[np.ndarray | None, str]:
-    """A ``[joints.velocity]``-like table: ``source`` and name / pattern -> value per joint."""
+def _joint_table(f: _File, data: Any, where: str, joints: Sequence[str]) -> np.ndarray | None:
+    """A ``[joints.velocity]``-like table: ``source`` (a string, for the reader) and name /
+    pattern -> value -> ``(n_joints,)`` float32, or ``None`` where the file has no such table."""
     if data is None:
-        return None, ""
+        return None
     if not isinstance(data, dict):
         raise f.error(where, "must be a table of joint name or pattern -> value")
     source = data.get("source", "")
@@ -172,7 +171,7 @@ def _joint_table(
     unused = [k for k in keys if not any(fnmatch.fnmatchcase(j, k) for j in joints)]
     if unused:
         raise f.error(where, f"key(s) {unused} match no joint of the MJCF")
-    return values, source
+    return values
 
 
 def _point(f: _File, value: Any, where: str) -> Any:
@@ -358,9 +357,9 @@ def _read(path: Path) -> Robot:
         if max(abs(lo - lower[k]), abs(hi - upper[k])) > LIMIT_TOLERANCE:
             raise f.error(f"joints.limits.{j}", f"[{lo}, {hi}] disagrees with the MJCF's range "
                                                 f"[{lower[k]:.6g}, {upper[k]:.6g}]")  # fmt: skip
-    velocity, _ = _joint_table(f, jt.get("velocity"), "joints.velocity", joint_names)
-    rated, _ = _joint_table(f, jt.get("rated"), "joints.rated", joint_names)
-    accel, _ = _joint_table(f, jt.get("acceleration"), "joints.acceleration", joint_names)
+    velocity = _joint_table(f, jt.get("velocity"), "joints.velocity", joint_names)
+    rated = _joint_table(f, jt.get("rated"), "joints.rated", joint_names)
+    accel = _joint_table(f, jt.get("acceleration"), "joints.acceleration", joint_names)
 
     chains_data = d.get("chains")
     if not (isinstance(chains_data, list) and chains_data):
@@ -421,7 +420,7 @@ def _read(path: Path) -> Robot:
             figure=figure,
             warp_validated=f.flag(ev, "warp_validated", "evaluation"),
         )
-    proj = f.table(d.get("projection", {}), "projection", _SECTIONS["projection"])
+    proj = f.table(d.get("projection", {}), "projection", _PROJECTION)
     scale = proj.get("deviation_scale")
     try:
         robot = Robot(
