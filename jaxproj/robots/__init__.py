@@ -1,13 +1,15 @@
 """Robots as data: the ``Robot`` spec and the registry of robots.
 
-A robot is one module that builds a ``Robot`` (``jaxproj.robots.base``) and one ``register``
-line below. Registered: ``nao_h25`` (the NAO H25 V5, the default; closed-form IK) and
-``unitree_g1`` (the Unitree G1, 29 DoF; the generic IK, ``jaxproj.robots.generic_ik``).
-Everything above ``robots/`` takes a ``robot: Robot`` and names no robot: below the public API
-as a required argument; the public entry points take the robot from what they are given (a
-``Model`` records its robot, a ``Motion`` carries one) or ``robot=`` (a ``Robot`` or a name;
-``None``: ``get()``, the default robot). ``tests/test_layers.py`` checks that no module above
-``robots/`` imports ``nao_h25`` or binds ``NAO_H25``.
+A robot is an MJCF and one robot file (``robot_file``, TOML): every folder here that holds a
+``robot.toml`` is read and registered under the name it gives (``unitree_g1``: the Unitree G1,
+29 DoF; others as they are added), and a user's robot file is registered where it is first
+taken (``get(path)``, ``--robot PATH``). The NAO H25 V5 (``nao_h25``, the default) is the one
+robot in Python: its closed-form IK and its NAOqi export. Everything above ``robots/`` takes a
+``robot: Robot`` and names no robot: below the public API as a required argument; the public
+entry points take the robot from what they are given (a ``Model`` records its robot, a
+``Motion`` carries one) or ``robot=`` (a ``Robot`` or a name; ``None``: ``get()``, the default
+robot). ``tests/test_layers.py`` checks that no module above ``robots/`` imports a robot's
+package or names a registered robot.
 
 ``register(robot)`` adds a robot under ``robot.name``; ``get(name)`` returns it; ``names()``
 lists them; ``for_joints(joint_names)`` finds the robot a file's joint names belong to (how
@@ -25,13 +27,16 @@ from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_c
 from jaxproj.robots.nao_h25.spec import NAO_H25
 from jaxproj.robots.robot_file import load
 
+BUNDLED_FILES: tuple[Path, ...] = tuple(sorted(Path(__file__).parent.glob("*/robot.toml")))
+"""The robot files shipped with jaxproj (one folder each, with its MJCF), registered on import."""
+
 UNITREE_G1 = load(Path(__file__).parent / "unitree_g1" / "robot.toml")
 """The Unitree G1 (29 joints, 21 driven: waist, legs to the ankle pitch, arms to the elbow),
 read from its robot file ``unitree_g1/robot.toml`` and MJCF ``unitree_g1/unitree_g1.xml``."""
 
 __all__ = ["DEFAULT", "NAO_H25", "UNITREE_G1", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot",
-           "clip_coupled", "for_joints", "get", "is_file_name", "load", "names", "register",
-           "unregister"]  # fmt: skip
+           "BUNDLED_FILES", "clip_coupled", "for_joints", "get", "is_file_name", "load", "names",
+           "register", "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""
@@ -136,4 +141,5 @@ def for_joints(joint_names: Sequence[str]) -> Robot:
 
 
 register(NAO_H25)
-register(UNITREE_G1)
+for _file in BUNDLED_FILES:
+    register(load(_file))

@@ -280,6 +280,17 @@ ROWS_READ: dict[str, tuple[Correspondence, dict[str, tuple[str, ...]]]] = {
             "right_leg": ("thigh_right", "shin_right", "foot_right"),
         },
     ),
+    # a yaw-only waist reads the hip line alone (no spine row); the arms are solved first
+    "unitree_h1": (
+        robots.get("unitree_h1").generic.correspondence,
+        {
+            "left_arm": ("upper_arm_left", "forearm_left"),
+            "right_arm": ("upper_arm_right", "forearm_right"),
+            "waist": ("pelvis_left - pelvis_right",),
+            "left_leg": ("thigh_left", "shin_left", "foot_left"),
+            "right_leg": ("thigh_right", "shin_right", "foot_right"),
+        },
+    ),
 }
 """Per registered robot (the toy robot of ``tests/toy_robot.py`` has no correspondence: its
 own closed form), its correspondence and, per chain the generic IK solves, the rows it reads."""
