@@ -1,5 +1,8 @@
 """Is what ``jaxproj retarget`` writes for the G1 something a G1 could play? (issue 57)
 
+Any robot of the generic IK is measured the same way (``--robot NAME|FILE``, default the G1;
+its sites and joints read from its correspondence and figure: ``layout``).
+
 Runs the command line's ``retarget`` as a user does (in-process, default options unless
 ``--method relaxed --model P.npz``) on recordings the default model never trained on, reads back
 the NPZ it wrote, and measures the output itself (after the last stage), over time, in the world
@@ -53,16 +56,12 @@ from jaxproj.human.skeleton import BONE_NAMES, J, descriptor, level_body, world_
 from jaxproj.io.motion_files import load_motion
 
 ROBOT = "unitree_g1"
+"""The default ``--robot``; any robot solved by the generic IK whose correspondence has the
+arm and foot rows is measured the same way (its sites and joints are read from its data)."""
 FLIP_JOINT_DEG = 20.0
 FLIP_BONE_DEG = 10.0
 CONTACT_MM = 1.0
-TORSO = "torso_link"
-FEET = ("left_ankle_roll_link", "right_ankle_roll_link")
-FOOT_SITES = ("ankle_site", "toe_site")
-ARM_SITES = {
-    "upper_arm": ("shoulder_site", "elbow_site"),
-    "forearm": ("elbow_site", "wrist_site"),
-}
+SIDES = ("left", "right")
 
 _REPO = Path(__file__).resolve().parent.parent
 _SHARED = _REPO.parent / "shared" / "data"
@@ -95,9 +94,35 @@ def _pitch(v: np.ndarray) -> float:
 
 def robot_correspondence(robot: robots.Robot):  # noqa: ANN201
     """The robot's correspondence (its bone pairs and their ``rest`` directions)."""
-    if robot.name != ROBOT or robot.generic is None:
-        raise SystemExit(f"{robot.name}: this benchmark measures the G1")
+    if robot.generic is None:
+        raise SystemExit(f"{robot.name}: this benchmark measures a robot of the generic IK")
     return robot.generic.correspondence
+
+
+def layout(robot: robots.Robot) -> dict:
+    """What the measures read of ``robot``, from its data: the torso (the correspondence's
+    base), the sole bodies (``Figure.feet``), each side's arm and foot points (the rows of
+    ``upper_arm_<side>``, ``forearm_<side>``, ``foot_<side>``) and ankle pitch joints (those
+    that turn the foot's row but not the shin's)."""
+    from jaxproj.robots.generic_ik import row_turned_by
+
+    corr = robot_correspondence(robot)
+    rows = {r.bone: r for r in corr.pairs}
+    model = robot.load_model("fixed")
+    ankles = []
+    for s in SIDES:
+        foot, shin = (row_turned_by(model, rows[f"{b}_{s}"], corr.base) for b in ("foot", "shin"))
+        ankles += [j for j in robot.driven_joints if j in foot - shin]
+    return {
+        "torso": corr.base,
+        "feet": tuple(body for body, _ in robot.mjcf.figure.feet),
+        "points": {
+            f"{b}_{s}": (rows[f"{b}_{s}"].start, rows[f"{b}_{s}"].end)
+            for s in SIDES
+            for b in ("upper_arm", "forearm", "foot")
+        },  # fmt: skip
+        "ankles": ankles,
+    }
 
 
 def _bones(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -177,18 +202,19 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
     model = robot.load_model("fixed")
     data = mujoco.MjData(model)
     qadr = qpos_addresses(model, robot)
-    bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (TORSO, *FEET)}
+    lay = layout(robot)
+    torso, feet = lay["torso"], lay["feet"]
+    bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (torso, *feet)}
     site = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n)
-            for s in ("left", "right") for a, b in (*ARM_SITES.values(), FOOT_SITES)
-            for n in (f"{s}_{a}", f"{s}_{b}")}  # fmt: skip
+            for pair in lay["points"].values() for n in pair}  # fmt: skip
     rests = {r.bone: r.rest for r in robot_correspondence(robot).pairs if r.rest is not None}
     flat = {s: _pitch(np.asarray(rests[f"foot_{s}"])) for s in ("left", "right")}  # person's
 
     def sole_pitch() -> list[float]:  # deg, each foot's ankle -> toe in the torso frame
-        r_t = data.xmat[bid[TORSO]].reshape(3, 3)
+        r_t = data.xmat[bid[torso]].reshape(3, 3)
         out = []
-        for s in ("left", "right"):
-            a, b = (data.site_xpos[site[f"{s}_{n}"]] for n in FOOT_SITES)
+        for s in SIDES:
+            a, b = (data.site_xpos[site[n]] for n in lay["points"][f"foot_{s}"])
             out.append(_pitch(r_t.T @ (b - a)))
         return out
 
@@ -211,9 +237,9 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
         for key in contact_pairs(model, data):
             contact[t] = True
             pairs[key] = pairs.get(key, 0) + 1
-        r_t = data.xmat[bid[TORSO]].reshape(3, 3)
+        r_t = data.xmat[bid[torso]].reshape(3, 3)
         leans, rolls = [], []
-        for f in FEET:
+        for f in feet:
             z = data.xmat[bid[f]].reshape(3, 3).T @ r_t[:, 2]  # torso up in the sole's frame
             leans.append(np.degrees(np.arctan2(z[0], z[2])))
             rolls.append(np.degrees(np.arctan2(-z[1], z[2])))
@@ -225,17 +251,18 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
                 foot_robot.append(mine)
                 foot_person.append(theirs)
                 foot_diff.append(mine - theirs)
-            for s in ("left", "right"):
-                for bone, (a, b) in ARM_SITES.items():
+            for s in SIDES:
+                for bone in ("upper_arm", "forearm"):
+                    a, b = lay["points"][f"{bone}_{s}"]
                     xs = data.site_xpos
-                    v = r_t.T @ (xs[site[f"{s}_{b}"]] - xs[site[f"{s}_{a}"]])
+                    v = r_t.T @ (xs[site[b]] - xs[site[a]])
                     arm_err.append(float(_angle(v, bones[t, BONE_NAMES.index(f"{bone}_{s}")])))
     use = motion.valid & ok
     trunk = positions[:, J["ShoulderCenter"]] - positions[:, J["HipCenter"]]
     fwd = frames[:, 0, :] - (frames[:, 0, :] @ up)[:, None] * up  # body forward, horizontal
     fwd /= np.maximum(np.linalg.norm(fwd, axis=-1, keepdims=True), 1e-9)
     person_lean = np.degrees(np.arctan2(np.sum(trunk * fwd, -1), trunk @ up))
-    ankle = [robot.index(f"{s}_ankle_pitch_joint") for s in ("left", "right")]
+    ankle = [robot.index(j) for j in lay["ankles"]]
     qa = motion.angles[:, ankle]
     at_limit = (qa <= robot.lower[ankle] + 1e-3) | (qa >= robot.upper[ankle] - 1e-3)
     err = np.asarray(arm_err)
@@ -258,18 +285,18 @@ def geometry(motion, bones: np.ndarray, ok: np.ndarray, frames: np.ndarray, robo
     }
 
 
-def measure(path: Path, extra: list[str], out_dir: Path) -> dict:
-    robot = robots.get(ROBOT)
+def measure(path: Path, extra: list[str], out_dir: Path, robot_name: str = ROBOT) -> dict:
+    robot = robots.get(robot_name)
     out = out_dir / f"{path.stem}.npz"
     t0 = time.perf_counter()
     argv = ["retarget", str(path), "--out", str(out), *extra]
     if "--model" not in extra:
-        argv += ["--robot", ROBOT]
+        argv += ["--robot", robot_name]
     code = cli(argv)
     if code != 0:
         return {"file": path.name, "error": f"retarget exited {code}"}
     wall = time.perf_counter() - t0
-    motion = load_motion(out, robot=ROBOT)
+    motion = load_motion(out, robot=robot)
     positions = np.asarray(motion.positions, np.float32)
     bones, ok, frames = _bones(positions)
     res = {"file": path.name, "frames": len(motion.angles), "retarget_s": round(wall, 1)}
@@ -283,16 +310,24 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("files", nargs="*", type=Path)
     p.add_argument("--method", default="ik", choices=("ik", "relaxed", "full"))
     p.add_argument("--model", default=None)
+    p.add_argument("--robot", default=ROBOT, help="a registered robot or a robot file (--method "
+                   "ik; a model names its own)")  # fmt: skip
     p.add_argument("--json", default=None)
     p.add_argument("--data", type=Path, default=None, help="a folder holding the six files")
     p.add_argument("--extra", default="", help="more retarget options, one string")
     a = p.parse_args(argv)
     extra = ["--method", a.method] + (["--model", a.model] if a.model else []) + a.extra.split()
     files = a.files or default_files(a.data)
+    if a.model is not None:  # the model names its robot
+        from jaxproj.projection.model_file import read_config
+
+        robot = read_config(a.model).robot
+    else:
+        robot = robots.get(a.robot).name
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for f in files:
-            r = measure(f, extra, Path(tmp))
+            r = measure(f, extra, Path(tmp), robot)
             rows.append(r)
             print(json.dumps(r), flush=True)
     keys = ("flip_steps", "steps_over_90", "max_step_deg", "contact_frames", "lean_diff",
@@ -301,8 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         print(f"{r['file']:24s} " + " ".join(f"{r.get(k)!s:>16s}" for k in keys), file=sys.stderr)
     if a.json:
-        Path(a.json).write_text(json.dumps({"method": a.method, "model": a.model, "rows": rows},
-                                           indent=1) + "\n")  # fmt: skip
+        doc = {"method": a.method, "model": a.model, "robot": robot, "rows": rows}
+        Path(a.json).write_text(json.dumps(doc, indent=1) + "\n")
     return 0
 
 
