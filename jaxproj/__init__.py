@@ -4,7 +4,7 @@ The package is layered; each layer imports only the ones before it (``tests/test
 
 1. ``errors``, ``_internal`` (jit policy, the one atomic NPZ writer, progress bars);
 2. ``human`` (Kinect skeleton, body frame, bone descriptor), ``io`` (recording formats, the
-   bundled datasets, motion files), ``robots`` (the ``Robot`` spec; the NAO H25 as its instance);
+   bundled datasets, motion files), ``robots`` (the ``Robot`` spec and the registry of robots);
 3. ``projection`` (mean shift, landmarks, the ELM bank, k-NN search, relaxed and full objectives,
    build / project / save / load; GPU kernels under ``projection.ops``);
 4. ``motion`` (the one pipeline from a recording to playable angles: descriptor -> project ->

@@ -35,9 +35,9 @@ def bucket(n: int, minimum: int = MIN_ROWS) -> int:
 
 
 def fine_bucket(n: int, minimum: int = MIN_ROWS) -> int:
-    """Rows to pad ``n`` rows to where every row costs much (the G1's IK: ~15 ms a frame on
-    a 2-core CPU): the least of ``2^k``, ``1.25 * 2^k``, ``1.5 * 2^k``, ``1.75 * 2^k`` that is
-    ``>= max(n, minimum)``: at most a quarter of padding instead of ``bucket``'s half (1,157
+    """Rows to pad ``n`` rows to where every row costs much (a bundled robot's generic IK: ~15 ms
+    a frame on a 2-core CPU): the least of ``2^k``, ``1.25 * 2^k``, ``1.5 * 2^k``, ``1.75 * 2^k``
+    that is ``>= max(n, minimum)``: at most a quarter of padding instead of ``bucket``'s half (1,157
     frames: 1,280 rows, not 2,048), for four compiled shapes per octave instead of one."""
     n = max(int(n), minimum, 1)
     top = 1 << (n - 1).bit_length()

@@ -1,6 +1,6 @@
 """The command line's persistent compilation cache: XLA programs kept on disk between runs.
 
-Much of a first run's time on a CPU is XLA compiling (a first G1 retarget of ~1,000 frames:
+Much of a first run's time on a CPU is XLA compiling (a first generic-IK retarget of ~1,000 frames:
 ~40 s of its ~90 s on two cores); JAX's persistent compilation cache writes every compiled
 program to a folder and reads it back the next time the same program is needed, in this
 process or a later one. Every ``jaxproj`` subcommand runs with it (``compilation_cache``,

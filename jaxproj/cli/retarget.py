@@ -1,6 +1,6 @@
 """``jaxproj retarget``: a skeleton recording or BVH clip -> a robot-feasible joint trajectory of
 the robot (``--robot`` or the model's) at a uniform rate (``--rate``), as NPZ, CSV or the
-robot's own document (the NAO's NAOqi JSON) (``jaxproj.motion.retarget``), optionally with a
+robot's own document (``Robot.exports``) (``jaxproj.motion.retarget``), optionally with a
 plot."""
 
 from __future__ import annotations
@@ -24,12 +24,12 @@ invalid (a gap in the recording is filled by ``retarget``'s rule, not by made-up
 
 
 def _joint_counts() -> str:
-    """The registered robots' joint counts, e.g. ``"26 nao_h25, 29 unitree_g1"``."""
+    """The registered robots' joint counts: ``"<n_joints> <name>"`` per robot, comma-separated."""
     return ", ".join(f"{robots.get(n).n_joints} {n}" for n in robots.names())
 
 
 def _documents() -> str:
-    """The robots' own documents, e.g. ``".json (naoqi, nao_h25)"``."""
+    """The robots' own documents: ``"<suffix> (<export>, <robot>)"`` per export, joined by "or"."""
     robot_list = [robots.get(n) for n in robots.names()]
     docs = [f"{s} ({e.name}, {r.name})" for r in robot_list for s, e in r.exports.items()]
     return " or ".join(docs)

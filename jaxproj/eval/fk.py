@@ -60,8 +60,8 @@ def arm_model(robot: Robot) -> mujoco.MjModel:
     """The fixed-mount MJCF without ``robot.mjcf.fk_without``: the model ``arm_points`` evaluates.
 
     The same bodies, joints and sites as ``robot.load_model("fixed")`` for the torso and the
-    arms; the ``fk_without`` subtrees (NAO: head and legs), actuators, equalities and the contact
-    excludes removed (forward kinematics of the arms reads none of them).
+    arms; the ``fk_without`` subtrees (the default robot's: head and legs), actuators, equalities
+    and the contact excludes removed (forward kinematics of the arms reads none of them).
 
     Raises:
       InputError: the MJCF is missing or does not compile.

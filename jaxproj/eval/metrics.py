@@ -13,24 +13,25 @@ Joint space, in degrees over ``robot.driven_joints``, against the robot's analyt
 * ``confidence_deciles``: error against the per-frame confidence, by decile;
 * ``lag_frames``: how many frames a motion trails the IK's (best cross-correlation shift);
 * ``m_max_without``: ``M_max`` over the driven joints minus some, by default the robot's
-  ``loose_joints`` (NAO: the two elbow-yaw joints). With a near-straight arm the elbow's yaw turns
-  the forearm about its own length: the IK truth's elbow yaw is then ill-conditioned (set by
-  Kinect noise, blended towards 0 below 30 deg of human elbow flexion, see the NAO's ``ik``
-  module), and a large elbow-yaw error there can be a small error of the
+  ``loose_joints`` (the default robot's: the two elbow-yaw joints). With a near-straight arm the
+  elbow's yaw turns the forearm about its own length: the IK truth's elbow yaw is then
+  ill-conditioned (set by Kinect noise, blended towards 0 below 30 deg of human elbow flexion, see
+  the default robot's ``ik`` module), and a large elbow-yaw error there can be a small error of the
   pose.
 
 Task space, from forward kinematics of the robot's MJCF (``robot.mjcf``, fixed mount: base welded
 at the origin, so positions are in the torso frame), per arm (``robot.mjcf.arm_sites``: side ->
 shoulder, elbow, wrist sites; ``sides(robot)``), projected pose against IK pose:
 
-* ``hand_cm``: distance between the wrist points (NAO: ``l_wrist`` / ``r_wrist``, the origin of
-  the wrist body, where the hand attaches, on the forearm axis; the undriven wrist yaw cannot move
-  it). Not the ``l_hand`` / ``r_hand`` sites of ``rollout.hand_error_cm``, which sit 1.2 cm off
-  the forearm axis and so move with the elbow yaw even when the elbow is straight;
+* ``hand_cm``: distance between the wrist points (the default robot's ``l_wrist`` /
+  ``r_wrist``, the origin of the wrist body, where the hand attaches, on the forearm axis; the
+  undriven wrist yaw cannot move it). Not the ``l_hand`` / ``r_hand`` sites of
+  ``rollout.hand_error_cm``, which sit 1.2 cm off the forearm axis and so move with the elbow yaw
+  even when the elbow is straight;
 * ``elbow_cm``: distance between the elbow points;
-* ``upper_arm_deg``: angle between the shoulder -> elbow directions (NAO: the physical segment,
-  8.13 deg off the elbow-yaw axis by the ElbowOffsetY, the segment the IK makes parallel to the
-  human upper arm);
+* ``upper_arm_deg``: angle between the shoulder -> elbow directions (the default robot's: the
+  physical segment, 8.13 deg off the elbow-yaw axis by the ElbowOffsetY, the segment the IK makes
+  parallel to the human upper arm);
 * ``forearm_deg``: angle between the elbow -> wrist directions.
 
 Each is summarised like ``M_max`` (``describe``: mean / median / p95 / max / n). Angles between
@@ -42,12 +43,12 @@ computed in float64 from the given angles (as the headline ``frame_errors`` alwa
 
 FK: ``arm_points`` runs MJX (``mjx.kinematics``, JAX implementation) vmapped over fixed-size
 batches of ``FK_BATCH`` frames (the last one padded), so one compile per robot serves every frame
-count. It runs on a copy of the MJCF with the bodies of ``robot.mjcf.fk_without`` (NAO: the head
-and leg subtrees) and the actuators, equality and contact excludes (which kinematics never reads)
-removed (``arm_model``): those bodies cannot move an arm site (the arms hang off the torso), and
-without them the program compiles in half the time and runs ~4x faster (``jaxproj.eval.fk``).
-``tests/eval/test_metrics.py`` checks it against CPU MuJoCo on the whole fixed-mount model to
-1e-5 m.
+count. It runs on a copy of the MJCF with the bodies of ``robot.mjcf.fk_without`` (the default
+robot's: the head and leg subtrees) and the actuators, equality and contact excludes (which
+kinematics never reads) removed (``arm_model``): those bodies cannot move an arm site (the arms hang
+off the torso), and without them the program compiles in half the time and runs ~4x faster
+(``jaxproj.eval.fk``). ``tests/eval/test_metrics.py`` checks it against CPU MuJoCo on the whole
+fixed-mount model to 1e-5 m.
 Measured on this project's shared 2-core CPU (25,000 random configurations, median of 5): arm model
 3.2 s compile, then 0.025 s per 10,000 frames; the whole model 7.0 s compile, 0.094 s per 10,000;
 CPU ``mj_kinematics`` in a Python loop, no compile, 0.087 s per 10,000. So the one compile per
@@ -78,7 +79,7 @@ __all__ = ["FK_BATCH", "TASK_METRICS", "ArmErrors", "arm_errors", "arm_model", "
 
 
 def sides(robot: Robot) -> tuple[str, ...]:
-    """The robot's arms (``robot.mjcf.arm_sites`` keys; NAO: ``("left", "right")``): the order
+    """The robot's arms (``robot.mjcf.arm_sites`` keys; e.g. ``("left", "right")``): the order
     of the side axis of ``arm_points`` / ``ArmErrors``. ConfigError for a robot without MJCF."""
     return tuple(robot.require_mjcf().arm_sites)
 
@@ -295,7 +296,7 @@ def m_max_without(
     Args:
       pred, truth: ``(F, n_driven)`` driven angles or ``(F, n_joints)`` configurations, rad.
       exclude: names of driven joints to leave out (``None``, the default: the robot's
-        ``loose_joints``; NAO: the two elbow-yaw joints).
+        ``loose_joints``; the default robot's: the two elbow-yaw joints).
       robot: the robot.
 
     Returns:
@@ -445,8 +446,8 @@ def summarize_errors(
     Returns:
       ``{"M_max": describe, "M_avg": describe`` (the headline, ``frame_errors`` over the driven
       joints), ``"per_joint": {joint: {"p50", "p95"}}``, ``"M_max_no_elbow_yaw": describe``
-      (``m_max_without`` the robot's ``loose_joints``; the key keeps its NAO name),
-      ``"task_space": task_space_errors(...)}``; degrees and cm.
+      (``m_max_without`` the robot's ``loose_joints``; the key keeps its name from the default
+      robot's loose joints), ``"task_space": task_space_errors(...)}``; degrees and cm.
 
     Raises:
       ConfigError: bad or different shapes, non-finite angles, ``truth_points`` not matching.

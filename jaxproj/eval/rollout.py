@@ -10,13 +10,13 @@ this one (``simulate``, ``hand_error_cm``, ``summarize``: the public entry point
 ``rollout_physics`` (the MJX step and the jitted batched rollouts), ``rollout_cpu`` (the CPU
 MuJoCo backend) and ``rollout_warp`` (the Warp backend).
 Every entry point takes ``robot=``: a ``Robot`` (``jaxproj.robots``; its ``mjcf``) or a
-registered name, ``None`` the default robot (``robots.get()``; the NAO H25).
+registered name, ``None`` the default robot (``robots.get()``).
 
-A retargeted motion is a ``(T, n_joints)`` joint-angle trajectory (rad, ``robot.joint_names``
-order) sampled at the Kinect rate. ``simulate`` plays a padded batch of them on the robot's MJCF
-with the torso welded to the world (``robot.load_model("fixed")``), gravity on, through the
-position servos (NAO: 25), and records what the robot actually does; ``summarize`` turns that
-into plain numbers (tracking error, self-collisions, joint limits, joint speeds) for reports.
+A retargeted motion is a ``(T, n_joints)`` joint-angle trajectory (rad, ``robot.joint_names`` order)
+sampled at the Kinect rate. ``simulate`` plays a padded batch of them on the robot's MJCF with the
+torso welded to the world (``robot.load_model("fixed")``), gravity on, through the position servos
+(the default robot's: 25), and records what the robot actually does; ``summarize`` turns that into
+plain numbers (tracking error, self-collisions, joint limits, joint speeds) for reports.
 
 Protocol, for one motion (``lax.scan`` over frames, an inner ``lax.scan`` over physics steps):
 
@@ -26,9 +26,9 @@ Protocol, for one motion (``lax.scan`` over frames, an inner ``lax.scan`` over p
   frames/s and dt = 2 ms); at its step ``k`` (``1 .. substeps``) ``ctrl`` = ``c[t-1] + (c[t] -
   c[t-1]) * k / substeps``, where ``c[t]`` is frame ``t`` clipped to the actuator ``ctrlrange``
   and ``c[-1] = c[0]`` (``RolloutConfig.interpolate``, the default: a first-order hold, as
-  NAOqi's ``angleInterpolation`` plays a trajectory; ``interpolate=False``: ``c[t]`` on every
-  step, the zero-order hold). A coupled follower has no actuator: it follows its leader
-  through the joint equality;
+  the default robot's software (``angleInterpolation``) plays a trajectory; ``interpolate=False``:
+  ``c[t]`` on every step, the zero-order hold). A coupled follower has no actuator: it follows its
+  leader through the joint equality;
 * at the end of frame ``t`` (time ``(t + 1) * frame_dt``) record the joint angles and speeds;
   the tracking error of frame ``t`` is ``|qpos[t] - target[t]|``, i.e. the servos get one frame
   to reach each new target (with the ramp: the frame's target is reached by the command only at
@@ -342,8 +342,8 @@ def hand_error_cm(
 
     Returns:
       (N, n_hands) float32 distances in cm between the hand sites (``robot.mjcf.hand_sites``;
-      NAO: ``l_hand``, ``r_hand``) of ``angles_a[i]`` and ``angles_b[i]`` (torso frame;
-      each coupled follower joint takes its leader's angle, ``robot.coupled_joints``). One
+      the default robot's: ``l_hand``, ``r_hand``) of ``angles_a[i]`` and ``angles_b[i]`` (torso
+      frame; each coupled follower joint takes its leader's angle, ``robot.coupled_joints``). One
       compile per N.
 
     Raises:

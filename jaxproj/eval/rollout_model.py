@@ -9,8 +9,8 @@ The contact groups come from the robot's kinematic tree, not from geom names
 (``_geom_classes``): an arm is every geom below the trunk on the way to that side's elbow site
 (``Mjcf.arm_sites``), the torso the geoms of the trunk body itself (the deepest body both
 elbows hang from), the head every geom below the figure's head body (``Figure.head``). On the
-bundled NAO that is exactly its ``torso_*`` / ``head_*`` / ``l_upperarm*`` ... geoms; on the G1,
-whose geoms are named otherwise, it is what the names missed.
+default robot that is exactly its ``torso_*`` / ``head_*`` / ``l_upperarm*`` ... geoms; on a
+robot whose geoms are named otherwise, it is what the names missed.
 """
 
 from __future__ import annotations
@@ -51,21 +51,20 @@ class RolloutConfig:
         (``condim=1``, one row per slot: 80 constraint rows instead of 239), a speed option that
         changes the physics only while parts touch; contact detection, penetration depth and
         every contact-free frame are unaffected. Measured effect in ``benchmarks/RESULTS.md``.
-      split_legs: simulate the head and arms (NAO: 14 joints) and the legs (12) as two separate
-        models (``robot.mjcf.split``: ``robot.load_model("fixed", without)``), the legs once per
-        distinct leg
-        motion of the batch (retargeted motions hold the legs still: once per batch). With the
-        torso welded the two parts share no degree of freedom and only the head can touch a leg;
-        each batch is certified (below) to keep every leg geom out of the head's reach, and
-        otherwise runs the whole model. The answers equal the whole model's to the constraint
+      split_legs: simulate the head and arms (the default robot's: 14 joints) and the legs (12) as
+        two separate models (``robot.mjcf.split``: ``robot.load_model("fixed", without)``), the legs
+        once per distinct leg motion of the batch (retargeted motions hold the legs still: once per
+        batch). With the torso welded the two parts share no degree of freedom and only the head can
+        touch a leg; each batch is certified (below) to keep every leg geom out of the head's reach,
+        and otherwise runs the whole model. The answers equal the whole model's to the constraint
         solver's tolerance (the solver's stopping test and line search act on each part alone);
         measured in ``benchmarks/RESULTS.md``; ``False`` runs the whole model.
       interpolate: the servos' targets ramp linearly within each frame from the previous
         frame's target to this frame's, reached at the frame's last physics step (a first-order
-        hold, as NAOqi's ``angleInterpolation`` plays a trajectory); ``False``: each frame's
-        target from its first physics step (zero-order hold, the protocol before 0.3: a servo
-        handed a step accelerates hard, so its peak speed overshoots the frame's mean speed).
-
+        hold, as the default robot's software (``angleInterpolation``) plays a trajectory);
+        ``False``: each frame's target from its first physics step (zero-order hold, the protocol
+        before 0.3: a servo handed a step accelerates hard, so its peak speed overshoots the frame's
+        mean speed).
     The split's certificate: the head turns about the neck, so its geoms stay inside a ball
     about the neck (radius: the farthest head-geom point, computed from the MJCF); the legs'
     rollout checks at every physics step that each leg geom's bounding sphere (plus the contact
@@ -451,7 +450,8 @@ def _leg_motions(
     Args:
       targets: (B, T, n_joints) targets, rad; lengths: (B,) valid frames (frames past a
         motion's length count as its last valid frame, as in the rollout).
-      leg_joints: (k,) indices into ``robot.joint_names`` of the legs' joints (NAO: 12).
+      leg_joints: (k,) indices into ``robot.joint_names`` of the legs' joints (12 on the default
+        robot).
 
     Returns:
       ``(rows, inverse)``: rows (U, T, k) float32, the distinct leg target sequences, padded to

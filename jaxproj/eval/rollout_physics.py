@@ -32,10 +32,10 @@ def _mjx_step(s: _Setup, d: mjx.Data) -> mjx.Data:
 
     ``mjx.step`` (MJX 3.17) puts the velocity gain ``kv`` of every position servo into the
     implicit damping matrix, while CPU MuJoCo 3.17 (``mjd_actuator_vel``) leaves out the servos
-    whose force is clamped by ``forcerange``; the NAO servos saturate on every large step, so
-    ``mjx.step`` lags CPU MuJoCo by ~0.02 rad within 0.1 s there. Here the ``kv`` of the clamped
-    servos is zeroed in the model handed to ``mjx.implicit`` for this step only, which makes the
-    two agree to float32 round-off (tests/eval/test_rollout.py).
+    whose force is clamped by ``forcerange``; the default robot's servos saturate on every large
+    step, so ``mjx.step`` lags CPU MuJoCo by ~0.02 rad within 0.1 s there. Here the ``kv`` of the
+    clamped servos is zeroed in the model handed to ``mjx.implicit`` for this step only, which makes
+    the two agree to float32 round-off (tests/eval/test_rollout.py).
     """
     mx = s.mx
     with _mjx_defaults():  # MJX internals need implicit promotion; see the module docstring

@@ -16,12 +16,12 @@ head-and-arms and legs (``RolloutConfig.split_legs``) are the MJX backend's; wha
   scans run over the whole batch, the step is called on batched ``Data`` (MJX's Warp call takes
   a leading world axis as it is) and each step's self-contacts are scattered to their motions.
   The pool holds as many slots per motion as MJX-JAX's fixed contact list (one per candidate
-  contact point: the NAO's head-and-arms 27, the whole robot 53) and each world as many
+  contact point: the default robot's head-and-arms 27, the whole robot 53) and each world as many
   constraint rows (122 / 239), far more than the arms can touch at once; should MuJoCo Warp
   still drop a contact or constraint (its ``Data.overflow`` bits), ``simulate`` raises.
 * **The solver caps** are the config's (``RolloutConfig.solver_iterations`` /
   ``ls_iterations``, 8 / 4), as for the other backends. MuJoCo Warp's line search is its own,
-  and a plain ``mjx.step`` probe of the NAO once warned that it hit 4 iterations; in the
+  and a plain ``mjx.step`` probe of the default robot once warned that it hit 4 iterations; in the
   rollout protocol no motion did (256 random motions, every step: MuJoCo Warp records it in
   ``Data.overflow``, whose printed warnings are turned off here), and caps of 8 and 16 gave
   the same largest errors at the same speed (``docs/results.md``).

@@ -66,8 +66,8 @@ def body_frame(
     ``up`` points along the skeleton's ``frame.up`` joints (Kinect v1: HipCenter ->
     ShoulderCenter); ``left`` along ``frame.left`` (ShoulderRight -> ShoulderLeft), made orthogonal
     to ``up``; ``forward = left x up``. In a right-handed camera frame (Kinect) ``forward`` points
-    out of the person's chest. The axes match the NAO torso frame (x forward, y left, z up), so a
-    bone direction in this frame can be compared with the robot's directly.
+    out of the person's chest. The axes match the default robot's torso frame (x forward, y left, z
+    up), so a bone direction in this frame can be compared with the robot's directly.
 
     Args:
       positions: ``(..., n_joints, 3)`` joint positions in the skeleton's order, any units.
@@ -198,7 +198,7 @@ NECK_TILT_REFERENCE = math.radians(-27.1)
 """rad: the median forward tilt ``atan2(n_x, n_z)`` of the neck bone (ShoulderCenter -> Head, body
 frame) over the 22,365 valid frames of the bundled MSR Action3D recordings: the capture set-up
 the default projector's landmarks come from. ``level_neck`` brings each recording's own neutral
-tilt here (the NAO's IK reads this tilt as HeadPitch 0, ``ik.HEAD_PITCH_NEUTRAL``)."""
+tilt here (the default robot's IK reads this tilt as HeadPitch 0, its ``HEAD_PITCH_NEUTRAL``)."""
 
 
 def _neck_offset(bones: str | Iterable[str], skeleton: SkeletonLike) -> int:
@@ -282,9 +282,9 @@ knee -> ankle bones, the angle of the shin, turned upwards, from the body's up a
 forward axis): straight down. The trackers disagree on where the trunk axis (HipCenter ->
 ShoulderCenter) sits against the legs: the median shin of a standing MSR Action3D person leans
 17 deg forward in that frame, of a UTKinect-Action3D person 18 deg back, of a CMU BVH clip 19
-deg back (``benchmarks/g1_playable.py``). Levelling makes a person's legs hang straight below
-their body frame on the median, so a robot whose torso follows the body frame stands upright
-over its legs when the person does."""
+deg back (the playability benchmark of issue 57, ``benchmarks/README.md``). Levelling makes a
+person's legs hang straight below their body frame on the median, so a robot whose torso follows the
+body frame stands upright over its legs when the person does."""
 
 BONE_TILT_REFERENCES: dict[str, float] = {
     "spine_lower": math.atan2(-0.468, 0.884),
@@ -352,10 +352,10 @@ def level_body(
     reference, so a foot flat on the floor corresponds to the robot's flat sole whatever the
     trunk's lean, and a robot that stands on its soles leans as the person does. Without it
     (``None``) the feet's median in the body frame moves to the reference: the robot stands
-    upright over flat soles, leaning or not. Measured on the per-frame G1 IK, the trunk's lean on
-    flat soles minus the person's, deg: UTKinect s07 e01 / e02 / s09 e01 -9.9 / -5.9 / -14.9
-    against the body, -7.5 / -4.7 / -10.7 against the floor; CMU 131_01 -10.0 / -2.3 (every 3rd
-    frame; the 2-core VM, 2026-11-28).
+    upright over flat soles, leaning or not. Measured on a bundled robot's per-frame generic IK,
+    the trunk's lean on flat soles minus the person's, deg: UTKinect s07 e01 / e02 / s09 e01
+    -9.9 / -5.9 / -14.9 against the body, -7.5 / -4.7 / -10.7 against the floor; CMU 131_01
+    -10.0 / -2.3 (every 3rd frame; the 2-core VM, 2026-11-28).
 
     Without both shins in ``bones`` (the upper-body descriptors) ``d`` is returned as it is. A
     recording with no valid frame is left as it is. Traceable (sorts, no host sync).

@@ -75,8 +75,8 @@ BONE_LINES: dict[str, tuple[str, str]] = {
 }
 """The two body lines, each read from two canonical bones as ``unit(a - b)`` of their unit
 vectors: the direction from the right shoulder (hip) joint to the left one when the two halves
-are of equal length (the G1's correspondence reads the hip line this way, ``BonePair.minus`` in
-``jaxproj.robots.generic_ik``). No skeleton names them: they follow from the bones."""
+are of equal length (a robot's correspondence can read the hip line this way, ``BonePair.minus``
+in ``jaxproj.robots.generic_ik``). No skeleton names them: they follow from the bones."""
 
 MIRROR_BONE: dict[str, str] = {
     n: n.replace("_left", "_TMP").replace("_right", "_left").replace("_TMP", "_right")
@@ -87,7 +87,8 @@ MIRROR_BONE: dict[str, str] = {
 UPPER_BODY: tuple[str, ...] = (
     "neck", "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right",
 )  # fmt: skip
-"""Default bone subset: what the NAO head and arms (up to the elbow) can follow. 15 numbers."""
+"""Default bone subset: what the default robot's head and arms (up to the elbow) can
+follow. 15 numbers."""
 
 FULL_BODY: tuple[str, ...] = BONE_NAMES
 """All 19 bones: 57 numbers."""

@@ -8,7 +8,7 @@
   (``msr``, ``utkinect``, ``table`` for csv / npz, the ``bvh`` package), sharing ``text``.
 - ``datasets``: the bundled MSR Action3D and UTKinect-Action3D data and folders of recordings
   (loading in ``bundled`` and ``folders``, the archive converter in ``bundling``).
-- ``motion_files``: robot motion files (NPZ / CSV / NAOqi JSON).
+- ``motion_files``: robot motion files (NPZ / CSV / a robot's own export).
 """
 
 from jaxproj.io.formats import FORMATS, detect, format_names, get_format, recording_format

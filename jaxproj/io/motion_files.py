@@ -1,5 +1,6 @@
 """Robot-motion files: a robot joint trajectory (``Motion``) saved as NPZ, CSV or the robot's own
-document (``Robot.exports``; the NAO H25's is NAOqi JSON, the ``naoqi`` module of its package).
+document (``Robot.exports``; the default robot's is a JSON document, written by a module of its
+package under ``jaxproj.robots``).
 
 ``save_motion(path, motion)`` picks the format from the extension; ``load_motion(path)`` reads any
 of them back. The robot: ``motion.robot`` when writing; when reading, ``load_motion(path,
@@ -15,7 +16,7 @@ exports that suffix (the default robot first):
   also reads the ``.npz`` of ``jaxproj retarget`` (no ``times``: frames are taken
   ``1 / DEFAULT_FPS`` s apart; its ``method`` / ``smoothed`` become ``meta``).
 - ``.csv`` (for the robot's tools): header ``time,<the robot's joint names in its SDK order>``
-  (``robot.joint_names``: 26 columns for the NAO, 29 for the Unitree G1), one row per frame,
+  (``robot.joint_names``: one column per joint of the robot), one row per frame,
   times in s and angles in rad, written so that parsing each value with ``float`` gives the
   float32 angle bit-exactly and the float64 time exactly. Nothing else: no validity and no
   confidence column (they are the NPZ's; write both files, or ``save_motion`` the ``.csv`` from
@@ -23,29 +24,30 @@ exports that suffix (the default robot first):
   positions and no meta); a last ``confidence`` column, as jaxproj 0.2.0 wrote, is still
   read. ``jaxproj retarget`` writes its motions at a uniform rate (``--rate``), so its CSV
   rows are evenly spaced in time.
-- the robot's exports (NAO: ``.json``, NAOqi's ``angleInterpolation`` arguments; ``joints`` and
-  ``lead_in`` of ``save_motion`` are its options): see the NAO's ``naoqi`` module.
+- the robot's exports (the default robot's: ``.json``, the arguments of its software's
+  ``angleInterpolation``; ``joints`` and ``lead_in`` of ``save_motion`` are its options): see
+  the export's module in the robot's package (``jaxproj.robots``).
 
 The CSV and the robot's exports are files for the robot: ``save_motion`` writes their angles
 ``EXPORT_MARGIN`` (2e-4 rad, 0.011 deg) inside each joint's range, ``[lower + margin, upper -
-margin]`` (``export_angles``; and, for a robot with coupled ranges such as the NAO's head
-envelope, inside those), so that a validator that checks a robot's URDF limits strictly never
+margin]`` (``export_angles``; and, for a robot with coupled ranges such as the default robot's
+head envelope, inside those), so that a validator that checks a robot's URDF limits strictly never
 rejects a frame clamped at a limit. Why 2e-4: ``Robot.lower`` / ``upper`` are the documentation's
-4-decimal values; the NAO's URDF (qibullet 1.4.6 ``nao.urdf``, the Aldebaran-generated one)
+4-decimal values; the default robot's URDF (qibullet 1.4.6's, the one its maker generated)
 differs from them by up to 5.2e-5 rad on the head and arms (HeadPitch's -0.671952 against
 -0.6720) and 1.7e-4 rad on the legs, except RKneePitch, whose URDF range copies the left knee's
 (0.011 rad narrower; the legs of a retargeted motion stay at the standing posture, far from
 their limits). ``margin=None`` writes the angles as they are. Clipping to a fixed range never
 lengthens a step between two frames, so it moves no joint faster; a follower brought back into
 its coupled range after its leader was clipped moves by at most the range's slope times that
-clip (the NAO's head: <= 5e-5 rad, where HeadYaw meets its limit). The NPZ stays lossless.
+clip (the default robot's head: <= 5e-5 rad, where HeadYaw meets its limit). The NPZ stays lossless.
 
 Every write is atomic (a temporary file in the same folder, then ``os.replace``): a failed write
 never leaves a half-written file. No folder is created: writing into a folder that does not
 exist is a ``ConfigError`` naming it (the CLI's rule for its outputs). Bad files raise
 ``InputError`` naming the file and the problem.
 
-Size: over 500 lines: one writer and one reader per format (NPZ, CSV, NAOqi JSON) with the
+Size: over 500 lines: one writer and one reader per format (NPZ, CSV, a robot's export) with the
 checks and the export margin they share; split by format when a fourth format comes.
 """
 
@@ -75,11 +77,11 @@ __all__ = ["DEFAULT_FPS", "EXPORT_MARGIN", "FORMATS", "MetaValue", "Motion", "ex
 
 FORMATS: tuple[str, ...] = (".npz", ".csv")
 """File extensions ``save_motion`` / ``load_motion`` accept for every robot; a robot's exports
-add theirs (``formats``: ``.npz``, ``.csv``, ``.json`` for the NAO)."""
+add theirs (``formats``: ``.npz``, ``.csv``, ``.json`` for the default robot)."""
 
 EXPORT_MARGIN = 2e-4
 """rad: how far inside each joint's ``[lower, upper]`` the CSV and the robot's exports hold
-every angle (module doc: covers the NAO URDF's limits, which differ from ours by <= 1.7e-4)."""
+every angle (module doc: covers the default robot's URDF limits, <= 1.7e-4 off ours)."""
 
 DEFAULT_FPS = 15.0
 """Frame rate assumed where a file has no times (``jaxproj retarget`` output; MSR Action3D rate)
@@ -211,7 +213,7 @@ class Motion:
 
 def formats(robot: Robot | str | None = None) -> tuple[str, ...]:
     """File extensions of ``robot``'s motions (``None``: the default robot's): ``FORMATS`` and
-    its exports' (NAO: ``.json``)."""
+    its exports' (the default robot's: ``.json``)."""
     return (*FORMATS, *get_robot(robot).exports)
 
 
@@ -266,14 +268,15 @@ def save_motion(
     """Write ``motion`` to ``path``; the format follows the extension (module docstring).
 
     Args:
-      path: ``.npz``, ``.csv`` or one of ``motion.robot.exports`` (NAO: ``.json``); its folder
-        must exist (no folder is created, as for ``jaxproj retarget --out``).
+      path: ``.npz``, ``.csv`` or one of ``motion.robot.exports`` (the default robot's: ``.json``);
+        its folder must exist (no folder is created, as for ``jaxproj retarget --out``).
       motion: the motion.
-      joints: options of the robot's export (checked whatever the format). NAOqi JSON: which
-        joints to write, ``"upper"`` (default, ``naoqi.UPPER_JOINTS``), ``"body"`` (all) or a
-        sequence of names (written in that order). NPZ and CSV always hold every joint.
-      lead_in: NAOqi JSON: seconds before the first pose (> 0; ``None``: the export's default,
-        ``naoqi.DEFAULT_LEAD_IN_S`` = 1 s); NAOqi times are ``times - times[0] + lead_in``.
+      joints: options of the robot's export (checked whatever the format). The default robot's
+        JSON: which joints to write, ``"upper"`` (default, the export's upper-body joints),
+        ``"body"`` (all) or a sequence of names (written in that order). NPZ and CSV always hold
+        every joint.
+      lead_in: the default robot's JSON: seconds before the first pose (> 0; ``None``: the
+        export's default, 1 s); its times are ``times - times[0] + lead_in``.
       margin: CSV and the robot's exports: rad inside each joint's range the angles are
         written at (``export_angles``; default ``EXPORT_MARGIN``); ``None``: as they are. The
         NPZ always holds the motion's own angles.
@@ -327,8 +330,8 @@ def export_angles(robot: Robot, angles: np.ndarray, margin: float = EXPORT_MARGI
     margin]`` (float32 bounds rounded inwards, so that each written value is at least ``margin``
     inside in exact arithmetic too), then each follower of ``robot.coupled_limits`` into its
     range at its leader's angle, and clipped to the margin once more: where a coupled range
-    overlaps the follower's margin band (the NAO's head envelope does at every HeadYaw) the
-    result lies in both.
+    overlaps the follower's margin band (the default robot's head envelope does at every
+    HeadYaw) the result lies in both.
 
     Returns:
       ``(T, n_joints)`` float32 (a new array).
@@ -402,8 +405,8 @@ def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) 
     """Read a motion written by ``save_motion`` (or by ``jaxproj retarget``, ``.npz``).
 
     Args:
-      path: ``.npz``, ``.csv`` or one of ``robot.exports`` (NAO: ``.json``); the format follows
-        the extension.
+      path: ``.npz``, ``.csv`` or one of ``robot.exports`` (the default robot's: ``.json``); the
+        format follows the extension.
       robot: the robot the motion is for: a ``Robot`` or a registered name; ``None`` (the
         default): the registered robot whose joints the file names (``jaxproj.robots.for_joints``:
         the default robot when it has them all), for a robot's own document the robot that
@@ -411,7 +414,7 @@ def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) 
 
     Returns:
       The ``Motion``. Joints the file does not name take ``robot.standing``. CSV: every frame
-      valid, no positions, no meta. An export (NAOqi JSON): see its module.
+      valid, no positions, no meta. An export: see its module.
 
     Raises:
       ConfigError: an unsupported extension.

@@ -8,27 +8,27 @@ frame filled by holding the last pose). A robot cannot follow: its joints have s
 while staying as close as it can to it:
 
 * positions within ``[robot.lower, robot.upper]`` and the coupled ranges
-  (``Robot.coupled_limits``: the NAO's HeadPitch within the head anti-collision envelope at its
-  HeadYaw) on every frame (hard);
+  (``Robot.coupled_limits``: the default robot's HeadPitch within the head anti-collision envelope
+  at its HeadYaw) on every frame (hard);
 * speed ``|q_t - q_{t-1}| / dt_t <= speed_fraction * robot.speed_limits(speeds)`` per joint
   (hard). By default (``speeds="rated"``) the cap is the rated speed, the speed a joint keeps at
-  its motor's nominal torque (``Robot.rated_speeds``; the NAO's: Aldebaran's nominal speeds,
-  74-79 % of no-load, else 0.75 x no-load), times ``SPEED_FRACTIONS["rated"]`` (99 %: headroom
-  for float32 round-off, so that no exported step exceeds the rated speed);
+  its motor's nominal torque (``Robot.rated_speeds``; the default robot's: its maker's nominal
+  speeds, 74-79 % of no-load, else 0.75 x no-load), times ``SPEED_FRACTIONS["rated"]`` (99 %:
+  headroom for float32 round-off, so that no exported step exceeds the rated speed);
   ``speeds="no-load"`` caps at ``SPEED_FRACTIONS["no-load"]`` (90 %) of the no-load maxima
   (``Robot.velocity_limits``), the default before rated speeds (``jaxproj retarget --speeds
   no-load``);
 * acceleration ``|v_t - v_{t-1}| / ((dt_t + dt_{t-1}) / 2) <= accel`` (``v_t`` the speed of
-  step ``t``) per joint: the robot's own ``Robot.acceleration_limits`` where it gives them (the
-  G1's: each joint's peak torque over the inertia it moves, ``robots.mjcf.torque_accelerations``),
+  step ``t``) per joint: the robot's own ``Robot.acceleration_limits`` where it gives them (e.g.
+  each joint's peak torque over the inertia it moves, ``robots.mjcf.torque_accelerations``),
   else a rule of ours: the no-load speed reached from rest in ``ACCEL_TIME`` (0.1 s), per joint
   (``FeasibleConfig.accel`` sets one bound for every joint of any robot).
-  The NAO's documentation gives no acceleration limit; its bound is ours (its
+  The default robot's documentation gives no acceleration limit; its bound is ours (its
   ``acceleration_limits``: 80 rad/s^2 on every joint, full speed in ~0.1 s), so the speed limit
   is never reached by a jump. Chosen on the training subjects (MSR Action3D
   1,3,5,7,9, arm actions, relaxed projection, smoothed): median M_avg against the IK 3.42 deg at
   40 rad/s^2, 2.67 at 80, 2.51 at 150 and 2.49 with no bound (speed limits alone); 1.76 before
-  the filter. Most of the cost is the speed limit itself: the NAO's arms are slower than a
+  the filter. Most of the cost is the speed limit itself: the default robot's arms are slower than a
   person's punch or wave. It holds on every step except one where a position limit stops a joint
   (the only place the filter must choose between the two; ``feasibility_report`` counts it).
 
@@ -43,11 +43,11 @@ its leader: each pass moves the follower no faster towards a bound than lets it 
 tightest value that bound takes over the angles the leader can reach meanwhile (this step plus
 a full braking time, at the leader's speed limit), and holds it inside the range at the
 leader's angle of each step (the position limit wins over the speed and acceleration bounds,
-as at a fixed limit). Since the NAO's head envelope is not convex, the average (and the
+as at a fixed limit). Since the default robot's head envelope is not convex, the average (and the
 read-back below) is clipped to it once more (``base.clip_coupled``).
 
 The elbow yaw, handled explicitly on the target before the scan step, for each ``(yaw, roll)`` pair
-of ``Robot.elbow_pairs`` (the NAO's two elbows; a robot without pairs gets no such rule):
+of ``Robot.elbow_pairs`` (the default robot's two elbows; a robot without pairs gets no such rule):
 
 * nearly straight elbow (``|elbow roll| < straight_elbow[1]``): the yaw only turns the forearm
   about its own axis, so it is ill-defined; the target yaw is blended towards the yaw the filter
@@ -92,7 +92,7 @@ from jaxproj.robots import Robot, clip_coupled
 
 ACCEL_TIME = 0.1
 """s: a robot without ``acceleration_limits`` gets ``velocity_limits / ACCEL_TIME`` per joint
-(its no-load speed from rest in 0.1 s; the rule behind the NAO's own bound, module doc)."""
+(its no-load speed from rest in 0.1 s; the rule behind the default robot's bound, module doc)."""
 
 SPEED_FRACTIONS: dict[str, float] = {"rated": 0.99, "no-load": 0.9}
 """``FeasibleConfig.speed_fraction`` when left out, per ``speeds``: 99 % of the rated speeds, 90 %

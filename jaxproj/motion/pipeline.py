@@ -14,9 +14,9 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
                         values skipped, gaps bridged) or the paper's causal double exponential
                         smoother (``smoothing.smooth_motion``, on the filled motion)
     clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``) and
-                        its coupled ranges (``Robot.coupled_limits``: the NAO's head envelope),
-                        and out of self-collision where the robot says how (``Robot.separate``:
-                        the G1's; ``Robot.playable`` does all three; over a motion
+                        its coupled ranges (``Robot.coupled_limits``: a head envelope),
+                        and out of self-collision where the robot says how (``Robot.separate``;
+                        ``Robot.playable`` does all three; over a motion
                         ``Robot.playable_motion``: each frame's separation also searched from
                         the previous frame's answer)
     stand_if_lost       a motion with no valid frame -> the robot's standing posture
@@ -259,8 +259,8 @@ def fill_invalid(q: jax.Array, valid: jax.Array) -> jax.Array:
 def clip_to_limits(q: jax.Array, robot: Robot) -> jax.Array:
     """``(..., n_driven)`` driven angles clipped to ``robot``'s limits (float32 limits), then
     each follower of ``robot.coupled_limits`` to its range at its leader (``Robot.clip_driven``:
-    the NAO's HeadPitch to the head anti-collision envelope at its HeadYaw), and moved out of
-    self-collision by ``robot.separate`` where it has one (the G1's collision pairs pushed
+    e.g. the default robot's HeadPitch to the head anti-collision envelope at its HeadYaw), and
+    moved out of self-collision by ``robot.separate`` where it has one (its collision pairs pushed
     apart; ``Robot.playable``)."""
     return robot.playable(q)
 

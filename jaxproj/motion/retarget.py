@@ -33,7 +33,7 @@ known here, so it need not lag), or the paper's causal double exponential smooth
 the result is clipped to the joint limits (a smoother can overshoot them). With ``feasible``
 (off by default here; on by default for what ``jaxproj retarget`` writes for the robot) the
 motion then goes through ``jaxproj.motion.feasible``: joint limits, speed limits and an
-acceleration bound; for a robot with ``Robot.separate`` (the G1) a last pass pushes apart the
+acceleration bound; for a robot with ``Robot.separate`` a last pass pushes apart the
 self-contacts the filter brought back (``pipeline.playable_full``), so what is written has
 none; its small moves can go past the filter's bounds on a few frames (the command line's
 report is of what is written).
@@ -43,8 +43,8 @@ The head: the neck bone's forward tilt that means "head level" depends on the ca
 each recording is levelled first: its own median neck tilt over its valid frames is taken as
 its neutral and moved to the reference the IK reads as HeadPitch 0 (``neck_neutral=``;
 ``pipeline.level``), for the IK and the projection alike. The output then stays inside the
-NAO's head anti-collision envelope (``Robot.coupled_limits``), as every path through the
-pipeline's clip does.
+robot's coupled ranges (``Robot.coupled_limits``; the default robot's head anti-collision
+envelope), as every path through the pipeline's clip does.
 
 Time: ``times`` (seconds per frame, e.g. ``Recording.times``) drive the smoother's gains and the
 feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apart.
@@ -135,7 +135,8 @@ class RetargetResult:
 def _bucket(t: int) -> int:
     """Padded length of a ``t``-frame motion: the least of ``2^k``, ``1.25 * 2^k``, ``1.5 *
     2^k``, ``1.75 * 2^k`` frames that holds it, at least 64 (``buckets.fine_bucket``: every
-    padded frame is mapped, and a G1 frame costs ~15 ms on a 2-core CPU)."""
+    padded frame is mapped, and a frame of a bundled robot's generic IK costs ~15 ms on
+    a 2-core CPU)."""
     return fine_bucket(t, 64)
 
 
@@ -202,7 +203,7 @@ def retarget(
         ``None``: frames ``1 / smoothing.rate`` apart (15 fps by default).
       feasible: make the output robot-feasible (``jaxproj.motion.feasible``), or ``None`` (default).
       robot: the robot (a ``Robot`` or a registered name) of the IK method; ``None``: the
-        model's robot (``Model.robot``), else the default robot (the NAO H25).
+        model's robot (``Model.robot``), else the default robot.
       neck_neutral: the recording's neutral neck tilt (the tilt that becomes head pitch 0):
         ``"recording"`` (default), the median neck tilt ``atan2(n_x, n_z)`` of its own valid
         frames; a number, that tilt in rad (e.g. measured on a calibration pose of the same

@@ -6,8 +6,9 @@ stages as ``retarget``) in one jitted call::
     (20, 3) joint positions -> descriptor (pipeline.frame_descriptors)
       -> relaxed projection (pipeline.map_frames: projection.api.project_batch on a batch of
          one; L and M nearest landmarks)
-      -> the robot's continuity pass, one frame (Robot.continuous_step: the G1's re-chooses
-         the pose near the last output, as retarget's GenericIK.track; none for the NAO)
+      -> the robot's continuity pass, one frame (Robot.continuous_step: a robot's track_step,
+         where it has one, re-chooses the pose near the last output, as retarget's
+         GenericIK.track; none for the default robot)
       -> one step of the double exponential smoother (smoothing.step, the same function the
          whole-motion smoother scans) -> clipped to the joint limits -> (n,) driven angles
 

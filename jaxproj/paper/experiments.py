@@ -41,8 +41,7 @@ from jaxproj.timing import compile_timed, time_calls
 
 
 def _robot_of(model: engine.Model | Projector) -> Robot:
-    """A model's robot (``Model.robot``); a bare projector's: the default robot, the paper's
-    (the NAO H25)."""
+    """A model's robot (``Model.robot``); a bare projector's: the default robot, the paper's."""
     return model.robot if isinstance(model, engine.Model) else get_robot()
 
 

@@ -24,7 +24,7 @@ bones are free.
 
 Common to all poses: spine bones ``(0, 0, 1)``; neck ``(sin a, 0, cos a)`` with
 ``a = skeleton.NECK_TILT_REFERENCE`` (-27.1 deg, i.e. tilted *backwards*, the median neck tilt
-of the Kinect recordings, the NAO IK's neutral, so HeadPitch = HeadYaw = 0); clavicles
+of the Kinect recordings, the default robot's IK's neutral, so HeadPitch = HeadYaw = 0); clavicles
 ``(0, +/-1, 0)``; pelvis ``(0, +/-0.6, -0.8)``; thighs and shins ``(0, 0, -1)`` (standing
 straight); feet ``(1, 0, 0)``; each hand bone continues its forearm. Arms (left side; the right
 side mirrors ``y`` unless the table gives it; ``bend(u, t, a)`` rotates ``u`` by ``a`` towards
@@ -50,8 +50,9 @@ degrees; the right arm of a symmetric pose has roll, yaw and elbow roll negated;
 * POSE_1 rest: arms hanging 10 deg away from the body, elbows almost straight:
   90 / 1.9 / -23.0 / -9.5.
 * POSE_2 arms out sideways, 15 deg below horizontal: 90 / 66.9 / -15.9 / -8.1. A horizontal
-  "T-pose" would need ShoulderRoll 90 - 8.1 = 81.9 deg, beyond the NAO's 76 deg limit (and the
-  arm would lie on the shoulder axis, where ShoulderPitch is undefined), so we keep it reachable.
+  "T-pose" would need ShoulderRoll 90 - 8.1 = 81.9 deg, beyond the default robot's 76 deg limit (and
+  the arm would lie on the shoulder axis, where ShoulderPitch is undefined), so we keep it
+  reachable.
 * POSE_3 both arms straight forward: 0 / -8.1 / -15.9 / -8.1.
 * POSE_4 both arms straight up: -90 / -8.1 / 15.9 / -8.1.
 * POSE_5 left arm up (as POSE_4), right arm forward (as POSE_3): R 0 / 8.1 / 15.9 / 8.1.
@@ -63,12 +64,13 @@ degrees; the right arm of a symmetric pose has roll, yaw and elbow roll negated;
   raised sideways 20 deg above horizontal, elbow bent 62 deg, forearm up and forward:
   R -90 / -61.9 / -37.3 / 55.0.
 
-A straight human arm gives ``|ElbowRoll| = 8.1 deg``: the IK makes the NAO's shoulder->elbow
-*segment* parallel to the upper arm, and that segment is 8.13 deg off the elbow's yaw axis. Its
-``ElbowYaw`` of +/-15.9 deg is ill-defined: the forearm then lies exactly on the branch cut of the
-IK's ``atan2`` (yaw +/-180 deg, clipped, times the straight-elbow blend weight 0.13), so the sign
-is set by round-off (a 1e-6 change of the forearm flips it) and Kinect noise spreads it over
-about +/-50 deg. This is why the summaries also report ``M_max`` without the ElbowYaw joints.
+A straight human arm gives ``|ElbowRoll| = 8.1 deg``: the IK makes the default robot's
+shoulder->elbow *segment* parallel to the upper arm, and that segment is 8.13 deg off the elbow's
+yaw axis. Its ``ElbowYaw`` of +/-15.9 deg is ill-defined: the forearm then lies exactly on the
+branch cut of the IK's ``atan2`` (yaw +/-180 deg, clipped, times the straight-elbow blend weight
+0.13), so the sign is set by round-off (a 1e-6 change of the forearm flips it) and Kinect noise
+spreads it over about +/-50 deg. This is why the summaries also report ``M_max`` without the
+ElbowYaw joints.
 
 ``basic_pose_angles()`` gives the IK angles of every pose (the ground truth).
 
@@ -337,7 +339,7 @@ def basic_pose_angles(
     bones: str = "upper", robot: Robot | str | None = None
 ) -> dict[str, dict[str, float]]:
     """IK ground truth of every basic pose: name -> {driven joint: degrees}, for ``robot`` (a
-    ``Robot`` or a registered name; ``None``: the default robot, the paper's NAO H25)."""
+    ``Robot`` or a registered name; ``None``: the default robot, the paper's)."""
     robot = get_robot(robot)
     out = {}
     for name, dirs in BASIC_POSES.items():
@@ -377,8 +379,8 @@ def shoulder_coordinates(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(..., 3)`` body-frame directions -> ``(pitch, elevation)`` radians, ``(...,)`` each.
 
     ``v = (cos r cos p, sin r, -cos r sin p)``: ``p = atan2(-v_z, v_x)`` turns about the lateral
-    (y) axis (0 forward, +90 deg down, -90 deg up, as the NAO's ShoulderPitch), ``r`` is the
-    elevation towards +y (left). Undefined (``p = 0``) along +/-y.
+    (y) axis (0 forward, +90 deg down, -90 deg up, as the default robot's ShoulderPitch), ``r`` is
+    the elevation towards +y (left). Undefined (``p = 0``) along +/-y.
     """
     v = np.asarray(v, np.float64)
     p = np.arctan2(-v[..., 2], v[..., 0])
@@ -396,10 +398,10 @@ def interpolate_pose(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Bone directions between two poses: ``(19, 3)`` x2, fractions ``(T,)`` -> ``(T, 19, 3)``.
 
     Arm bones (``ARM_BONES``) go linearly in shoulder coordinates (``shoulder_coordinates``),
-    so an arm raised from hanging to up swings through the front, as the NAO's ShoulderPitch
-    does, and never over the shoulder axis (where ShoulderPitch is undefined and a
-    sideways-horizontal arm would need more than the NAO's 76 deg of ShoulderRoll); every other
-    bone is slerped. ``s = 0`` gives ``a``, ``s = 1`` gives ``b`` (up to round-off).
+    so an arm raised from hanging to up swings through the front, as the default robot's
+    ShoulderPitch does, and never over the shoulder axis (where ShoulderPitch is undefined and a
+    sideways-horizontal arm would need more than the default robot's 76 deg of ShoulderRoll); every
+    other bone is slerped. ``s = 0`` gives ``a``, ``s = 1`` gives ``b`` (up to round-off).
     """
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)

@@ -70,7 +70,7 @@ class Model:
     @property
     def confidence_scale(self) -> float:
         """The scale of this model's confidence: its own (``deviation_scale``), else its
-        robot's, else ``confidence.DEVIATION_SCALE`` (the NAO's default model's)."""
+        robot's, else ``confidence.DEVIATION_SCALE`` (the default robot's default model's)."""
         from_robot = self.robot.deviation_scale
         if self.deviation_scale is not None:
             return self.deviation_scale

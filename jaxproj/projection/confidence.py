@@ -16,8 +16,8 @@ models that never saw them (leave one training subject out, the default model's 
 of a person the model did not see; on those training people the flagged tenth holds 68 % of the
 frames with M_max > 30 deg (17 % of it errs that much against 2.6 % of all frames).
 
-That scale is the NAO's default model's. A robot whose default model deviates on another scale
-(more chains and bones: the G1's five chains over 19 bones) gives its own
+That scale is the default robot's default model's. A robot whose default model deviates on
+another scale (more chains and bones, e.g. five chains over 19 bones) gives its own
 (``Robot.deviation_scale``, measured the same way on training people its model did not see),
 which ``retarget``, ``evaluate`` and ``streaming`` pass as ``scale``.
 
@@ -26,7 +26,7 @@ Any other model (fewer landmarks, other training people) deviates on its own sca
 scale it would flag nearly every frame of anyone. So ``build`` calibrates each model
 (``Model.deviation_scale``): the p90 of the relaxed deviation of ``CALIBRATION_FRAMES`` evenly
 spaced frames of its own training set, times ``HELD_OUT_RATIO``, the ratio of the held-out p90
-to that in-sample p90 measured on the NAO's default model (so that model keeps exactly
+to that in-sample p90 measured on the default robot's default model (so that model keeps exactly
 ``DEVIATION_SCALE``). The confidence of a model then means the same for every model: frames less
 trusted than nine in ten of a person that model did not see. ``Model.confidence_scale`` is the
 scale used: the model's own, else (a model file written before models were calibrated) its
@@ -54,9 +54,9 @@ CALIBRATION_FRAMES = 1024
 """Training frames (evenly spaced) a build projects to calibrate its model's scale."""
 
 HELD_OUT_RATIO = 2.834
-"""``DEVIATION_SCALE`` over the p90 of the relaxed deviation of the default NAO model on its own
-``CALIBRATION_FRAMES`` training frames (measured 0.06139, 2-core VM, 2026-11-27): how much more a
-person the model did not see deviates than the people it was built from."""
+"""``DEVIATION_SCALE`` over the p90 of the relaxed deviation of the default robot's default model on
+its own ``CALIBRATION_FRAMES`` training frames (measured 0.06139, 2-core VM, 2026-11-27): how much
+more a person the model did not see deviates than the people it was built from."""
 
 LOW_CONFIDENCE = math.exp(-1.0)
 """Frames with a lower confidence are reported as low-confidence (``retarget``, ``evaluate``)."""
@@ -65,8 +65,8 @@ LOW_CONFIDENCE = math.exp(-1.0)
 def confidence(value: jax.Array, scale: float | None = None) -> jax.Array:
     """``(...,)`` projection values (``project``'s second output) -> ``(...,)`` float32
     confidence in ``[0, 1]`` (module doc); non-finite values give 0. ``scale``: the deviation
-    scale (``None``: ``DEVIATION_SCALE``, the NAO's default model's; another robot's default
-    model deviates on another scale: ``Robot.deviation_scale``)."""
+    scale (``None``: ``DEVIATION_SCALE``, the default robot's default model's; another robot's
+    default model deviates on another scale: ``Robot.deviation_scale``)."""
     v = jnp.asarray(value, jnp.float32)
     c = jnp.exp(-jnp.maximum(v, 0.0) / np.float32(DEVIATION_SCALE if scale is None else scale))
     return jnp.where(jnp.isfinite(v), c, 0.0)

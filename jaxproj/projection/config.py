@@ -30,7 +30,7 @@ leave-one-training-subject-out, ``benchmarks/TUNING.md``) gives ~800 head landma
 
 DEFAULT_LANDMARKS = 1000
 """Landmarks of a chain of the ``"upper"`` chain set whose robot gives it no tuned bandwidth
-(``Chain.bandwidth``; the G1's chains), when ``BuildConfig`` sets no size: not tuned."""
+(``Chain.bandwidth``), when ``BuildConfig`` sets no size: not tuned."""
 
 DEFAULTS: dict[str, dict[str, object]] = {
     "upper": dict(k=96, hidden=192, lam=1e-4, input_scale=0.5),
@@ -75,12 +75,12 @@ class BuildConfig:
 
     Validated when constructed (``ConfigError`` with what to change). Every per-chain setting
     is one value for all chains or a tuple with one value per chain (in
-    ``robot_spec.chain_set(chains)`` order; the NAO's: head, left_arm, right_arm).
+    ``robot_spec.chain_set(chains)`` order; the default robot's: head, left_arm, right_arm).
 
     Attributes:
       chains: ``"upper"`` (default): one projector per kinematic chain of the robot
-        (``Robot.chains``; the NAO's: head, left arm, right arm), searched and trained in the
-        chain's own bones; ``"whole"``: one projector over the whole descriptor, the paper's
+        (``Robot.chains``; the default robot's: head, left arm, right arm), searched and trained in
+        the chain's own bones; ``"whole"``: one projector over the whole descriptor, the paper's
         formulation (``Robot.whole_chain``).
       landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
         number sets each arm chain (and the whole-body chain); the head then uses
@@ -88,8 +88,9 @@ class BuildConfig:
         With neither ``landmarks`` nor ``bandwidth`` given, ``DEFAULTS[chains]`` decides.
       bandwidth: mean-shift bandwidth, used as is (per chain where ``landmarks`` is ``None``).
       bones: descriptor bone subset (``skeleton.descriptor``): ``"auto"`` (default) is
-        ``"upper"`` when the robot's IK reads only those bones (the NAO's), else ``"full"`` (the
-        G1's waist and legs read the hips, thighs, shins and feet); resolved when constructed.
+        ``"upper"`` when the robot's IK reads only those bones (the default robot's), else
+        ``"full"`` (e.g. a robot whose waist and legs read the hips, thighs, shins and feet);
+        resolved when constructed.
       mirror: mirror imitation (human left drives robot right).
       k: training neighbours per ELM kernel (the landmark itself included), capped at the
         chain's number of landmarks ``K``: a small set (the paper's 86) trains every kernel on all

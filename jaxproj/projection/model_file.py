@@ -1,7 +1,7 @@
 """The model file: ``save`` / ``load`` a ``Model`` through one ``.npz``, and every check on read.
 
 A file holds every chain's arrays unpadded (``chain<c>.human``, ``chain<c>.forward.out``, ...),
-the ``BuildConfig`` (with the robot's name: a file without one is the NAO's; with the
+the ``BuildConfig`` (with the robot's name: a file without one is the default robot's; with the
 UTKinect-Action3D people it trained on: a file without them trained on none), the chain
 layout, the robot's driven joints and IK constants and a format version in a JSON ``meta``
 entry; for a robot read from a robot file, the file and its MJCF too (``meta["robot_file"]``,

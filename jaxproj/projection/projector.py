@@ -120,7 +120,7 @@ class ChainLayout:
       hidden: per chain, hidden units of its forward and backward kernels.
       k: per chain, training neighbours of its kernels.
       width: the whole descriptor's width (``3 * n_bones`` of the model's bones); chains may
-        share columns (the G1's legs read the waist's bones) and leave some unread, so it is
+        share columns (e.g. legs that read the waist's bones) and leave some unread, so it is
         not the sum of their inputs. ``None``: that sum (chains that split the descriptor).
     """
 
@@ -296,8 +296,8 @@ def with_search_index(p: _P) -> _P:
     (``robot_index_of``, ``human_index_of``; per chain at the chain's own size for a stacked
     projector, as ``chain_slice`` hands them to the relaxed projection's split path), instead
     of in every traced call of the pruned search (``knn_pallas.knn``; 1.09 / 1.40 ms a call on
-    the NAO's arms' robot landmarks, one H100). The same answers. ``stack_projectors`` calls it
-    where the default backend runs the Pallas kernels."""
+    the default robot's arms' robot landmarks, one H100). The same answers. ``stack_projectors``
+    calls it where the default backend runs the Pallas kernels."""
     if isinstance(p, StackedProjector):
         chains = [p.chain_slice(c) for c in range(p.layout.n_chains)]
         robot = tuple(robot_index_of(q) for q in chains)

@@ -187,7 +187,7 @@ def relaxed_candidates(
         x = jnp.concatenate([h, jnp.zeros((s, 1), h.dtype)], axis=1)[:, lay.input_index()]
     sizes = None if lay is None else lay.landmarks
     # the queries lie near the human landmarks (held-out MSR poses: 99.5 % certified on the
-    # NAO's arms, one H100): the pruned search as well
+    # default robot's arms, one H100): the pruned search as well
     if isinstance(p, StackedProjector):
         human_index = _one_chain_index(p.human_index)
         robot_index = _one_chain_index(p.robot_index)
@@ -302,9 +302,10 @@ def project_relaxed_rows(
         three-chain model of 200 landmarks a chain, 64 queries, 2-core VM) for no measurable gain
         there (12 against 12-14 ms a call). The same answers within the near-tie rule (the padding
         never wins a search nor enters a kernel), for the work of the chains' own sizes: the stacked
-        form searches every chain at the largest chain's landmark count (the NAO's head, 1,010
-        landmarks, at its right arm's 10,617; ``benchmarks/experiments/g1_time_split.py`` measured
-        the G1's five chains at 2.05 us per pose one by one against 5.35 stacked, one H200).
+        form searches every chain at the largest chain's landmark count (the default robot's head,
+        1,010 landmarks, at its right arm's 10,617; the time-split experiment of issue 44,
+        ``benchmarks/README.md``, measured another bundled robot's five chains at 2.05 us per pose
+        one by one against 5.35 stacked, one H200).
 
     Returns:
       ``(r, dev)``: ``(S, n)`` driven joints and ``(S,)`` back-projected deviations (over the

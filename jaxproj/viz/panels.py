@@ -7,8 +7,8 @@ from; ``robot_qpos`` / ``kinematics``, a robot's configuration in its MuJoCo mod
 Framing: each panel shows a cube that holds its figure over the frames drawn, like the person's
 (``_HumanPanel``: the skeleton over the motion's valid frames, 10 % spare). The robot's comes
 from the robot's own geometry (``robot_box``): the forward kinematics of its MJCF (body origins,
-sites, geom centres) in the standing posture and in every drawn frame, so any robot (a 0.6 m
-NAO, a 1.3 m G1) stands whole in the picture, at the size the person has beside it."""
+sites, geom centres) in the standing posture and in every drawn frame, so any robot (0.6 m
+or 1.3 m tall) stands whole in the picture, at the size the person has beside it."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ MAX_BOX_FRAMES = 2000
 
 
 def robot_label(robot: Robot) -> str:
-    """How captions and legends name ``robot``: ``robot.mjcf.figure.label`` (NAO: ``"NAO"``),
+    """How captions and legends name ``robot``: ``robot.mjcf.figure.label``,
     else ``robot.title``."""
     return (robot.mjcf.figure.label if robot.mjcf is not None else "") or robot.title
 
@@ -83,7 +83,7 @@ class Kinematics(NamedTuple):
 
 def kinematics(robot: Robot, model: Any, angles: np.ndarray, sites: Sequence[str]) -> Kinematics:
     """CPU MuJoCo forward kinematics (``mj_kinematics``) of one configuration, in the frame of the
-    root body (the MJCF's first body: the NAO's torso).
+    root body (the MJCF's first body: the default robot's torso).
 
     Args:
       model: ``robot.load_model(...)`` (either mount); angles: ``(n_joints,)`` rad.

@@ -2,7 +2,7 @@
 
 Each frame holds two panels side by side, each ``size = (width, height)`` pixels: the human
 skeleton (when ``motion.positions`` is given; a matplotlib 3-D stick figure) on the left and the
-motion's robot (``motion.robot``, e.g. the NAO) playing ``motion.angles`` on the right. Both are
+motion's robot (``motion.robot``) playing ``motion.angles`` on the right. Both are
 seen from the same ``Camera`` direction in their own body frame (x forward, y left, z up): the
 human in the body frame built from the skeleton itself (``jaxproj.human.skeleton.body_frame``,
 hips at the origin), the robot with its root body welded where its MJCF puts it, each framed on
@@ -348,7 +348,7 @@ class Rendered(NamedTuple):
     human: bool = False
     """Whether the human skeleton was drawn (the motion holds ``positions``) beside the robot."""
     robot: str = "robot"
-    """How the robot was named (``robot.mjcf.figure.label``; NAO: ``"NAO"``)."""
+    """How the robot was named (``robot.mjcf.figure.label``)."""
 
     def describe(self) -> str:
         """What the video shows, in words (``jaxproj render`` prints it)."""

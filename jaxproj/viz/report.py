@@ -296,8 +296,8 @@ def plot_retarget(
     Top rows: the human (body frame, front and side view) and the robot playing ``angles``
     (solid) and the per-frame IK (dashed) at ``key_frames`` frames spread over the valid ones;
     left limbs orange, right limbs blue, as ``render`` draws them, with a legend. Bottom: the
-    driven joints over time, one row per chain of ``robot.chains`` (NAO: head / left arm /
-    right arm), ``angles`` solid and the IK dashed
+    driven joints over time, one row per chain of ``robot.chains`` (the default robot's: head /
+    left arm / right arm), ``angles`` solid and the IK dashed
     (not drawn at invalid frames); no line across a tracker gap (a step over 3x the median).
 
     Args:

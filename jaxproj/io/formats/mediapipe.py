@@ -45,9 +45,9 @@ Accepted files (what people save from MediaPipe; our own layouts, not a MediaPip
 Validity (``Recording.valid``): a frame is invalid when a coordinate is missing or non-finite,
 or when any landmark of ``CHECKED_LANDMARKS`` has a ``visibility`` below
 ``VISIBILITY_THRESHOLD`` (0.5). The checked landmarks are those behind the body frame and the
-upper-body bones the NAO follows (hips, shoulders, ears for the head centre, elbows, wrists):
-a webcam often cuts off hands and legs, whose landmarks MediaPipe then still estimates, and a
-frame of a good upper body stays valid; a full-body (``bones="full"``) model reads those
+upper-body bones the default robot follows (hips, shoulders, ears for the head centre, elbows,
+wrists): a webcam often cuts off hands and legs, whose landmarks MediaPipe then still estimates, and
+a frame of a good upper body stays valid; a full-body (``bones="full"``) model reads those
 estimates. ``visibility`` must be a probability in [0, 1] (some MediaPipe builds give the
 sigmoid's argument: apply the sigmoid first); a missing one is not checked, and a file whose
 every visibility is exactly 0 is taken to carry none (unset protobuf fields read 0; several

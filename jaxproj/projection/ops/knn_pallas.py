@@ -51,10 +51,10 @@ of more than ``MAX_BLOCKS * BLOCK`` landmarks)."""
 MAX_BLOCKS = 512
 """Most blocks the selection scans: a larger set gets larger blocks. Swept on one H100
 (2026-11-26, ``benchmarks/experiments/knn_sweep.py``, 655,360 rows, n = 10, ns per pose): the
-NAO's right arm (10,617 landmarks: 1,024 blocks of 16) 351 with blocks of 16 in tiles of 8,
-294 with blocks of 32 in tiles of 16; sets of up to 8,192 landmarks (the NAO's head and left
-arm, a G1 leg) were fastest with blocks of 16 in tiles of 8 (41.8 / 192.6 / 163.3 against
-98.6 / 212.1 / 187.5 with 32 / 16)."""
+default robot's right arm (10,617 landmarks: 1,024 blocks of 16) 351 with blocks of 16 in tiles
+of 8, 294 with blocks of 32 in tiles of 16; sets of up to 8,192 landmarks (the default robot's
+head and left arm, a leg of another bundled robot) were fastest with blocks of 16 in tiles of 8
+(41.8 / 192.6 / 163.3 against 98.6 / 212.1 / 187.5 with 32 / 16)."""
 
 TILE_BLOCKS = 8
 """Blocks per tile of the distance pass."""
@@ -261,7 +261,7 @@ for A/B runs)."""
 PRUNE_VISIT = 16
 """Blocks of the spatial order whose landmarks the pruned search measures per row. 8 until
 2026-11-26, when the pruned pass measured one block at a time (``PRUNE_TILED``): then 16
-certified 99.98-100 % of the NAO's arm rows against 92-93 % (one H100, ``python -m
+certified 99.98-100 % of the default robot's arm rows against 92-93 % (one H100, ``python -m
 benchmarks.experiments.knn_prune_ab --chains left_arm,right_arm --blocks 64,128 --visits 8,16
 --shares 8,16``, ``knn_prune_arms_h100.json``; ns per pose with the fallback, left / right arm:
 77.4 / 97.2 with 8 blocks, 61.8 / 95.4 with 16, the right arm's rest the fallback's capacity:
@@ -269,22 +269,23 @@ benchmarks.experiments.knn_prune_ab --chains left_arm,right_arm --blocks 64,128 
 
 PRUNE_BLOCK = 128
 """Landmarks per block of the spatial order (a power of two, at least ``BLOCK``). With
-``PRUNE_VISIT``, swept on one H100 on the NAO default model's real robot-search rows
+``PRUNE_VISIT``, swept on one H100 on the default robot's default model's real robot-search rows
 (``benchmarks/experiments/knn_prune_ab.py``, ``knn_prune_ab_h100.json``): 128 x 8 was fastest
 on both arms (certified 92-93 % of rows); fewer visited landmarks certify too few rows, more
 cost more in the pruned pass than they save in the fallback."""
 
 PRUNE_MIN_LANDMARKS = 4096
 """Sets from this size prune with blocks of ``PRUNE_BLOCK``; smaller ones take the full scan,
-except those the pruned kernel covers whole (``PRUNE_SMALL_BLOCK``). On the NAO's head (1,010
-landmarks) pruning with blocks of 128 was no faster (40-85 against 41 ns per pose on one H100,
-before ``PRUNE_TILED``). Lowered to 2,048 the G1's five chains all prune (1,022 -> 821 ns per
-pose, one H100), but that run judged 1 of 300 checked poses outside the near-tie rule,
-unexplained: not changed."""
+except those the pruned kernel covers whole (``PRUNE_SMALL_BLOCK``). On the default robot's head
+(1,010 landmarks) pruning with blocks of 128 was no faster (40-85 against 41 ns per pose on one
+H100, before ``PRUNE_TILED``). Lowered to 2,048 another bundled robot's five chains all prune
+(1,022 -> 821 ns per pose, one H100), but that run judged 1 of 300 checked poses outside the
+near-tie rule, unexplained: not changed."""
 
 PRUNE_SMALL_BLOCK = 64
 """Landmarks per block for a set of at most ``PRUNE_VISIT * PRUNE_SMALL_BLOCK`` landmarks
-(1,024: the NAO's head; the G1's default chains, ~4,000 each, are not affected): the pruned
+(1,024: the default robot's head; that other robot's default chains, ~4,000 each, are not
+affected): the pruned
 kernel then visits every block, so every row is certified (no fallback runs) and its answers
 are the full scan's; it serves as a faster full scan (``PRUNE_SMALL_ROWS`` rows a program, against
 the full scan's 16). The head's robot search 41 -> 33 ns per pose (one H100, 2026-11-26,
@@ -310,7 +311,7 @@ PRUNE_LB_TILE = 32
 PRUNE_ROWS = 4
 """Query rows per program of the pruned pass with blocks of ``PRUNE_BLOCK`` (the full scan's are
 ``ROWS``; 8 until 2026-11-27). Swept with ``PRUNE_WARPS`` on one H100 (2026-11-27, the pruned pass
-alone on the NAO default model's real robot-search rows of 8,192 held-out poses tiled to
+alone on the default robot's default model's real robot-search rows of 8,192 held-out poses tiled to
 655,360, ns per pose; rows x warps): right arm 54.1 (8 x 8), 62.6 (8 x 4), **52.0 (4 x 4)**,
 60.5 (4 x 2), 50.9 (2 x 2), 53.8 (2 x 1), 57.6 (1 x 1), 60.5 (16 x 8); left arm 50.4 (8 x 8),
 **46.9 (4 x 4)**, 64.3 (4 x 2), 49.9 (2 x 2), 47.8 (2 x 1), 55.3 (1 x 1); the same certified
@@ -323,8 +324,8 @@ PRUNE_WARPS = 4
 
 PRUNE_SMALL_ROWS = 2
 """Query rows per program of the pruned pass on a set it covers whole (blocks of
-``PRUNE_SMALL_BLOCK``: the NAO's head). Same sweep as ``PRUNE_ROWS``, the head's 1,010 robot
-landmarks: 38.4 (8 x 8), 35.6 (4 x 4), 35.9 (2 x 2), **27.6 (2 x 1)**, 41.8 (1 x 1)."""
+``PRUNE_SMALL_BLOCK``: the default robot's head). Same sweep as ``PRUNE_ROWS``, the head's
+1,010 robot landmarks: 38.4 (8 x 8), 35.6 (4 x 4), 35.9 (2 x 2), **27.6 (2 x 1)**, 41.8 (1 x 1)."""
 
 PRUNE_SMALL_WARPS = 1
 """Warps per program of the pruned pass on a set it covers whole (``PRUNE_SMALL_ROWS``)."""
@@ -344,8 +345,8 @@ PRUNE_TILED = True
 """The pruned pass measures its visited blocks one at a time (``(rows, PRUNE_BLOCK)``
 distances live at once) instead of all together (``(rows, PRUNE_VISIT * PRUNE_BLOCK)``; read
 when a search is traced, for A/B runs). With ``PRUNE_ROWS`` and ``PRUNE_WARPS``, swept on one
-H100 on the NAO default model's real robot-search rows (2026-11-26, blocks of 128, 8 visited,
-``python -m benchmarks.experiments.knn_prune_ab --chains left_arm,right_arm --blocks 128
+H100 on the default robot's default model's real robot-search rows (2026-11-26, blocks of 128, 8
+visited, ``python -m benchmarks.experiments.knn_prune_ab --chains left_arm,right_arm --blocks 128
 --visits 8 --rows 8,16,32 --warps 4,8 --tiled 0,1``, ``knn_prune_grid_h100.json``), ns per
 pose with the fallback: left arm 133.9 -> 75.4, right arm 156.2 -> 96.3 (16 rows, 4 warps, all
 together -> 8 rows, 8 warps, one block at a time; the pruned pass alone 108 -> 51 and 120 ->
@@ -359,9 +360,9 @@ FALLBACK_SHARE``; more failing rows than that: on all."""
 
 FALLBACK_SMALL_SHARE = 128
 """The smaller capacity of the fallback (``FALLBACK_SHARE``): with 16 blocks visited, 0-0.02 %
-of the NAO default model's robot-search rows failed the certificate (one H100, 2026-11-26,
-``knn_prune_arms_h100.json``), where a capacity of a sixteenth of the rows cost the right arm
-25 ns per pose."""
+of the default robot's default model's robot-search rows failed the certificate (one H100,
+2026-11-26, ``knn_prune_arms_h100.json``), where a capacity of a sixteenth of the rows cost the
+right arm 25 ns per pose."""
 
 _KEY_MAX = np.int32(2**31 - 1)
 
@@ -492,7 +493,7 @@ class PruneIndex:
     """What the pruned search needs of landmark sets that depends on the sets alone: their k-d
     order, the blocks' bounding boxes and the landmarks in that order, as the kernel reads them
     (``prune_index``; a pytree). Computed once per projector (``projector.with_search_index``)
-    instead of in every traced call (1.09 / 1.40 ms a call on the NAO's arms, one H100).
+    instead of in every traced call (1.09 / 1.40 ms a call on the default robot's arms, one H100).
 
     Attributes:
       order: ``(C, K)`` int32, ``kd_order``'s permutations.
