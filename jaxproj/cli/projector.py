@@ -62,7 +62,7 @@ def _add_build(sub: Any) -> None:
         "--chains",
         default="upper",
         choices=("upper", "whole"),
-        help="upper: one projector per chain of the robot (the NAO's: head, left arm, right arm); "
+        help="upper: one projector per chain of the robot (its robot file's or module's chains); "
         "whole: the paper's whole-body projector",
     )
     size = pb.add_mutually_exclusive_group()

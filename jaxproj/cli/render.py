@@ -20,8 +20,8 @@ def add_parsers(sub: Any) -> None:
     p = options.add_parser(sub, "render", "render a robot motion file to an MP4 / GIF video")
     p.add_argument(
         "motion",
-        help="motion file: .npz, .csv or a robot's own document (NAOqi .json) of any registered "
-        "robot, found by the file's joint names (jaxproj.io.motion_files)",
+        help="motion file: .npz, .csv or a robot's own document (a robot's export) of any "
+        "registered robot, found by the file's joint names (jaxproj.io.motion_files)",
     )
     p.add_argument(
         "--out",

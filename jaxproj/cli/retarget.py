@@ -153,9 +153,10 @@ def add_parsers(sub: Any) -> None:
         "--joints",
         default=None,
         choices=("upper", "body"),
-        help="joints in a .json output (NAOqi, NAO only): upper = NAOqi's Head, LArm, RArm "
-        "chains (the legs stay with the robot's own balance); body = all of the robot's joints "
-        "(None: upper; refused with another output, which holds every joint)",
+        help=f"joints in an output of a robot's own document ({_documents()}): upper = the "
+        "document's upper-body chains (the legs stay with the robot's own balance); body = all "
+        "of the robot's joints (None: upper; refused with another output, which holds every "
+        "joint)",
     )
     pr.add_argument(
         "--plot",
@@ -185,11 +186,12 @@ def run(args: argparse.Namespace) -> int:
     if ext not in motion_files.formats(robot):
         raise ConfigError(
             f"--out {out}: a {ext} motion is not written for the {robot.name} (its formats: "
-            f"{', '.join(motion_files.formats(robot))}; .json is the NAO's NAOqi format)"
+            f"{', '.join(motion_files.formats(robot))}; the robots' own documents: "
+            f"{_documents()})"
         )
     if args.joints is not None and ext not in robot.exports:
         raise ConfigError(
-            f"--joints picks the joints of a NAOqi .json output; --out {out} holds every joint: "
+            f"--joints picks the joints of a robot's own document; --out {out} holds every joint: "
             "leave --joints out"
         )
     joints = args.joints or "upper"

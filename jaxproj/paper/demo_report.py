@@ -245,13 +245,13 @@ def _verdict(relf: dict, ikf: dict, ik_raw: dict) -> str:
         return (
             "**Recommended: `relaxed` on the default model** (`jaxproj retarget --method "
             "relaxed --model P.npz`, robot-feasible by default) for a robot: through the same "
-            f"smoother and filter, the NAO tracks its written motion better than the IK's {nums}."
+            f"smoother and filter, the robot tracks its written motion better than the IK's {nums}."
         )
     if t_ik < SEPARATES * t_rel and c_ik <= c_rel:
-        tie = f"the NAO tracks the IK's written motion better than the projection's {nums}"
+        tie = f"the robot tracks the IK's written motion better than the projection's {nums}"
     else:
         tie = (
-            "the NAO tracks both written motions alike through the same smoother and filter "
+            "the robot tracks both written motions alike through the same smoother and filter "
             f"{nums}: the rollout does not favour the projector (what it gains over the raw "
             f"per-frame IK, tracked at {_num(ik_raw['tracking_error_deg']['mean'])} deg mean, "
             "is the smoother's and the filter's, which `--method ik` gets too)"
@@ -426,7 +426,7 @@ def _feasibility_md(r: dict) -> list[str]:
         "## Robot-feasible output (smoothed, 15 fps)",
         "",
         f"`jaxproj.motion.feasible` (on by default in `jaxproj retarget`): joint limits, "
-        f"{100 * cfg['speed_fraction']:.0f} % of the NAO's {SPEED_WORDS[cfg['speeds']]} and "
+        f"{100 * cfg['speed_fraction']:.0f} % of the robot's {SPEED_WORDS[cfg['speeds']]} and "
         f"{cfg['accel']:.0f} rad/s^2, zero-phase. The `ik` row filters the raw per-frame IK, "
         "the others the smoothed motions.",
         "",
@@ -487,13 +487,13 @@ def _rollout_md(r: dict) -> list[str]:
             "it",
             f"{frames:,}" if frames else "n/a",
             "tracking |achieved - target| (deg, driven joints pooled), frames with self-contact, "
-            "frames outside the joint limits, peak joint speed over the NAO's limit; targets vs "
+            "frames outside the joint limits, peak joint speed over the robot's limit; targets vs "
             "IK: median M_avg of the targets against the per-frame IK (deg)",
         ),
         "",
         "| trajectory | tracking mean (deg) | tracking p95 | self-collision frames "
         "(arm-torso / arm-head / arm-arm / any) | motions with contact | joint-limit frames "
-        "(achieved / target) | peak speed / NAO limit | motions over the speed limit "
+        "(achieved / target) | peak speed / robot limit | motions over the speed limit "
         "| targets vs IK, median M_avg |",
         "|---|---:|---:|---|---:|---|---:|---:|---:|",
     ]

@@ -603,7 +603,7 @@ class TestOutputs:
             ([*relaxed, tmp_path / "o.json", "--model", g1],
              "a .json motion is not written for the unitree_g1 (its formats: .npz, .csv;"),
             ([*relaxed, tmp_path / "o.csv", "--model", g1, "--joints", "body"],
-             "--joints picks the joints of a NAOqi .json output"),
+             "--joints picks the joints of a robot's own document"),
             ([*relaxed, tmp_path / "o.npz", "--model", model_file, "--joints", "upper"],
              "--joints picks the joints"),
             ([*relaxed, tmp_path / "o.npz", "--model", model_file, "--bones", "full"],
