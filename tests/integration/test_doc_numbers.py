@@ -17,14 +17,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmarks" / "results"
-REPORT = "jaxproj/paper/demo_report.py"
 
 
 def _us(poses_per_s: float) -> float:
     return 1e6 / poses_per_s
 
 
-G1_CPU = "robot_thesis_g1_cpu.json"
 G1_H100 = "g1_time_split_h100.json"
 G1_H200 = "robot_thesis_g1_msr_h200.json"
 G1_CPU_NOW = "robot_thesis_g1_msr_cpu.json"
@@ -60,11 +58,6 @@ NUMBERS: list[tuple[str, str, str, Callable[[dict], float], str]] = [
      lambda r: _us(r["speed"]["relaxed"]["poses_per_s"]), "{:,.0f}"),
     ("docs/guide/cli.md", r"five chains, about ([\d,]+) landmarks each", G1_H100,
      lambda r: round(float(np.mean(list(r["landmarks"].values()))), -3), "{:,.0f}"),
-    (REPORT, r"took (\d+) s to build", G1_CPU, lambda r: r["model_build_s"], "{:.0f}"),
-    (REPORT, r"answers \"?\s*\"?(\d+) poses/s", G1_CPU,
-     lambda r: r["speed"]["ik"]["poses_per_s"], "{:.0f}"),
-    (REPORT, r"after a (\d+)-s first call", G1_CPU,
-     lambda r: r["speed"]["ik"]["first_call_s"], "{:.0f}"),
 ]  # fmt: skip
 
 

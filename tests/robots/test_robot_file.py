@@ -18,10 +18,13 @@ TWO_ARMS = Path(__file__).parents[1] / "data" / "robots" / "two_arms"
 
 
 @pytest.fixture
-def two_arms(tmp_path: Path) -> Path:
-    """A copy of the two-armed test robot's folder; its ``robot.toml``."""
+def two_arms(tmp_path: Path):
+    """A copy of the two-armed test robot's folder; its ``robot.toml`` (unregistered after the
+    test if the test registered it: other tests of the worker count the registered robots)."""
     shutil.copytree(TWO_ARMS, tmp_path / "two_arms")
-    return tmp_path / "two_arms" / "robot.toml"
+    yield tmp_path / "two_arms" / "robot.toml"
+    if "two_arms" in robots.names():
+        robots.unregister("two_arms")
 
 
 def test_the_g1_file_takes_joints_and_limits_from_its_mjcf_and_speeds_from_its_table():
