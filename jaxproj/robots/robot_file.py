@@ -406,20 +406,18 @@ def _read(path: Path) -> Robot:
             raise f.error(f"evaluation.arm_sites.{side}", "must be [shoulder, elbow, wrist]")
         arm_sites[side] = tuple(sites)
     split = {part: f.names(ev["split"], part, "evaluation.split") for part in ev.get("split", {})}
-    mj = None
-    if free_joint is not None:
-        mj = Mjcf(
-            path=mjcf_path,
-            load=functools.partial(_load, mjcf_path, free_joint, root_body),
-            free_joint=free_joint,
-            arm_sites=arm_sites,
-            fk_without=f.names(ev, "fk_without", "evaluation", ()),
-            hand_sites=f.names(ev, "hand_sites", "evaluation", ()),
-            split=split,
-            head_root=f.string(ev, "head_root", "evaluation", None),
-            figure=figure,
-            warp_validated=f.flag(ev, "warp_validated", "evaluation"),
-        )
+    mj = Mjcf(
+        path=mjcf_path,
+        load=functools.partial(_load, mjcf_path, free_joint, root_body),
+        free_joint=free_joint,
+        arm_sites=arm_sites,
+        fk_without=f.names(ev, "fk_without", "evaluation", ()),
+        hand_sites=f.names(ev, "hand_sites", "evaluation", ()),
+        split=split,
+        head_root=f.string(ev, "head_root", "evaluation", None),
+        figure=figure,
+        warp_validated=f.flag(ev, "warp_validated", "evaluation"),
+    )
     proj = f.table(d.get("projection", {}), "projection", _PROJECTION)
     scale = proj.get("deviation_scale")
     try:
@@ -455,9 +453,21 @@ def _read(path: Path) -> Robot:
 
 
 def _load(
-    path: Path, free_joint: str, root_body: str, mount: str = "free", without: Sequence[str] = ()
+    path: Path,
+    free_joint: str | None,
+    root_body: str | None,
+    mount: str = "free",
+    without: Sequence[str] = (),
 ) -> mujoco.MjModel:
-    return _mjcf.load(path, mount, without, free_joint=free_joint, root_body=root_body)
+    """``Mjcf.load`` of a robot file's MJCF: ``jaxproj.robots.mjcf.load``; an MJCF without a
+    free joint is already fixed, so both mounts compile it as it is (less ``without``)."""
+    if free_joint is not None and root_body is not None:
+        return _mjcf.load(path, mount, without, free_joint=free_joint, root_body=root_body)
+    if mount not in _mjcf.MOUNTS:
+        raise ConfigError(f"mount must be one of {_mjcf.MOUNTS}, got {mount!r}")
+    spec = mujoco.MjSpec.from_file(str(path))
+    _mjcf.remove_subtrees(spec, tuple(without), root_body or "")
+    return spec.compile()
 
 
 def digest(path: str | Path) -> str:

@@ -172,3 +172,19 @@ def test_robot_check_names_an_unseen_joint_and_standing_contact(two_arms, capsys
     shown = capsys.readouterr().out
     assert "left_upper (left_shoulder_pitch, left_shoulder_roll, left_shoulder_yaw)" in shown
     assert "reads upper_arm_right: right_shoulder -> right_elbow (weight 1)" in shown
+
+
+def test_a_robot_without_a_free_joint_is_fixed_as_written(two_arms):
+    text = two_arms.read_text().replace('free_joint = "root"\nroot_body = "torso"\n', "")
+    two_arms.write_text(text)
+    xml = two_arms.parent / "two_arms.xml"
+    xml.write_text(xml.read_text().replace('<freejoint name="root"/>', ""))
+    robot = robot_file.load(two_arms)
+    assert robot.mjcf is not None and robot.mjcf.free_joint is None
+    for mount in ("free", "fixed"):
+        assert robot.load_model(mount).nq == robot.n_joints == 8
+    assert robot.load_model("fixed", ("left_upper",)).nq == 4
+    q = np.asarray(robot.solve_ik(np.tile(np.array([0.0, 0.0, -1.0] * 4, np.float32), (2, 1)),
+                                  ("upper_arm_left", "forearm_left", "upper_arm_right",
+                                   "forearm_right")))  # fmt: skip
+    assert np.isfinite(q).all() and np.abs(q).max() < 0.05  # arms hanging: the standing posture
