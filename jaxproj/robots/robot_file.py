@@ -13,7 +13,8 @@ object, so that compiled programs keyed on the robot are shared.
 Sections (every key optional unless marked):
 
 - top level: ``schema = 1`` (required), ``name`` (required, an identifier), ``title``,
-  ``mjcf`` (required, relative to the file), ``free_joint``, ``root_body``.
+  ``mjcf`` (required, relative to the file), ``free_joint``, ``root_body`` (both or neither:
+  an MJCF without a free joint is fixed as written).
 - ``[joints]``: ``driven`` (required, joint names), ``standing`` (joint -> rad; others 0),
   ``loose`` (joint names); ``[joints.velocity]``, ``[joints.rated]``,
   ``[joints.acceleration]``: a ``source`` string and joint name or shell pattern -> value
