@@ -16,7 +16,7 @@ import math
 import mujoco
 import numpy as np
 
-from jaxproj.robots.base import Robot
+from jaxproj.robots.base import Robot, joint_qpos_index
 from jaxproj.robots.generic_ik import chain_rows, mjcf_collision_pairs
 from jaxproj.robots.kinematics import points_at
 
@@ -33,8 +33,7 @@ def standing_contacts(robot: Robot) -> list[tuple[str, str, float]]:
         return []
     model = robot.load_model("free")
     data = mujoco.MjData(model)
-    for name, q in zip(robot.joint_names, robot.standing, strict=True):
-        data.qpos[model.jnt_qposadr[model.joint(name).id]] = q
+    data.qpos[joint_qpos_index(model, robot.joint_names)] = robot.standing
     mujoco.mj_forward(model, data)
     deepest: dict[tuple[str, str], float] = {}
     for c in data.contact[: data.ncon]:
