@@ -154,9 +154,9 @@ def main() -> None:
             "ik_direction_only": lambda x: np.asarray(solve_dir(x)),
         }
     else:
-        from jaxproj.robots.nao_h25 import spec as nao_spec
+        from jaxproj.robots.nao_h25 import ik as nao_ik
 
-        corr = nao_spec.ARM_CORRESPONDENCE
+        corr = nao_ik.ARM_CORRESPONDENCE
         generic = GenericIK.build(robot, corr, chains=robot.chains[1:])
         solve = jax.jit(lambda x: generic.solve(x, cfg.bones))
         head = list(robot.chain_joints(robot.chain("head")))

@@ -1,15 +1,16 @@
 """Robots as data: the ``Robot`` spec and the registry of robots.
 
 A robot is an MJCF and one robot file (``robot_file``, TOML): every folder here that holds a
-``robot.toml`` is read and registered under the name it gives (``unitree_g1``: the Unitree G1,
-29 DoF; others as they are added), and a user's robot file is registered where it is first
-taken (``get(path)``, ``--robot PATH``). The NAO H25 V5 (``nao_h25``, the default) is the one
-robot in Python: its closed-form IK and its NAOqi export. Everything above ``robots/`` takes a
-``robot: Robot`` and names no robot: below the public API as a required argument; the public
-entry points take the robot from what they are given (a ``Model`` records its robot, a
-``Motion`` carries one) or ``robot=`` (a ``Robot`` or a name; ``None``: ``get()``, the default
-robot). ``tests/test_layers.py`` checks that no module above ``robots/`` imports a robot's
-package or names a registered robot.
+``robot.toml`` is read and registered under the name it gives (``nao_h25``, the NAO H25 V5 and
+the default; ``unitree_g1``, the Unitree G1; ``unitree_h1``, the Unitree H1), and a user's robot
+file is registered where it is first taken (``get(path)``, ``--robot PATH``). The NAO's file
+names two pieces of Python of its folder: its closed-form IK (``[ik] kind = "python"``) and its
+NAOqi export (``[exports]``); the others use the generic IK and no Python. Everything above
+``robots/`` takes a ``robot: Robot`` and names no robot: below the public API as a required
+argument; the public entry points take the robot from what they are given (a ``Model`` records
+its robot, a ``Motion`` carries one) or ``robot=`` (a ``Robot`` or a name; ``None``: ``get()``,
+the default robot). ``tests/test_layers.py`` checks that no module above ``robots/`` imports a
+robot's package or names a registered robot.
 
 ``register(robot)`` adds a robot under ``robot.name``; ``get(name)`` returns it; ``names()``
 lists them; ``for_joints(joint_names)`` finds the robot a file's joint names belong to (how
@@ -24,19 +25,23 @@ from pathlib import Path, PurePath
 
 from jaxproj.errors import ConfigError
 from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_coupled
-from jaxproj.robots.nao_h25.spec import NAO_H25
-from jaxproj.robots.robot_file import load
+from jaxproj.robots.robot_file import describe, load
 
 BUNDLED_FILES: tuple[Path, ...] = tuple(sorted(Path(__file__).parent.glob("*/robot.toml")))
 """The robot files shipped with jaxproj (one folder each, with its MJCF), registered on import."""
+
+NAO_H25 = load(Path(__file__).parent / "nao_h25" / "robot.toml")
+"""The NAO H25 V5 (26 joints, 10 driven: head, arms to the elbow; three chains; NAOqi JSON), read
+from its robot file ``nao_h25/robot.toml`` and MJCF ``nao_h25/nao_h25.xml``; its IK is the closed
+form the file names (``nao_h25/ik.py``)."""
 
 UNITREE_G1 = load(Path(__file__).parent / "unitree_g1" / "robot.toml")
 """The Unitree G1 (29 joints, 21 driven: waist, legs to the ankle pitch, arms to the elbow),
 read from its robot file ``unitree_g1/robot.toml`` and MJCF ``unitree_g1/unitree_g1.xml``."""
 
 __all__ = ["DEFAULT", "NAO_H25", "UNITREE_G1", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot",
-           "BUNDLED_FILES", "clip_coupled", "for_joints", "get", "is_file_name", "load", "names",
-           "register", "unregister"]  # fmt: skip
+           "BUNDLED_FILES", "clip_coupled", "describe", "for_joints", "get", "is_file_name", "load",
+           "names", "register", "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""

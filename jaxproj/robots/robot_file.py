@@ -16,7 +16,10 @@ Sections (every key optional unless marked):
   ``mjcf`` (required, relative to the file), ``free_joint``, ``root_body`` (both or neither:
   an MJCF without a free joint is fixed as written).
 - ``[joints]``: ``driven`` (required, joint names), ``standing`` (joint -> rad; others 0),
-  ``loose`` (joint names); ``[joints.velocity]``, ``[joints.rated]``,
+  ``loose`` (joint names), ``order`` (the configuration order, where it is not the MJCF's),
+  ``coupled`` (``[leader, follower]`` pairs), ``elbow_pairs`` (``[yaw, roll]`` pairs);
+  ``[[joints.coupled_limits]]``: ``joint``, ``by``, ``source``, ``table_deg``, ``symmetric``;
+  ``[joints.velocity]``, ``[joints.rated]``,
   ``[joints.acceleration]``: a ``source`` string and joint name or shell pattern -> value
   (rad/s, rad/s^2), each joint matched by exactly one key; ``[joints.limits]``: joint ->
   ``[lower, upper]`` restated from a source, checked against the MJCF (1e-4 rad).
@@ -26,7 +29,10 @@ Sections (every key optional unless marked):
   ``IKConfig`` fields (``iterations``, ``starts``, ``neutral``, ``collision``, ``margin``,
   ``damping``, ``gtol``, ``seed``), ``collision_pairs`` (``"mjcf"`` or pairs of geoms),
   ``source``; ``[[ik.rows]]``: ``bone``, ``start``, ``end`` (required), ``weight``,
-  ``minus``, ``rest``; ``[ik.ranges]``: joint -> ``[lower, upper]`` (``inf``: no bound).
+  ``minus``, ``rest``; ``[ik.ranges]``: joint -> ``[lower, upper]`` (``inf``: no bound). Or
+  ``kind = "python"`` and ``module``: a module whose ``attach(robot) -> Robot`` gives the IK
+  (the NAO's closed form); it reads its robot's data with ``describe``.
+- ``[exports]``: file suffix -> ``"package.module:NAME"`` of an ``Export``.
 - ``[projection]``: ``deviation_scale``.
 - ``[evaluation]``: ``arm_sites`` (side -> three sites), ``hand_sites``, ``fk_without``,
   ``split`` (part -> bodies), ``head_root``, ``warp_validated`` (a boolean).
@@ -43,6 +49,7 @@ from __future__ import annotations
 import fnmatch
 import functools
 import hashlib
+import importlib
 import os
 import re
 import tempfile
@@ -56,7 +63,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError
 from jaxproj.robots import mjcf as _mjcf
-from jaxproj.robots.base import Chain, Figure, Mjcf, Robot
+from jaxproj.robots.base import Chain, CoupledLimit, Export, Figure, Mjcf, Robot
 from jaxproj.robots.generic import with_generic_ik
 from jaxproj.robots.generic_ik import BonePair, Correspondence, IKConfig
 
@@ -67,11 +74,14 @@ LIMIT_TOLERANCE = 1e-4
 """rad: how far a limit restated in ``[joints.limits]`` may differ from the MJCF's."""
 
 _TOP = {"schema", "name", "title", "mjcf", "free_joint", "root_body", "joints", "chains", "ik",
-        "projection", "evaluation", "figure"}  # fmt: skip
-_JOINTS = {"driven", "standing", "loose", "velocity", "rated", "acceleration", "limits"}
+        "projection", "evaluation", "figure", "exports"}  # fmt: skip
+_JOINTS = {"driven", "standing", "loose", "velocity", "rated", "acceleration", "limits", "order",
+           "coupled", "elbow_pairs", "coupled_limits"}  # fmt: skip
+_COUPLED_LIMIT = {"joint", "by", "source", "table_deg", "symmetric"}
 _CHAIN = {"name", "bones", "joints", "bandwidth", "keep_bandwidth"}
 _IK_SETTINGS = {"iterations", "starts", "neutral", "collision", "margin", "damping", "gtol", "seed"}
 _IK = {"kind", "base", "collision_pairs", "source", "rows", "ranges", *_IK_SETTINGS}
+_IK_PYTHON = {"kind", "module", "source"}
 _ROW = {"bone", "start", "end", "weight", "minus", "rest"}
 _EVALUATION = {"arm_sites", "hand_sites", "fk_without", "split", "head_root", "warp_validated"}
 _FIGURE = {"label", "links", "head", "parents", "feet", "head_geom"}
@@ -285,7 +295,8 @@ def _check_names(f: _File, model: mujoco.MjModel, robot_data: dict[str, Any]) ->
     if "head_geom" in fig:
         need(fig["head_geom"], geoms, "figure.head_geom", "geom")
     ik = robot_data.get("ik", {})
-    need(ik.get("base", ""), bodies, "ik.base", "body")
+    if ik.get("kind") != "python":
+        need(ik.get("base", ""), bodies, "ik.base", "body")
     for k, row in enumerate(ik.get("rows", ())):
         for end in ("start", "end"):
             p = row.get(end)
@@ -298,7 +309,8 @@ def _check_names(f: _File, model: mujoco.MjModel, robot_data: dict[str, Any]) ->
             need(b, geoms, "ik.collision_pairs", "geom")
 
 
-def _read(path: Path) -> Robot:
+def _describe(path: Path) -> tuple[Robot, _File, dict[str, Any]]:
+    """The robot the file describes, without its IK, the parsed file and its top table."""
     f = _File(path)
     d = f.table(f.data, "the file", _TOP)
     if d.get("schema") != SCHEMA:
@@ -324,6 +336,16 @@ def _read(path: Path) -> Robot:
     unlimited = [joint_names[k] for k, i in enumerate(ids) if not model.jnt_limited[i]]
     if unlimited:
         raise f.error("mjcf", f"joints without a range (limited): {unlimited}")
+    jt = f.table(d.get("joints"), "joints", _JOINTS)
+    order = f.names(jt, "order", "joints", None)
+    if order is not None:  # the configuration order (a controller's), not the MJCF's tree order
+        if sorted(order) != sorted(joint_names):
+            missing = sorted(set(joint_names) - set(order))
+            extra = sorted(set(order) - set(joint_names))
+            raise f.error("joints.order", f"must name every hinge and slide joint of the MJCF "
+                          f"once (missing {missing}, unknown or repeated {extra})")  # fmt: skip
+        ids = [ids[joint_names.index(j)] for j in order]
+        joint_names = order
     lower = model.jnt_range[ids, 0].astype(np.float32)
     upper = model.jnt_range[ids, 1].astype(np.float32)
     if free_joint is not None:
@@ -335,8 +357,6 @@ def _read(path: Path) -> Robot:
     if root_body is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, root_body) < 0:
         raise f.error("root_body", f"the MJCF has no body named {root_body!r}")
     _check_names(f, model, d)
-
-    jt = f.table(d.get("joints"), "joints", _JOINTS)
     known = set(joint_names)
 
     def joints_of(value: tuple[str, ...], where: str) -> tuple[str, ...]:
@@ -358,6 +378,11 @@ def _read(path: Path) -> Robot:
         if max(abs(lo - lower[k]), abs(hi - upper[k])) > LIMIT_TOLERANCE:
             raise f.error(f"joints.limits.{j}", f"[{lo}, {hi}] disagrees with the MJCF's range "
                                                 f"[{lower[k]:.6g}, {upper[k]:.6g}]")  # fmt: skip
+    coupled = f.pairs(jt.get("coupled", []), "joints.coupled")
+    elbow_pairs = f.pairs(jt.get("elbow_pairs", []), "joints.elbow_pairs")
+    for where, pairs in (("joints.coupled", coupled), ("joints.elbow_pairs", elbow_pairs)):
+        joints_of(tuple(j for pair in pairs for j in pair), where)
+    coupled_limits = _coupled_limits(f, jt.get("coupled_limits", []), known)
     velocity = _joint_table(f, jt.get("velocity"), "joints.velocity", joint_names)
     rated = _joint_table(f, jt.get("rated"), "joints.rated", joint_names)
     accel = _joint_table(f, jt.get("acceleration"), "joints.acceleration", joint_names)
@@ -435,15 +460,29 @@ def _read(path: Path) -> Robot:
             rated_speeds=rated,
             acceleration_limits=accel,
             loose_joints=loose,
+            coupled_joints=coupled,
+            elbow_pairs=elbow_pairs,
+            coupled_limits=coupled_limits,
+            exports=_exports(f, d.get("exports", {})),
             mjcf=mj,
             deviation_scale=None if scale is None else f.number(scale, "projection"),
             file=path,
         )
     except ConfigError as err:
         raise f.error("the robot", str(err)) from None
-    ik = f.table(d.get("ik"), "ik", _IK)
+    return robot, f, d
+
+
+def _read(path: Path) -> Robot:
+    robot, f, d = _describe(path)
+    joint_names = robot.joint_names
+    ik = d.get("ik")
+    if isinstance(ik, dict) and ik.get("kind") == "python":
+        return _python_ik(f, f.table(ik, "ik", _IK_PYTHON), robot)
+    ik = f.table(ik, "ik", _IK)
     if ik.get("kind") != "generic":
-        raise f.error("ik.kind", f'must be "generic" (the generic IK), got {ik.get("kind")!r}')
+        raise f.error("ik.kind", f'must be "generic" (the generic IK) or "python" (a module\'s), '
+                                 f"got {ik.get('kind')!r}")  # fmt: skip
     robot = with_generic_ik(robot, _correspondence(f, ik, joint_names), _ik_config(f, ik))
     assert robot.generic is not None
     try:  # every name resolves, every chain reads a row and every row is read (0.2 s; kept)
@@ -451,6 +490,90 @@ def _read(path: Path) -> Robot:
     except ConfigError as err:
         raise f.error("ik", str(err)) from None
     return robot
+
+
+def _coupled_limits(f: _File, data: Any, known: set[str]) -> tuple[CoupledLimit, ...]:
+    """``[[joints.coupled_limits]]``: ``joint``, ``by``, ``source`` and the published table
+    ``table_deg`` (rows ``[by, lower, upper]`` in degrees, ``by`` increasing); ``symmetric``:
+    the table gives ``by >= 0`` only and holds mirrored for ``by < 0``."""
+    if not isinstance(data, list):
+        raise f.error(
+            "joints.coupled_limits", "must be a list of tables ([[joints.coupled_limits]])"
+        )
+    out = []
+    for k, item in enumerate(data):
+        where = f"joints.coupled_limits[{k}]"
+        item = f.table(item, where, _COUPLED_LIMIT)
+        joint, by = f.string(item, "joint", where), f.string(item, "by", where)
+        for name in (joint, by):
+            if name not in known:
+                raise f.error(where, f"the MJCF has no joint {name!r}")
+        rows = item.get("table_deg")
+        if not (isinstance(rows, list) and rows and all(isinstance(r, list) and len(r) == 3
+                                                         for r in rows)):  # fmt: skip
+            raise f.error(f"{where}.table_deg", "must be a list of [by, lower, upper] rows (deg)")
+        table = np.array([[f.number(v, f"{where}.table_deg") for v in r] for r in rows])
+        if f.flag(item, "symmetric", where):
+            if table[0, 0] != 0.0:
+                raise f.error(f"{where}.table_deg", "a symmetric table starts at by = 0")
+            mirror = table[:0:-1].copy()
+            mirror[:, 0] *= -1.0
+            table = np.concatenate([mirror, table])
+        try:
+            out.append(
+                CoupledLimit(
+                    joint=joint,
+                    by=by,
+                    knots=np.radians(table[:, 0]).astype(np.float32),
+                    lower=np.radians(table[:, 1]).astype(np.float32),
+                    upper=np.radians(table[:, 2]).astype(np.float32),
+                    source=f.string(item, "source", where, ""),
+                )
+            )
+        except ConfigError as err:
+            raise f.error(where, str(err)) from None
+    return tuple(out)
+
+
+def _reference(f: _File, value: Any, where: str) -> Any:
+    """The object a ``"package.module:NAME"`` string names (imported here)."""
+    if not (isinstance(value, str) and re.fullmatch(r"[\w.]+:\w+", value)):
+        raise f.error(where, f'must be "package.module:NAME", got {value!r}')
+    module, name = value.split(":")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except ImportError as err:
+        raise f.error(where, f"cannot import {module!r}: {err}") from None
+    except AttributeError:
+        raise f.error(where, f"the module {module!r} has no {name!r}") from None
+
+
+def _exports(f: _File, data: Any) -> dict[str, Export]:
+    """``[exports]``: file suffix -> ``"package.module:NAME"`` of an ``Export``."""
+    out = {}
+    for suffix, ref in f.table(
+        data, "exports", set(data) if isinstance(data, dict) else set()
+    ).items():
+        export = _reference(f, ref, f"exports.{suffix}")
+        if not isinstance(export, Export) or export.suffix != suffix:
+            raise f.error(f"exports.{suffix}", f"{ref} is not an Export of suffix {suffix!r}")
+        out[suffix] = export
+    return out
+
+
+def _python_ik(f: _File, ik: dict[str, Any], robot: Robot) -> Robot:
+    """``[ik] kind = "python"``: the module ``ik.module`` completes the robot: its
+    ``attach(robot) -> Robot`` gives the IK (``Robot.ik``, ``traced_ik``, each chain's ``ik``,
+    ``whole_chain``, ``ik_constants``) of the robot the file describes. Importing it runs its
+    code, as any Python package does."""
+    attach = _reference(f, f"{f.string(ik, 'module', 'ik')}:attach", "ik.module")
+    try:
+        out = attach(robot)
+    except ConfigError as err:
+        raise f.error("ik.module", str(err)) from None
+    if not isinstance(out, Robot) or out.name != robot.name or out.ik is None:
+        raise f.error("ik.module", "its attach(robot) must return the robot with its IK")
+    return out
 
 
 def _load(
@@ -533,9 +656,19 @@ def from_embedded(doc: Mapping[str, Any]) -> Robot:
 
 
 @functools.cache
-def _cached(path: Path, sha: str) -> Robot:
+def _cached(path: Path, sha: str, ik: bool) -> Robot:
     del sha  # part of the cache key only: an edited file is read again
-    return _read(path)
+    return _read(path) if ik else _describe(path)[0]
+
+
+def _key(path: str | Path) -> tuple[Path, str]:
+    p = Path(path).expanduser().resolve()
+    if not p.is_file():
+        raise ConfigError(f"{p}: no such robot file")
+    try:
+        return p, digest(p)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{p}: not a TOML file: {err}") from None
 
 
 def load(path: str | Path) -> Robot:
@@ -545,11 +678,15 @@ def load(path: str | Path) -> Robot:
       ConfigError: the file is missing, not TOML, or breaks the schema (the message names the
         file and the key); its MJCF does not compile or lacks a name the file uses.
     """
-    p = Path(path).expanduser().resolve()
-    if not p.is_file():
-        raise ConfigError(f"{p}: no such robot file")
-    try:
-        sha = digest(p)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{p}: not a TOML file: {err}") from None
-    return _cached(p, sha)
+    return _cached(*_key(path), True)
+
+
+def describe(path: str | Path) -> Robot:
+    """The robot the file at ``path`` describes before its IK is attached (``Robot.ik`` and the
+    generic IK's hooks ``None``): what a Python IK module (``[ik] kind = "python"``) reads of its
+    own robot (joint names, limits, standing posture, chains) without importing itself again.
+
+    Raises:
+      ConfigError: as ``load``.
+    """
+    return _cached(*_key(path), False)

@@ -34,9 +34,9 @@ from jaxproj.robots.generic_ik import (
     row_turned_by,
 )
 from jaxproj.robots.kinematics import TreeFK, points_at
-from jaxproj.robots.nao_h25 import spec as nao_spec
+from jaxproj.robots.nao_h25 import ik as nao_ik
 
-NAO_ARMS = nao_spec.ARM_CORRESPONDENCE
+NAO_ARMS = nao_ik.ARM_CORRESPONDENCE
 assert UNITREE_G1.generic is not None
 G1_IK = UNITREE_G1.generic
 

@@ -13,6 +13,7 @@ import pytest
 from jaxproj import robots
 from jaxproj.errors import ConfigError
 from jaxproj.robots import robot_file
+from jaxproj.robots.base import joint_qpos_index
 
 TWO_ARMS = Path(__file__).parents[1] / "data" / "robots" / "two_arms"
 
@@ -109,6 +110,22 @@ BROKEN = {
                     "figure.links: the MJCF has no site named 'hip_site'"),
     "iterations": ("iterations = 12", "iterations = 0", "ik: IKConfig: iterations"),
     "not toml": ("schema = 1", "schema = = 1", "not a TOML file"),
+    "order": ("loose = [", 'order = ["left_elbow", "left_elbow"]\nloose = [',
+              "joints.order: must name every hinge and slide joint of the MJCF once"),
+    "coupled": ("loose = [", 'coupled = [["left_elbow", "left_elbw"]]\nloose = [',
+                "joints.coupled: the MJCF has no joint(s) ['left_elbw']"),
+    "coupled limit": ("[evaluation]", '[[joints.coupled_limits]]\njoint = "left_elbow"\n'
+                      'by = "left_shoulder_yaw"\nsymmetric = true\n'
+                      "table_deg = [[10.0, -20.0, 20.0], [5.0, -10.0, 10.0]]\n\n[evaluation]",
+                      "joints.coupled_limits[0].table_deg: a symmetric table starts at by = 0"),
+    "knots": ("[evaluation]", '[[joints.coupled_limits]]\njoint = "left_elbow"\n'
+              'by = "left_shoulder_yaw"\ntable_deg = [[10.0, -20.0, 20.0], [5.0, -10.0, 10.0]]'
+              "\n\n[evaluation]", "knots must increase strictly"),
+    "export": ("[evaluation]", '[exports]\n".json" = "jaxproj.robots.nao_h25.naoqi:EXPRT"\n\n'
+               "[evaluation]", "exports..json: the module 'jaxproj.robots.nao_h25.naoqi' has no "
+               "'EXPRT'"),
+    "export suffix": ("[evaluation]", '[exports]\n".csv" = "jaxproj.robots.nao_h25.naoqi:EXPORT"'
+                      "\n\n[evaluation]", "is not an Export of suffix '.csv'"),
 }  # fmt: skip
 
 
@@ -188,3 +205,65 @@ def test_a_robot_without_a_free_joint_is_fixed_as_written(two_arms):
                                   ("upper_arm_left", "forearm_left", "upper_arm_right",
                                    "forearm_right")))  # fmt: skip
     assert np.isfinite(q).all() and np.abs(q).max() < 0.05  # arms hanging: the standing posture
+
+
+def _python_ik(path: Path, module: str) -> None:
+    """Replace the file's generic IK (``[ik]`` and its rows) with ``kind = "python"``."""
+    text = path.read_text()
+    head, tail = text.split("[ik]\n", 1)
+    path.write_text(f'{head}[ik]\nkind = "python"\nmodule = "{module}"\n\n[evaluation]'
+                    f"{tail.split('[evaluation]', 1)[1]}")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("module", "message"),
+    [
+        ("jaxproj.no_such_module", "ik.module: cannot import 'jaxproj.no_such_module'"),
+        ("jaxproj.robots.base", "ik.module: the module 'jaxproj.robots.base' has no 'attach'"),
+        # the NAO's closed form refuses a robot other than the one its file describes
+        ("jaxproj.robots.nao_h25.ik", "ik.module: the NAO closed-form IK drives"),
+    ],
+)
+def test_a_python_ik_is_a_module_the_file_names(two_arms, module, message):
+    _python_ik(two_arms, module)
+    with pytest.raises(ConfigError) as err:
+        robot_file.load(two_arms)
+    line = str(err.value)
+    assert "\n" not in line and line.startswith(f"{two_arms.resolve()}: ") and message in line
+
+
+def test_joint_order_is_the_files_and_limits_follow_it(two_arms):
+    as_written = robot_file.load(two_arms)
+    order = as_written.joint_names[::-1]
+    text = two_arms.read_text()
+    two_arms.write_text(
+        text.replace("loose = [", f"order = {list(order)!r}\nloose = [".replace("'", '"'))
+    )
+    robot = robot_file.load(two_arms)
+    assert robot.joint_names == order
+    np.testing.assert_array_equal(robot.lower, as_written.lower[::-1])
+    np.testing.assert_array_equal(robot.upper, as_written.upper[::-1])
+    assert robot.mjcf is not None
+    model = robot.load_model("free")
+    index = joint_qpos_index(model, robot.joint_names)  # the same joints, addressed by name
+    assert index.tolist() == joint_qpos_index(model, as_written.joint_names).tolist()[::-1]
+
+
+def test_the_nao_is_a_robot_file_with_its_closed_form_and_naoqi_export():
+    from jaxproj.robots.nao_h25 import ik, naoqi, robot
+
+    nao = robots.get("nao_h25")
+    assert nao is robots.NAO_H25 and nao.file == robot.FILE
+    bare = robot_file.describe(robot.FILE)  # the file's robot before the IK module attaches
+    assert bare.ik is None and bare.traced_ik is None and all(c.ik is None for c in bare.chains)
+    assert nao.ik is ik.solve_driven and nao.whole_chain is ik.WHOLE_BODY
+    assert all(c.ik is not None for c in nao.chains) and nao.exports == {".json": naoqi.EXPORT}
+    # the configuration order is ALMotion's, not the MJCF's tree order (arms before legs)
+    assert nao.joint_names[6:9] == ("LWristYaw", "LHand", "LHipYawPitch")
+    assert nao.coupled_joints == (("LHipYawPitch", "RHipYawPitch"),)
+    # the head envelope: the published half table (7 rows from yaw 0) mirrored to 13 knots
+    env = nao.coupled_limits[0]
+    assert (env.joint, env.by, len(env.knots)) == ("HeadPitch", "HeadYaw", 13)
+    np.testing.assert_allclose(np.degrees(env.knots[[0, 6, 12]]), [-119.52, 0.0, 119.52], atol=1e-4)
+    np.testing.assert_array_equal(env.upper, env.upper[::-1])
+    assert [c.bandwidth for c in nao.chains] == [0.01125, 0.01875, 0.01875]

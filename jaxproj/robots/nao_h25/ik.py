@@ -62,6 +62,7 @@ at the clamped HeadYaw (``robot.HEAD_ENVELOPE``, NAOqi's table); joints outside
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from functools import partial
 
 import jax
@@ -73,9 +74,11 @@ from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import full_precision, jit
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import NECK_TILT_REFERENCE, UPPER_BODY, resolve_bones
-from jaxproj.robots.base import Chain
+from jaxproj.robots import robot_file
+from jaxproj.robots.base import Chain, Robot
 from jaxproj.robots.base import chain_columns as base_chain_columns
 from jaxproj.robots.base import driven_to_full as _driven_to_full
+from jaxproj.robots.generic_ik import BonePair, Correspondence
 from jaxproj.robots.nao_h25 import robot
 
 ELBOW_OFFSET_ANGLE = math.atan2(robot.ELBOW_OFFSET_Y, robot.UPPER_ARM_LENGTH)
@@ -103,43 +106,15 @@ def _chain_ik(x: np.ndarray, *, name: str) -> np.ndarray:
     return solve_chain(x, _CHAIN_BY_NAME[name])
 
 
-HEAD_BANDWIDTH = 0.01125
-"""Mean-shift bandwidth of the head chain's landmarks (``Chain.bandwidth``): tuned
-leave-one-training-subject-out over MSR subjects 1,3,5,7,9 (``benchmarks/TUNING.md``); ~800
-landmarks there. ``jaxproj.projection.config.HEAD_BANDWIDTH`` is this value."""
-
-ARM_BANDWIDTH = 0.01875
-"""Mean-shift bandwidth of each arm chain (the left arm's tuned value, ``benchmarks/TUNING.md``;
-the right arm takes it)."""
-
-CHAINS: tuple[Chain, ...] = (
-    Chain(
-        "head",
-        ("neck",),
-        ("HeadYaw", "HeadPitch"),
-        partial(_chain_ik, name="head"),
-        bandwidth=HEAD_BANDWIDTH,
-        keep_bandwidth=True,  # the neck direction varies little: a count would bisect long
-    ),
-    Chain(
-        "left_arm",
-        ("upper_arm_left", "forearm_left"),
-        ("LShoulderPitch", "LShoulderRoll", "LElbowYaw", "LElbowRoll"),
-        partial(_chain_ik, name="left_arm"),
-        bandwidth=ARM_BANDWIDTH,
-    ),
-    Chain(
-        "right_arm",
-        ("upper_arm_right", "forearm_right"),
-        ("RShoulderPitch", "RShoulderRoll", "RElbowYaw", "RElbowRoll"),
-        partial(_chain_ik, name="right_arm"),
-        bandwidth=ARM_BANDWIDTH,
-    ),
+CHAINS: tuple[Chain, ...] = tuple(
+    replace(c, ik=partial(_chain_ik, name=c.name)) for c in robot_file.describe(robot.FILE).chains
 )
-"""How the IK factorises: the head angles depend only on the neck bone, each arm's four angles
-only on that arm's upper arm and forearm (``_solve_driven`` computes them from exactly these
-bones; ``tests/robots/test_ik.py`` perturbs one chain's bones and checks the others' outputs are
-bit-identical). Together the chains cover ``robot.DRIVEN_JOINTS`` once each."""
+"""How the IK factorises (the robot file's ``[[chains]]``, with this IK's chain functions): the
+head angles depend only on the neck bone, each arm's four angles only on that arm's upper arm and
+forearm (``_solve_driven`` computes them from exactly these bones; ``tests/robots/test_ik.py``
+perturbs one chain's bones and checks the others' outputs are bit-identical). Together the chains
+cover ``robot.DRIVEN_JOINTS`` once each. Their bandwidths (the file's) were tuned
+leave-one-training-subject-out over MSR subjects 1,3,5,7,9 (``benchmarks/TUNING.md``)."""
 
 WHOLE_BODY = Chain("whole", UPPER_BODY, robot.DRIVEN_JOINTS, partial(_chain_ik, name="whole"))
 """The paper's formulation as one chain: all five upper-body bones -> all ten driven joints."""
@@ -317,3 +292,60 @@ def solve(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
     (RHipYawPitch = LHipYawPitch holds there).
     """
     return driven_to_full(solve_driven(d, bones))
+
+
+def traced_ik(d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+    """``driven_angles`` for a ``bones`` descriptor: the IK inside a trace (no nested jit)."""
+    return driven_angles(d, bone_index(bones))
+
+
+IK_CONSTANTS: dict[str, float] = {
+    "head_pitch_neutral": HEAD_PITCH_NEUTRAL,
+    "elbow_yaw_neutral": ELBOW_YAW_NEUTRAL,
+}
+"""The IK's constants a model file records (meta ``"ik"``)."""
+
+
+def attach(data: Robot) -> Robot:
+    """The robot file's ``[ik] kind = "python"`` hook: the NAO ``data`` (the robot file's robot)
+    with this closed form as its IK (``Robot.ik``, ``traced_ik``, each chain's IK, the whole-body
+    chain, ``ik_constants``).
+
+    Raises:
+      ConfigError: ``data`` is not the robot this closed form was written for (its joints,
+        driven joints or chains differ from the file this module reads).
+    """
+    if (data.joint_names, data.driven_joints, data.chains) != (
+        robot.JOINT_NAMES, robot.DRIVEN_JOINTS, CHAINS
+    ):  # fmt: skip
+        raise ConfigError(f"the NAO closed-form IK drives {robot.DRIVEN_JOINTS} through the "
+                          f"chains of {robot.FILE}; robot {data.name!r} differs")  # fmt: skip
+    return replace(
+        data,
+        chains=CHAINS,
+        ik=solve_driven,
+        traced_ik=traced_ik,
+        whole_chain=WHOLE_BODY,
+        ik_constants=IK_CONSTANTS,
+    )
+
+
+ARM_SITES: dict[str, tuple[str, str, str]] = {
+    "left": ("l_shoulder", "l_elbow", "l_wrist"),
+    "right": ("r_shoulder", "r_elbow", "r_wrist"),
+}
+"""MJCF sites (shoulder, elbow, wrist) of each arm (the robot file's ``evaluation.arm_sites``)."""
+
+ARM_CORRESPONDENCE = Correspondence(
+    "torso",
+    tuple(
+        BonePair(f"{bone}_{side}", a, b)
+        for side, (shoulder, elbow, wrist) in ARM_SITES.items()
+        for bone, a, b in (("upper_arm", shoulder, elbow), ("forearm", elbow, wrist))
+    ),
+    source="the closed form's own choice: the shoulder -> elbow segment and the forearm",
+)
+"""The NAO's arms as data for the generic IK (``jaxproj.robots.generic_ik``; tests and
+benchmarks compare the two IKs): each upper arm follows the shoulder -> elbow segment, each
+forearm the elbow -> wrist, in the torso frame, as the closed form matches them (its head rule
+is not a direction and stays the closed form's)."""
