@@ -123,20 +123,22 @@ def frame_descriptors(
 
 
 GLITCH_DEG = 60.0
-"""``glitch_frames``' threshold: a bone that turns more than this into a frame and more than this
-out of it, while the frames on either side differ by less than half as much."""
+"""``glitch_frames``' threshold: a bone that turns more than this into a run of one or two frames
+and more than this out of it, while the frames on either side differ by less than half as much."""
 
 
 def glitch_frames(
     d: jax.Array, ok: jax.Array, *, bones: str | tuple[str, ...], read: tuple[str, ...]
 ) -> jax.Array:
-    """The frames of one motion where a tracker glitched for one frame: some bone of ``read``
-    turns by more than ``GLITCH_DEG`` into the frame and by more than that out of it, while its
-    directions in the frames on either side are less than half the smaller turn apart (it went
-    out and came back). A limb does not do that within two frames: on UTKinect-Action3D (7.5
-    fps after resampling) a forearm turns 131 deg into one frame and 168 deg out of it, and
-    the robot's shoulder, following it, swings 238 deg and back. Only frames whose neighbours
-    are both valid are judged; the first and last frames never are.
+    """The frames of one motion where a tracker glitched for one or two frames: some bone of
+    ``read`` turns by more than ``GLITCH_DEG`` into the run and by more than that out of it,
+    while its directions in the frames on either side of the run are less than half the smaller
+    turn apart (it went out and came back). A limb does not do that: on UTKinect-Action3D (7.5
+    fps after resampling) a forearm turns 131 deg into one frame and 168 deg out of it, and the
+    robot's shoulder, following it, swings 238 deg and back; another forearm turns 128 deg into
+    two frames and 145 deg out of them (UTKinect person 9, e02, frames 894-895 at 7.5 fps), and
+    the G1's shoulder yaw, following it, swings 205 deg. Only runs whose neighbours are valid
+    are judged; the first and last frames never are.
 
     Args:
       d: ``(T, 3 * n_bones)`` descriptors of ``bones``; ok: ``(T,)`` their validity.
@@ -155,15 +157,27 @@ def glitch_frames(
     v = d.reshape(t, -1, 3)[:, np.asarray(idx)]
     n = jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
     u = v / jnp.where(n > 1e-6, n, 1.0)
+    bound = np.float32(np.radians(GLITCH_DEG))
 
     def angle(a: jax.Array, b: jax.Array) -> jax.Array:
         return jnp.arccos(jnp.clip(jnp.sum(a * b, axis=-1), -1.0, 1.0))
 
-    into, out = angle(u[1:-1], u[:-2]), angle(u[2:], u[1:-1])
-    smaller = jnp.minimum(into, out)
-    jump = (smaller > np.float32(np.radians(GLITCH_DEG))) & (angle(u[2:], u[:-2]) < smaller / 2)
-    inner = jnp.any(jump, axis=-1) & ok[:-2] & ok[1:-1] & ok[2:]
-    return jnp.concatenate([jnp.zeros((1,), bool), inner, jnp.zeros((1,), bool)])
+    def runs(k: int) -> jax.Array:
+        """``(T,)``: frames in a glitch run of ``k`` frames (from frame ``i`` to ``i + k - 1``,
+        neighbours ``i - 1`` and ``i + k``)."""
+        before, first, last, after = u[: t - k - 1], u[1 : t - k], u[k : t - 1], u[k + 1 :]
+        smaller = jnp.minimum(angle(first, before), angle(after, last))
+        jump = (smaller > bound) & (angle(after, before) < smaller / 2)
+        valid = ok[: t - k - 1] & ok[k + 1 :]
+        for j in range(k):
+            valid = valid & ok[1 + j : t - k + j]
+        start = jnp.any(jump, axis=-1) & valid  # (t - k - 1,): a run starts at frame 1 + i
+        marked = jnp.zeros((t,), bool)
+        for j in range(k):
+            marked = marked.at[1 + j : t - k + j].set(marked[1 + j : t - k + j] | start)
+        return marked
+
+    return runs(1) | runs(2) if t >= 4 else runs(1)
 
 
 NeckLevel = Literal["recording", "given", "off"]

@@ -9,8 +9,8 @@ function (``jaxproj.motion.pipeline.motion``, the one pipeline): descriptor -> p
 (``_bucket``) so recordings of similar length share one compilation. Options are checked here,
 in Python, before tracing.
 
-Invalid frames (lost tracking, non-finite values, degenerate bones, and one-frame glitches: a
-bone the robot reads that turns more than 60 deg into a frame and back out of it,
+Invalid frames (lost tracking, non-finite values, degenerate bones, and glitches of one or two
+frames: a bone the robot reads that turns more than 60 deg into them and back out,
 ``pipeline.glitch_frames``) are kept and filled by a documented rule, so a motion never dies
 halfway and never contains NaN:
 

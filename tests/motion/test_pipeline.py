@@ -300,7 +300,7 @@ def _turned(v: np.ndarray, deg: float) -> np.ndarray:
     return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]], np.float32)
 
 
-def test_glitch_frames_marks_a_bone_that_jumps_out_and_back_in_one_frame():
+def test_glitch_frames_marks_a_bone_that_jumps_out_and_back_in_one_or_two_frames():
     """A read bone out by 120 deg on one frame and back: that frame (and only it) is a glitch;
     a bone turning 70 deg a frame steadily, one jumping out and staying, a glitch of a bone
     the robot does not read, and one beside an invalid frame are not."""
@@ -327,3 +327,18 @@ def test_glitch_frames_marks_a_bone_that_jumps_out_and_back_in_one_frame():
     beside = ok.copy()
     beside[4] = False
     assert glitches(d, beside) == []
+    # two frames out (turned 130 and 150 deg, 20 deg apart) and back: both frames
+    two = np.tile(np.concatenate([base, base]), (8, 1))
+    two[3, 3:], two[4, 3:] = _turned(base, 130.0), _turned(base, 150.0)
+    assert glitches(two) == [3, 4]
+    assert glitches(two, read=("upper_arm_left",)) == []
+    beside = ok.copy()
+    beside[5] = False
+    assert glitches(two, beside) == []
+    # out over two frames and not back (the next frame 80 deg from the last before): a move
+    two[5:, 3:] = _turned(base, 80.0)
+    assert glitches(two) == []
+    # three frames out and back is not judged (a gesture can do that)
+    three = np.tile(np.concatenate([base, base]), (8, 1))
+    three[3:6, 3:] = _turned(base, 130.0)
+    assert glitches(three) == []
