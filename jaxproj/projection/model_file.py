@@ -212,7 +212,12 @@ def _config(path: Path, meta: dict) -> BuildConfig:
     """The checked ``BuildConfig`` of a model file's ``meta``."""
     doc = meta.get("robot_file")
     name = meta.get("config", {}).get("robot") if isinstance(meta.get("config"), dict) else None
-    if isinstance(doc, dict) and name is not None and name not in robots.names():
+    if (
+        isinstance(doc, dict)
+        and name is not None
+        and doc.get("name") == name  # the copy of the robot the configuration names, no other
+        and name not in robots.names()
+    ):
         try:  # a robot from a file, not registered here: the model's own copy
             robots.register(robot_file.from_embedded(doc))
         except ConfigError as e:
