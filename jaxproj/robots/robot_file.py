@@ -473,8 +473,8 @@ def _describe(path: Path) -> tuple[Robot, _File, dict[str, Any]]:
     return robot, f, d
 
 
-def _read(path: Path) -> Robot:
-    robot, f, d = _describe(path)
+def _read(robot: Robot, f: _File, d: dict[str, Any]) -> Robot:
+    """The robot of a ``_describe`` result with its IK attached."""
     joint_names = robot.joint_names
     ik = d.get("ik")
     if isinstance(ik, dict) and ik.get("kind") == "python":
@@ -656,9 +656,16 @@ def from_embedded(doc: Mapping[str, Any]) -> Robot:
 
 
 @functools.cache
-def _cached(path: Path, sha: str, ik: bool) -> Robot:
+def _described(path: Path, sha: str) -> tuple[Robot, _File, dict[str, Any]]:
     del sha  # part of the cache key only: an edited file is read again
-    return _read(path) if ik else _describe(path)[0]
+    return _describe(path)
+
+
+@functools.cache
+def _cached(path: Path, sha: str, ik: bool) -> Robot:
+    """One read of a file (``_described``, its MJCF compiled once) for both ``describe`` and
+    ``load``: a Python IK's module describes its own robot while ``load`` attaches it."""
+    return _read(*_described(path, sha)) if ik else _described(path, sha)[0]
 
 
 def _key(path: str | Path) -> tuple[Path, str]:

@@ -330,17 +330,11 @@ def attach(data: Robot) -> Robot:
     )
 
 
-ARM_SITES: dict[str, tuple[str, str, str]] = {
-    "left": ("l_shoulder", "l_elbow", "l_wrist"),
-    "right": ("r_shoulder", "r_elbow", "r_wrist"),
-}
-"""MJCF sites (shoulder, elbow, wrist) of each arm (the robot file's ``evaluation.arm_sites``)."""
-
 ARM_CORRESPONDENCE = Correspondence(
     "torso",
     tuple(
         BonePair(f"{bone}_{side}", a, b)
-        for side, (shoulder, elbow, wrist) in ARM_SITES.items()
+        for side, (shoulder, elbow, wrist) in robot.ARM_SITES.items()
         for bone, a, b in (("upper_arm", shoulder, elbow), ("forearm", elbow, wrist))
     ),
     source="the closed form's own choice: the shoulder -> elbow segment and the forearm",

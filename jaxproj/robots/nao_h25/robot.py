@@ -29,7 +29,6 @@ import mujoco
 import numpy as np
 
 from jaxproj.errors import ConfigError
-from jaxproj.robots import mjcf as _mjcf
 from jaxproj.robots import robot_file
 from jaxproj.robots.base import CoupledLimit, mj_joint_ids, mj_site_ids
 from jaxproj.robots.base import joint_qpos_index as _qpos_index
@@ -80,6 +79,9 @@ posture, knees slightly bent, arms hanging by the sides with the elbows a little
 COUPLED_JOINTS: tuple[str, str] = _DATA.coupled_joints[0]
 """One motor drives both; RHipYawPitch := LHipYawPitch (LHipYawPitch has priority)."""
 
+ARM_SITES = _DATA.require_mjcf().arm_sites
+"""MJCF sites (shoulder, elbow, wrist) of each arm (the robot file's ``evaluation.arm_sites``)."""
+
 HEAD_ENVELOPE: CoupledLimit = _DATA.coupled_limits[0]
 """NAOqi's head anti-collision envelope as robot data: HeadPitch's range as a function of
 HeadYaw (the file's ``[[joints.coupled_limits]]``; the IK clips to it too)."""
@@ -110,14 +112,12 @@ FOOT_HEIGHT = 0.04519
 
 # --- MJCF model ---
 
-_FREE_JOINT = "root"
 _TORSO_BODY = "torso"
 
 
 def mjcf_path() -> Path:
     """Absolute path of the bundled MJCF ``nao_h25.xml`` (NAO H25 V5)."""
-    assert _DATA.mjcf is not None
-    return _DATA.mjcf.path
+    return _DATA.require_mjcf().path
 
 
 def load_model(
@@ -144,7 +144,7 @@ def load_model(
         or naming a body the model does not have (or the torso).
       InputError: the MJCF is missing or MuJoCo cannot compile it.
     """
-    return _mjcf.load(mjcf_path(), mount, without, free_joint=_FREE_JOINT, root_body=_TORSO_BODY)
+    return _DATA.load_model(mount, without)  # the robot file's loader (jaxproj.robots.mjcf)
 
 
 LEG_ROOTS: tuple[str, str] = ("LPelvis", "RPelvis")
