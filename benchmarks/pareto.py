@@ -3,8 +3,8 @@
     python -m benchmarks.pareto [--bandwidths 0.01875,0.025,0.035,0.04352] [--queries 1048576]
         [--json OUT]
 
-Per arm bandwidth (both arms; the head keeps ``HEAD_BANDWIDTH``, every other setting is the
-default's), one model built by ``BuildConfig(bandwidth=(HEAD_BANDWIDTH, b, b))`` on MSR
+Per arm bandwidth (both arms; the head keeps the NAO file's bandwidth, every other setting is the
+default's), one model built by ``BuildConfig(bandwidth=(head, b, b))`` on MSR
 training subjects 1,3,5,7,9 (``0.01875`` is ``BuildConfig()``, the default model; ``0.04352``
 gives the paper's ~1644 landmarks per arm): its landmarks per chain, its model file's size
 (``jaxproj.save``), the relaxed projection's accuracy against the IK on the held-out splits
@@ -35,8 +35,11 @@ from benchmarks import heldout
 from jaxproj.eval.metrics import frame_errors
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
-from jaxproj.projection.config import HEAD_BANDWIDTH
+from jaxproj.robots import NAO_H25
 from jaxproj.robots.nao_h25 import ik
+
+HEAD = NAO_H25.chains[0].bandwidth
+"""The NAO head chain's bandwidth (its robot file's, kept: ``Chain.keep_bandwidth``)."""
 
 
 def accuracy(model: engine.Model) -> dict:
@@ -82,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     device = str(jax.devices()[0].device_kind)
     for b in (float(t) for t in args.bandwidths.split(",")):
         # MSR alone, as measured (docs/results.md): UTKinect scored on all five people
-        cfg = engine.BuildConfig(bandwidth=(HEAD_BANDWIDTH, b, b), utkinect_people=())
+        cfg = engine.BuildConfig(bandwidth=(HEAD, b, b), utkinect_people=())
         t0 = time.perf_counter()
         model = engine.build(train, cfg)
         build_s = time.perf_counter() - t0

@@ -442,7 +442,7 @@ def tune_chain(tuner: Tuner, chain: str, args, log) -> dict:
         default_bw = tuner.bandwidth_for(chain, DEFAULT_ARM_TARGET)
         grid = sorted(set(args.arm_bandwidths) | {default_bw}, reverse=True)
     else:
-        default_bw = engine.HEAD_BANDWIDTH
+        default_bw = NAO_H25.chains[0].bandwidth
         grid = sorted(set(args.head_bandwidths) | {default_bw}, reverse=True)
     res["default_bandwidth"] = default_bw
 
@@ -527,7 +527,7 @@ def tune_chain(tuner: Tuner, chain: str, args, log) -> dict:
             log(_row_line(name, r) + f"  ({r['wall_s']:.1f} s)")
         res["full"] = {"grid": rows}
 
-    # the baseline: today's defaults (bandwidth of 1644 landmarks / HEAD_BANDWIDTH, k=hidden=96)
+    # the baseline: today's defaults (bandwidth of 1644 landmarks / the head's own, k=hidden=96)
     res["baseline"] = tuner.summary(chain, Setting(default_bw), Query())
     # seed spread of the chosen and the baseline (what a difference has to beat)
     if args.seeds > 1:

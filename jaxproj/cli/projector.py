@@ -12,7 +12,6 @@ from jaxproj import robots
 from jaxproj._internal.progress import bar
 from jaxproj.cli import options
 from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
-from jaxproj.projection.api import HEAD_BANDWIDTH
 
 BUILD_STAGES = ("descriptors", "landmarks and kernels", "save")
 """The steps of ``jaxproj build`` its progress bar counts (on a terminal only)."""
@@ -79,10 +78,11 @@ def _add_build(sub: Any) -> None:
     size.add_argument(
         "--landmarks",
         type=LANDMARKS,
-        help=f"target landmark count, bisected, each {LANDMARKS.RANGE}: one number for each arm "
-        f"(head: bandwidth {HEAD_BANDWIDTH}) or one per chain, e.g. 400,1644,1644 (neither this "
-        "nor --bandwidth: engine.DEFAULTS, the tuned bandwidths; the paper's largest set is "
-        "1644, and a chain cannot hold more landmarks than training frames)",
+        help=f"target landmark count, bisected, each {LANDMARKS.RANGE}: one number for each chain "
+        "(a chain its robot file marks keep_bandwidth keeps its bandwidth) or one per chain, "
+        "e.g. 400,1644,1644 (neither this nor --bandwidth: engine.DEFAULTS, the tuned "
+        "bandwidths; the paper's largest set is 1644, and a chain cannot hold more landmarks "
+        "than training frames)",
     )
     size.add_argument(
         "--bandwidth",

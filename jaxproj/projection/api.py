@@ -40,7 +40,6 @@ from jaxproj.projection.build import (
 from jaxproj.projection.confidence import CALIBRATION_FRAMES, HELD_OUT_RATIO
 from jaxproj.projection.config import (
     DEFAULTS,
-    HEAD_BANDWIDTH,
     BuildConfig,
     ChainConfig,
     FullConfig,
@@ -58,7 +57,6 @@ __all__ = [
     "DEFAULT_BATCH",
     "FORMAT",
     "FORMAT_VERSION",
-    "HEAD_BANDWIDTH",
     "MIN_BATCH",
     "SEARCH_QUERIES_CPU",
     "AnyProjector",

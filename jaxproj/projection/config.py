@@ -19,15 +19,6 @@ from jaxproj.human.skeleton import resolve_bones
 from jaxproj.io.bundled import UTK_SUBJECTS, UTK_TRAIN_SUBJECTS
 from jaxproj.robots import Robot
 
-HEAD_BANDWIDTH = 0.01125
-"""The default robot's ``Chain.bandwidth`` of its head chain, a chain with
-``Chain.keep_bandwidth`` (kept when ``BuildConfig.landmarks`` is one number: that number is
-then the count of each other chain, and of the whole-body chain). The neck direction of a Kinect
-skeleton varies little (its 3 numbers lie on a small cap of the sphere), so a count target would
-bisect the bandwidth over many mean-shift runs; one run at this bandwidth (tuned
-leave-one-training-subject-out, ``benchmarks/TUNING.md``) gives ~800 head landmarks on subjects
-1,3,5,7,9. ``tests/projection`` checks it is the default robot's."""
-
 DEFAULT_LANDMARKS = 1000
 """Landmarks of a chain of the ``"upper"`` chain set whose robot gives it no tuned bandwidth
 (``Chain.bandwidth``), when ``BuildConfig`` sets no size: not tuned."""
@@ -83,8 +74,10 @@ class BuildConfig:
         the chain's own bones; ``"whole"``: one projector over the whole descriptor, the paper's
         formulation (``Robot.whole_chain``).
       landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
-        number sets each arm chain (and the whole-body chain); the head then uses
-        ``HEAD_BANDWIDTH``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
+        number sets each chain (and the whole-body chain) but those whose robot marks them
+        ``Chain.keep_bandwidth`` (the NAO's head: its neck direction varies little, so a count
+        target would bisect over many mean-shift runs), which keep their robot's
+        ``Chain.bandwidth``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
         With neither ``landmarks`` nor ``bandwidth`` given, ``DEFAULTS[chains]`` decides.
       bandwidth: mean-shift bandwidth, used as is (per chain where ``landmarks`` is ``None``).
       bones: descriptor bone subset (``skeleton.descriptor``): ``"auto"`` (default) is

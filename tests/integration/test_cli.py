@@ -277,8 +277,8 @@ def test_build_then_retarget_with_the_model(tmp_path, capsys, monkeypatch):
         return iter(items)
 
     monkeypatch.setattr(projector, "bar", bar)
-    # the bandwidths that `--landmarks 150` bisects to on subject 1 (head: HEAD_BANDWIDTH), given
-    # directly: the same model, 20x faster (the bisection through the CLI is tested below)
+    # the bandwidths that `--landmarks 150` bisects to on subject 1 (the head keeps its own),
+    # given directly: the same model, 20x faster (the bisection through the CLI is tested below)
     code, out, err = _run(
         capsys, "build", "--subjects", "1", "--bandwidth", BANDWIDTHS_150, "--k", "16",
         "--out", str(model),

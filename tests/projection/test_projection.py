@@ -6,6 +6,7 @@ import jax
 import numpy as np
 import pytest
 
+from jaxproj import robots
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import descriptor
 from jaxproj.io import datasets
@@ -423,7 +424,7 @@ def test_per_chain_settings_are_validated():
     with pytest.raises(ConfigError, match="unknown chain set"):
         engine.BuildConfig(chains="legs")
     cfg = engine.BuildConfig(landmarks=800)
-    assert cfg.chain_config(0).bandwidth == engine.HEAD_BANDWIDTH
+    assert cfg.chain_config(0).bandwidth == robots.get(robots.DEFAULT).chains[0].bandwidth
     assert cfg.chain_config(1).landmarks == cfg.chain_config(2).landmarks == 800
     assert engine.BuildConfig(landmarks=(50, 800, 700)).chain_config(0).landmarks == 50
 
