@@ -11,8 +11,12 @@ and against the robot's own geometry:
 * ``flip_steps``: steps between two valid frames where a driven joint moves more than
   ``FLIP_JOINT_DEG`` (20 deg) while every person's bone of that joint's chain (its own bones:
   upper arm and forearm for an arm, thigh, shin and foot for a leg, the hip line and lower spine
-  for the waist) turns less than ``FLIP_BONE_DEG`` (10 deg); also the largest joint step and the
-  steps over 20 and 90 deg whatever the person did.
+  for the waist) turns less than ``FLIP_BONE_DEG`` (10 deg), unless it is a catch-up
+  (``catch_up_steps``, counted apart): the joint's step before it was at its speed cap (at least
+  ``CATCH_UP_AT_CAP`` of the rated cap the feasibility filter applies, over that step's time)
+  and the same way, so the filter had held the robot back while the person moved faster than the
+  robot may, and this step finishes the person's move a frame late; also the largest joint step
+  and the steps over 20 and 90 deg whatever the person did.
 * ``contact_frames``: frames where two of the robot's own geoms (its MJCF, fixed base, MuJoCo's
   own collision pipeline with the MJCF's exclusions) penetrate by more than 1 mm; the pairs.
 * ``lean``: the trunk's forward lean (deg, sagittal) when the robot stands on its soles: the
@@ -54,12 +58,15 @@ from jaxproj import robots
 from jaxproj.cli.main import main as cli
 from jaxproj.human.skeleton import BONE_NAMES, J, descriptor, level_body, world_up
 from jaxproj.io.motion_files import load_motion
+from jaxproj.motion.feasible import SPEED_FRACTIONS
 
 ROBOT = "unitree_g1"
 """The default ``--robot``; any robot solved by the generic IK whose correspondence has the
 arm and foot rows is measured the same way (its sites and joints are read from its data)."""
 FLIP_JOINT_DEG = 20.0
 FLIP_BONE_DEG = 10.0
+CATCH_UP_AT_CAP = 0.95
+"""A step of at least this share of its speed cap is "at the cap" (``flips``' catch-ups)."""
 CONTACT_MM = 1.0
 SIDES = ("left", "right")
 
@@ -151,30 +158,55 @@ def flips(motion, bones: np.ndarray, ok: np.ndarray, robot: robots.Robot) -> dic
     q = np.degrees(motion.angles.astype(np.float64))
     valid = motion.valid & ok
     both = valid[1:] & valid[:-1]
-    step = np.abs(np.diff(q, axis=0))  # (T-1, n_joints)
+    signed = np.diff(q, axis=0)  # (T-1, n_joints)
+    step = np.abs(signed)
+    # each step's largest move the feasibility filter allows (its speed cap over the step's time)
+    cap = np.degrees(robot.speed_limits("rated") * SPEED_FRACTIONS["rated"]).astype(np.float64)
+    allowed = np.diff(np.asarray(motion.times, np.float64))[:, None] * cap[None, :]
+    at_cap = step >= CATCH_UP_AT_CAP * allowed  # (T-1, n_joints)
     per_chain = _chain_bones(robot)
     flip = np.zeros(len(step), bool)
+    catch_up = np.zeros(len(step), bool)
     worst: list[dict] = []
+    caught: list[dict] = []
     for c in robot.chains:
         idx = [BONE_NAMES.index(b) for b in per_chain[c.name]]
         turn = _angle(bones[1:, idx], bones[:-1, idx]).max(axis=1)  # (T-1,)
         cols = [robot.index(j) for j in c.joints]
-        moved = step[:, cols].max(axis=1)
-        f = both & (moved > FLIP_JOINT_DEG) & (turn < FLIP_BONE_DEG)
+        over = both[:, None] & (step[:, cols] > FLIP_JOINT_DEG) & (turn < FLIP_BONE_DEG)[:, None]
+        # a catch-up: the joint's step before was at its speed cap, the same way, while the
+        # person moved (the filter held the robot back; this step finishes that move)
+        before = np.zeros_like(over)
+        before[1:] = (
+            at_cap[:-1, cols]
+            & (np.sign(signed[:-1, cols]) == np.sign(signed[1:, cols]))
+            & both[:-1, None]
+        )
+        late = over & before
+        f = (over & ~late).any(axis=1)
         flip |= f
+        catch_up |= late.any(axis=1) & ~f
         for t in np.flatnonzero(f)[:3]:
-            j = cols[int(np.argmax(step[t, cols]))]
+            j = cols[int(np.argmax(np.where(over[t] & ~late[t], step[t, cols], -1.0)))]
             worst.append({"step": int(t), "joint": robot.joint_names[j],
                           "deg": round(float(step[t, j]), 1),
                           "bones_turn": round(float(turn[t]), 1)})  # fmt: skip
+        for t in np.flatnonzero(late.any(axis=1))[:3]:
+            j = cols[int(np.argmax(np.where(late[t], step[t, cols], -1.0)))]
+            caught.append({"step": int(t), "joint": robot.joint_names[j],
+                           "deg": round(float(step[t, j]), 1),
+                           "step_before_deg": round(float(step[t - 1, j]), 1),
+                           "bones_turn": round(float(turn[t]), 1)})  # fmt: skip
     big = step.max(axis=1)
     return {
         "flip_steps": int(flip.sum()),
+        "catch_up_steps": int(catch_up.sum()),
         "steps": int(both.sum()),
         "steps_over_20": int((both & (big > 20)).sum()),
         "steps_over_90": int((both & (big > 90)).sum()),
         "max_step_deg": round(float(big[both].max(initial=0.0)), 1),
         "examples": worst[:6],
+        "catch_up_examples": caught[:6],
     }
 
 
@@ -330,8 +362,8 @@ def main(argv: list[str] | None = None) -> int:
             r = measure(f, extra, Path(tmp), robot)
             rows.append(r)
             print(json.dumps(r), flush=True)
-    keys = ("flip_steps", "steps_over_90", "max_step_deg", "contact_frames", "lean_diff",
-            "foot_pitch_diff", "arm_median", "arm_p90")  # fmt: skip
+    keys = ("flip_steps", "catch_up_steps", "steps_over_90", "max_step_deg", "contact_frames",
+            "lean_diff", "foot_pitch_diff", "arm_median", "arm_p90")  # fmt: skip
     print(f"{'file':24s} " + " ".join(f"{k:>16s}" for k in keys), file=sys.stderr)
     for r in rows:
         print(f"{r['file']:24s} " + " ".join(f"{r.get(k)!s:>16s}" for k in keys), file=sys.stderr)
