@@ -22,6 +22,7 @@ import sys
 from collections.abc import Sequence
 
 from jaxproj import __version__, robots
+from jaxproj._internal.shards import request_host_devices
 from jaxproj.cli import cache, demo, info, options, projector, render, retarget, robot
 from jaxproj.errors import JaxprojError
 
@@ -45,7 +46,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``jaxproj`` console script; returns the exit status."""
+    """Entry point of the ``jaxproj`` console script; returns the exit status.
+
+    Asks XLA for one CPU device per core first (``shards.request_host_devices``; not where JAX
+    runs already, as in a caller's process that has used it), so that the generic IK's frames
+    run on every core (``jaxproj._internal.shards``)."""
+    request_host_devices()
     args = build_parser().parse_args(argv)
     try:
         with cache.compilation_cache(enabled=not args.no_cache):

@@ -232,17 +232,19 @@ def map_frames(
     full: FullConfig,
     bones: str | tuple[str, ...],
     robot: Robot,
+    shards: int = 1,
 ) -> tuple[jax.Array, jax.Array]:
     """Per-frame mapping: ``(T, m)`` descriptors -> ``(T, n)`` driven angles (rad) and ``(T,)``
     confidence (``projection.confidence``).
 
     ``method="ik"``: the robot's analytic IK (``Robot.solve_ik_traced``; ``p`` unused;
-    ``bones`` picks its bones), confidence 1; ``"relaxed"`` / ``"full"``:
+    ``bones`` picks its bones; its frames split over ``shards`` CPU devices, the same answers),
+    confidence 1; ``"relaxed"`` / ``"full"``:
     ``projection.api.project_batch`` of ``p`` with ``L = n_l``, ``M = n_m``, confidence from
     the objective's value. Both answer within the joint limits.
     """
     if method == "ik":
-        q = robot.solve_ik_traced(d, bones)
+        q = robot.solve_ik_traced(d, bones, shards)
         return q, jnp.ones(q.shape[:-1], jnp.float32)
     if p is None:
         raise ConfigError(f"method {method!r} needs a projector")
@@ -349,6 +351,7 @@ def motion(
     robot: Robot,
     neck: NeckLevel = "off",
     neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
+    shards: int = 1,
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """The whole pipeline for one padded motion (``retarget``'s compiled call).
 
@@ -365,6 +368,7 @@ def motion(
       robot: the robot (its IK, limits, posture and joints).
       neck, neck_neutral: the neck's neutral tilt (``level``): ``"recording"``, the median of
         the motion's valid frames; ``"given"``, ``neck_neutral`` (rad); ``"off"``, none.
+      shards: CPU devices the IK's frames are split over (``map_frames``; the same answers).
 
     Returns:
       ``((T, n_joints) angles, (T,) valid, (T,) confidence)``: ``robot.joint_names`` order,
@@ -375,7 +379,7 @@ def motion(
     ok = ok & ~glitch_frames(d, ok, bones=bones, read=robot.ik_bones)
     d = level(d, ok, neck, neck_neutral, bones=bones, up=world_up(positions))
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
-                         robot=robot)  # fmt: skip
+                         robot=robot, shards=shards)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,
                   smoother=smoother or "paper", d=d, bones=bones)  # fmt: skip
     return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)

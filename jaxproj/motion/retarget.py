@@ -61,6 +61,7 @@ import numpy as np
 
 from jaxproj._internal.buckets import call_bucketed, fine_bucket
 from jaxproj._internal.jit import jit
+from jaxproj._internal.shards import host_shards
 from jaxproj.errors import ConfigError, NoValidFrameError
 from jaxproj.human import skeletons
 from jaxproj.human.skeleton import MIN_BONE_LENGTH, NECK_TILT_REFERENCE
@@ -163,6 +164,7 @@ _motion_jit = jit(
         "smoother",
         "robot",
         "neck",
+        "shards",
     ),
 )
 
@@ -186,7 +188,9 @@ def retarget(
     skeleton: SkeletonLike = "kinect_v1",
 ) -> RetargetResult:
     """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
-    then, with ``feasible``, ``feasible.make_feasible``).
+    then, with ``feasible``, ``feasible.make_feasible``). In a process with several CPU devices
+    (the command line's: one per core) the IK's frames are split over them
+    (``jaxproj._internal.shards``), with the same answers.
 
     Args:
       positions: ``(T, 20, 3)`` joint positions, Kinect SDK order.
@@ -308,6 +312,7 @@ def retarget(
         robot=spec,
         neck=neck,
         neck_neutral=np.float32(neutral),
+        shards=host_shards() if method == "ik" else 1,
     )
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check

@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from jaxproj._internal.shards import over_rows
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
 
@@ -627,12 +628,18 @@ class Robot:
             raise ConfigError(f"robot {self.name!r} has no IK function")
         return self.ik(d, bones)
 
-    def solve_ik_traced(self, d: jax.Array, bones: str | tuple[str, ...] = "upper") -> jax.Array:
+    def solve_ik_traced(
+        self, d: jax.Array, bones: str | tuple[str, ...] = "upper", shards: int = 1
+    ) -> jax.Array:
         """``traced_ik`` (or ``ik``), inside a trace: ``(..., 3 * n_bones)`` descriptors ->
-        ``(..., n_driven)`` angles."""
+        ``(..., n_driven)`` angles. ``shards > 1``: ``(T, 3 * n_bones)`` rows split over that
+        many CPU devices (``jaxproj._internal.shards.over_rows``; the same answers), where
+        ``T`` is a multiple of it (else on one)."""
         fn = self.traced_ik if self.traced_ik is not None else self.ik
         if fn is None:
             raise ConfigError(f"robot {self.name!r} has no IK function")
+        if shards > 1 and d.ndim == 2 and d.shape[0] % shards == 0:
+            return over_rows(lambda x: fn(x, bones), shards)(d)
         return fn(d, bones)
 
     @property

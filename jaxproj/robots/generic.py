@@ -21,6 +21,7 @@ from jax.typing import ArrayLike
 
 from jaxproj._internal.buckets import call_bucketed
 from jaxproj._internal.jit import jit
+from jaxproj._internal.shards import host_shards, over_rows
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import resolve_bones
 from jaxproj.robots.base import Robot
@@ -108,22 +109,24 @@ class GenericSolver:
         return self.build().separate(q, start=start)
 
     @functools.cache  # noqa: B019
-    def _jitted(self, bones: Bones) -> jax.stages.Wrapped:
-        return jit(lambda d: self.build().solve(d, bones))
+    def _jitted(self, bones: Bones, shards: int = 1) -> jax.stages.Wrapped:
+        return jit(over_rows(lambda d: self.build().solve(d, bones), shards))
 
     def solve_driven(self, d: ArrayLike, bones: Bones = "full") -> jax.Array:
         """``Robot.ik``: ``(..., 3 * n_bones)`` descriptors (``bones`` layout, holding every bone
         of the chains) -> ``(..., n_driven)`` float32 driven angles, rad, within limits, finite.
 
-        Compiled once per shape; host arrays are padded to a bucket of rows (one compile each).
+        Compiled once per shape; host arrays are padded to a bucket of rows (one compile each)
+        and, in a process with several CPU devices, their rows split over them
+        (``jaxproj._internal.shards``; the same answers).
         """
-        fn = self._jitted(bones)
         if isinstance(d, jax.Array):
-            return fn(d)
+            return self._jitted(bones)(d)
         x = np.asarray(d, np.float32)
         if x.ndim == 0:
             raise ConfigError(f"descriptors must be (..., 3 * n_bones), got a scalar {x!r}")
-        return call_bucketed(fn, x, 1)
+        # the buckets are multiples of MIN_ROWS (64) rows, so of any number of shards
+        return call_bucketed(self._jitted(bones, host_shards()), x, 1)
 
 
 def with_generic_ik(robot: Robot, correspondence: Correspondence, config: IKConfig) -> Robot:

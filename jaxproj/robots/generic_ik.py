@@ -717,7 +717,7 @@ class GenericIK:
                 x, f, ok = self._solve_chain(q, t_c, w_c, c)
                 return q.at[c.joints].set(x), (f, ok)
 
-            q0 = self._extended(jnp.asarray(self.robot.standing))
+            q0 = _varying_as(self._extended(jnp.asarray(self.robot.standing)), row[0])
             q, (objective, stationary) = jax.lax.scan(chain, q0, (data, t, w))
             return q[self.robot.driven_index], objective, stationary
 
@@ -803,21 +803,32 @@ class GenericIK:
                     )
                     return x, jnp.sum(r * r)
 
-                if other_ext is None:  # no second start: the plain solve
-                    x = run(x_in)[0]
-                else:
+                def search() -> jax.Array:
+                    if other_ext is None:  # no second start: the plain solve
+                        return run(x_in)[0]
                     x0 = jnp.stack([x_in, jnp.clip(other_ext[c.joints], c.lim_lo, c.lim_hi)])
                     xs, fs = jax.vmap(run)(x0)
-                    x = xs[jnp.argmin(fs)]
+                    return xs[jnp.argmin(fs)]
+
+                # where every pair is `margin` apart at x_in, the search returns x_in itself
+                # (its objective is 0 there, and no step lowers it; the start x_in wins a tie):
+                # skipped then (a real branch for one pose, as `playable_motion` passes them;
+                # under vmap both branches run and the answer is the same)
+                pen, _ = self._collision_terms(self._chain_points(x_in, q_ext, c)[0], None, c)
+                x = jax.lax.cond(jnp.any(pen > 0), search, lambda: x_in)
                 return q_ext.at[c.joints].set(x), None
 
             q_ext, _ = jax.lax.scan(chain, standing.at[didx].set(row), data)
             return q_ext[didx]
 
-        if start is None:
+        st = None
+        if start is not None:
+            st = jnp.broadcast_to(jnp.asarray(start, jnp.float32), q.shape).reshape(-1, n_driven)
+        if flat.shape[0] == 1:  # one pose: no vmap, so that the skip above is a real branch
+            out = one(flat[0], None if st is None else st[0])[None]
+        elif st is None:
             out = jax.vmap(one)(flat)
         else:
-            st = jnp.broadcast_to(jnp.asarray(start, jnp.float32), q.shape).reshape(-1, n_driven)
             out = jax.vmap(one)(flat, st)
         lo_d, hi_d = self.robot.lower_driven[None], self.robot.upper_driven[None]
         out = jnp.where(jnp.isfinite(out), out, jnp.clip(flat, lo_d, hi_d))
@@ -1018,9 +1029,22 @@ def _levenberg_marquardt(
         )
 
     r0, jac0 = res_jac(x0)
-    init = (x0, r0, jac0, jnp.sum(r0 * r0), jnp.float32(damping))
+    f0 = jnp.sum(r0 * r0)
+    init = (_varying_as(x0, f0), r0, jac0, f0, _varying_as(jnp.float32(damping), f0))
     x, r, jac, _, _ = jax.lax.fori_loop(0, iterations, step, init)
     return x, r, jac
+
+
+def _varying_as(x: jax.typing.ArrayLike, ref: jax.Array) -> jax.Array:
+    """``x`` itself (the same values), made to vary with the scalar ``ref`` under ``vmap``.
+
+    For a loop's initial carry: ``vmap`` of a ``scan`` / ``fori_loop`` traces the body with the
+    carries batched as the initial ones are, and traces it again when an unbatched carry (a
+    constant start) comes out batched; nested, the traces multiply (a second run's retarget of
+    the G1 spent seconds tracing its IK's loops). A carry that varies from the start is traced
+    once. ``where(isnan(ref), x, x)`` is ``x`` whatever ``ref`` holds, and XLA folds it away."""
+    x = jnp.asarray(x)
+    return jnp.where(jnp.isnan(ref), x, x)
 
 
 def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
