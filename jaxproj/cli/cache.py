@@ -29,8 +29,14 @@ from pathlib import Path
 
 import jax
 
+from jaxproj._internal import executables
+
 ENV = "JAXPROJ_CACHE_DIR"
 """The environment variable that names the cache folder."""
+
+EXECUTABLES = "executables"
+"""The subfolder of the cache folder that holds whole executables (``jaxproj._internal.
+executables``: the retarget programs, loaded without tracing)."""
 
 MIN_COMPILE_SECONDS = 0.0
 """Programs that took at least this long to compile are cached (JAX's default: 1 s, which
@@ -99,7 +105,8 @@ def compilation_cache(enabled: bool = True) -> Iterator[Path | None]:
             jax.config.update("jax_compilation_cache_dir", str(path))
             if "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS" not in os.environ:
                 jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
-        yield path
+        with executables.kept_in(None if path is None else path / EXECUTABLES):
+            yield path
     finally:
         for name, value in saved.items():
             jax.config.update(name, value)

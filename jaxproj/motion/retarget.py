@@ -52,13 +52,13 @@ feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apa
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
+from jaxproj._internal import executables
 from jaxproj._internal.buckets import call_bucketed, fine_bucket
 from jaxproj._internal.jit import jit
 from jaxproj._internal.shards import host_shards
@@ -148,7 +148,13 @@ def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
     """``retarget``'s last stage on the host: one motion's ``(T, n_joints)`` angles made
     playable in time order (``pipeline.playable_full``), compiled once per row bucket (the
     padding rows come after the motion's: the pass is causal, they change nothing)."""
-    fn = functools.partial(_playable_jit, robot=robot)
+    identity = executables.robot_identity(robot)
+
+    def fn(x: np.ndarray) -> Any:
+        return executables.call(
+            _playable_jit, (x,), static={"robot": robot}, name="playable", identity=identity
+        )
+
     return np.asarray(call_bucketed(fn, angles, 1, sizes=fine_bucket))
 
 
@@ -296,12 +302,7 @@ def retarget(
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
     padded = np.concatenate([stamps, np.repeat(stamps[-1:], size - t)])
     gains = frame_gains(params, None if times is None else padded, t)
-    angles, ok_out, conf = _motion_jit(
-        p,
-        pos,
-        ok,
-        np.int32(t),
-        gains,
+    static = dict(
         method=method,
         n_l=n_l,
         n_m=n_m,
@@ -311,8 +312,16 @@ def retarget(
         smoother=None if smoothing is None else kind,
         robot=spec,
         neck=neck,
-        neck_neutral=np.float32(neutral),
         shards=host_shards() if method == "ik" else 1,
+    )
+    angles, ok_out, conf = executables.call(
+        _motion_jit,
+        (p, pos, ok, np.int32(t), gains),
+        {"neck_neutral": np.float32(neutral)},
+        static,
+        name="retarget",
+        # the projector's arrays are arguments, its layout is not: kept for the IK alone
+        identity=executables.robot_identity(spec) if p is None else None,
     )
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check

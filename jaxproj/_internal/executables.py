@@ -1,0 +1,191 @@
+"""Compiled programs kept on disk by the command line, so that a second run does not trace.
+
+The persistent compilation cache (``jaxproj.cli.cache``) spares a later run XLA's compiling, not
+JAX's tracing and lowering: the G1's retarget program traces for ~6 s on the 2-core VM each
+time a process first calls it, a third of a second run's time. ``call`` keeps the compiled
+executable itself (``jax.experimental.serialize_executable``) in a folder, keyed by everything
+that decides the program, and a later process loads it (milliseconds) and runs it without
+tracing.
+
+The key (sha256) covers: the function's name; the bytes of every ``.py`` file of the installed
+``jaxproj`` package (``source_digest``: any change of the code is a new program); JAX's and
+jaxlib's versions, the backend, the devices and ``$XLA_FLAGS``; the JAX settings that change a
+trace (64-bit, the promotion rules, the default matmul precision); the call's static arguments
+(``repr``) and its arrays' tree, shapes and dtypes; and ``identity``, what the caller says
+identifies the rest (a robot: its name and the digest of its robot file and MJCF,
+``robot_identity``). A caller that cannot name what its program depends on passes
+``identity=None`` and the call is a plain ``jitted(...)``. A file that does not load (another
+version's, cut short) is compiled again and replaced. Like the compilation cache, the folder is
+trusted code (its files are unpickled).
+
+Off unless ``kept_in(folder)`` is active: the command line turns it on with its compilation
+cache (``--no-cache`` turns both off); a library import never does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import importlib.metadata
+import os
+import pickle
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from jaxproj._internal.atomic import atomic_write
+
+_FOLDER: list[Path] = []
+_LOADED: dict[Path, Any] = {}
+"""The executables this process loaded or compiled, by file (at most ``KEEP_LOADED``): a second
+call runs the one in memory (each load maps the program's code again)."""
+
+KEEP_LOADED = 8
+
+
+@contextlib.contextmanager
+def kept_in(folder: Path | None) -> Iterator[None]:
+    """Within the block, ``call`` keeps its executables in ``folder`` (``None``: off)."""
+    if folder is not None:
+        _FOLDER.append(folder)
+    try:
+        yield
+    finally:
+        if folder is not None:
+            _FOLDER.pop()
+
+
+def active() -> Path | None:
+    """The folder ``call`` keeps executables in now, or ``None``."""
+    return _FOLDER[-1] if _FOLDER else None
+
+
+@functools.cache
+def source_digest() -> str:
+    """sha256 (hex) over the path and bytes of every ``.py`` file of the ``jaxproj`` package."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        h.update(str(path.relative_to(root)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+@functools.cache
+def _file_digest(path: Path, mtime_ns: int, size: int) -> str:
+    from jaxproj.robots import robot_file
+
+    return robot_file.digest(path)
+
+
+def robot_identity(robot: Any) -> tuple[str, str] | None:
+    """``(name, digest)`` of a robot read from a robot file and registered under its name (the
+    robot ``robots.get(name)`` gives), whose Python, if it names any, is ``jaxproj``'s own (in
+    ``source_digest``); ``None`` for any other robot (built in Python, a variant of a
+    registered one, an IK module of the user's)."""
+    from jaxproj import robots
+
+    if robot.file is None or not robot.file.is_file():
+        return None
+    try:
+        if robots.get(robot.name) is not robot:
+            return None
+    except Exception:  # noqa: BLE001 (not registered)
+        return None
+    for fn in (robot.ik, robot.traced_ik):
+        if fn is not None and not str(getattr(fn, "__module__", "")).startswith("jaxproj."):
+            return None
+    stat = robot.file.stat()
+    return robot.name, _file_digest(robot.file.resolve(), stat.st_mtime_ns, stat.st_size)
+
+
+def _aval(x: Any) -> tuple[tuple[int, ...], str]:
+    if hasattr(x, "shape") and hasattr(x, "dtype"):
+        return tuple(x.shape), str(x.dtype)
+    a = np.asarray(x)
+    return a.shape, str(a.dtype)
+
+
+def _key(
+    name: str, args: tuple, kwargs: Mapping[str, Any], words: Mapping[str, str], identity: Any
+) -> str:
+    leaves, tree = jax.tree.flatten((args, dict(kwargs)))
+    settings = tuple(
+        str(getattr(jax.config, s, None))
+        for s in (
+            "jax_enable_x64",
+            "jax_numpy_dtype_promotion",
+            "jax_numpy_rank_promotion",
+            "jax_default_matmul_precision",
+        )
+    )
+    parts = (
+        name,
+        source_digest(),
+        jax.__version__,
+        importlib.metadata.version("jaxlib"),
+        jax.default_backend(),
+        tuple(str(d) for d in jax.devices()),
+        os.environ.get("XLA_FLAGS", ""),
+        settings,
+        tuple(sorted(words.items())),
+        str(tree),
+        tuple(_aval(x) for x in leaves),
+        repr(identity),
+    )
+    return hashlib.sha256(repr(parts).encode()).hexdigest()
+
+
+def call(
+    jitted: Any,
+    args: tuple,
+    kwargs: Mapping[str, Any] | None = None,
+    static: Mapping[str, Any] | None = None,
+    *,
+    name: str,
+    identity: Any,
+    identified: tuple[str, ...] = ("robot",),
+) -> Any:
+    """``jitted(*args, **kwargs, **static)`` (``static``: its static arguments), through an
+    executable kept on disk where ``kept_in`` is active and ``identity`` is not ``None`` (the
+    module doc): loaded when its key's file is there, else compiled and written. The static
+    arguments named in ``identified`` enter the key through ``identity`` (default: ``robot``,
+    by ``robot_identity``), the others by their ``repr``."""
+    kwargs, static = dict(kwargs or {}), dict(static or {})
+    folder = active()
+    # the static arguments' words: those `identity` stands for left out (a robot's repr holds
+    # its functions' addresses, which differ in every process); any other such repr: no key
+    words = {k: repr(v) for k, v in static.items() if k not in identified}
+    if folder is None or identity is None or any(" at 0x" in w for w in words.values()):
+        return jitted(*args, **kwargs, **static)
+    from jax.experimental.serialize_executable import deserialize_and_load, serialize
+
+    path = folder / f"{name}-{_key(name, args, kwargs, words, identity)[:40]}.xla"
+    compiled = _LOADED.get(path)
+    if compiled is None and path.is_file():
+        try:
+            payload, in_tree, out_tree = pickle.loads(path.read_bytes())
+            compiled = deserialize_and_load(payload, in_tree, out_tree)
+        except Exception:  # noqa: BLE001 (another version's file, cut short: compile again)
+            compiled = None
+    if compiled is None:
+        compiled = jitted.lower(*args, **kwargs, **static).compile()
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            data = pickle.dumps(serialize(compiled))
+
+            def write(tmp: Path) -> None:
+                tmp.write_bytes(data)
+
+            atomic_write(path, write)
+        except Exception:  # noqa: BLE001 (a program that does not serialise, a full disk: run it)
+            pass
+    if path not in _LOADED:
+        if len(_LOADED) >= KEEP_LOADED:
+            _LOADED.pop(next(iter(_LOADED)))
+        _LOADED[path] = compiled
+    return compiled(*args, **kwargs)

@@ -1,0 +1,121 @@
+"""Executables kept on disk by the command line (``jaxproj._internal.executables``): a second
+call with the same key runs the kept program (no trace), a change of any part of the key is
+another program, and what cannot be keyed is never kept."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxproj import robots
+from jaxproj._internal import executables
+from jaxproj.cli import main
+
+TRACES: list[int] = []
+
+
+def _f(x: jax.Array, *, scale: float) -> jax.Array:
+    TRACES.append(1)  # runs while tracing only
+    return jnp.sin(x) * scale
+
+
+F = jax.jit(_f, static_argnames=("scale",))
+
+
+def _call(x: np.ndarray, scale: float = 2.0, identity: object = ("t", 1)) -> np.ndarray:
+    return np.asarray(
+        executables.call(F, (x,), static={"scale": scale}, name="f", identity=identity)
+    )
+
+
+def _new_process() -> None:
+    """Forget what this process traced and loaded, as a new process starts."""
+    executables._LOADED.clear()
+    jax.clear_caches()
+
+
+@pytest.fixture(autouse=True)
+def _fresh() -> None:
+    _new_process()
+    TRACES.clear()
+
+
+def test_a_kept_program_runs_again_without_a_trace(tmp_path: Path) -> None:
+    x = np.linspace(0, 1, 8, dtype=np.float32)
+    with executables.kept_in(tmp_path):
+        first = _call(x)
+        np.testing.assert_allclose(first, np.sin(x) * 2.0, rtol=1e-6)
+        assert len(TRACES) == 1 and len(list(tmp_path.glob("f-*.xla"))) == 1
+        _new_process()
+        np.testing.assert_array_equal(_call(x), first)  # from the file, not traced again
+        assert len(TRACES) == 1
+        # another static value, shape, dtype or identity: another program, another file
+        _call(x, scale=3.0)
+        _call(x[:4])
+        _call(x.astype(np.float16))
+        _call(x, identity=("t", 2))
+        assert len(TRACES) == 5 and len(list(tmp_path.glob("f-*.xla"))) == 5
+
+
+def test_a_broken_file_is_compiled_again_and_replaced(tmp_path: Path) -> None:
+    x = np.ones(4, np.float32)
+    with executables.kept_in(tmp_path):
+        _call(x)
+        (path,) = tmp_path.glob("f-*.xla")
+        path.write_bytes(b"not a program")
+        _new_process()
+        np.testing.assert_allclose(_call(x), np.sin(x) * 2.0)
+        assert len(TRACES) == 2 and path.read_bytes() != b"not a program"
+
+
+def test_nothing_is_kept_without_a_folder_an_identity_or_a_stable_key(tmp_path: Path) -> None:
+    x = np.ones(4, np.float32)
+    _call(x)  # no folder: a plain jit call
+    with executables.kept_in(tmp_path):
+        _call(x, identity=None)
+        # a static argument whose repr holds an address (differs in every process)
+        executables.call(
+            jax.jit(lambda v, *, fn: fn(v), static_argnames=("fn",)),
+            (x,),
+            static={"fn": lambda v: v + 1},
+            name="g",
+            identity=("t", 1),
+        )
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_robot_is_identified_by_its_files_only_as_registered() -> None:
+    g1 = robots.get("unitree_g1")
+    name, digest = executables.robot_identity(g1)  # type: ignore[misc]
+    assert name == "unitree_g1" and len(digest) == 64
+    assert executables.robot_identity(dataclasses.replace(g1, track=None, track_step=None)) is None
+    assert len(executables.source_digest()) == 64
+
+
+def test_the_second_retarget_of_the_command_line_loads_its_program(tmp_path: Path, capsys) -> None:
+    """Through ``jaxproj retarget`` (the NAO, a robot file): the first run keeps the retarget
+    program in the cache folder's ``executables``, the second loads it and writes the same."""
+    from helpers import msr_text
+
+    from jaxproj.io import datasets
+
+    seq = datasets.msr_action3d(subjects=[1], actions=[1])[0]
+    rec = tmp_path / "a01_s01_e01_skeleton3D.txt"
+    rec.write_text(msr_text(seq.positions))
+    cache = tmp_path / "cache"
+    outs = []
+    for i in range(2):
+        _new_process()
+        out = tmp_path / f"m{i}.npz"
+        with pytest.MonkeyPatch.context() as m:
+            m.setenv("JAXPROJ_CACHE_DIR", str(cache))
+            assert main(["retarget", str(rec), "--out", str(out)]) == 0, capsys.readouterr().err
+        outs.append(np.load(out)["angles"])
+    kept = sorted(p.name.split("-")[0] for p in (cache / "executables").glob("*.xla"))
+    assert kept == ["retarget"]
+    np.testing.assert_array_equal(outs[0], outs[1])
