@@ -140,6 +140,17 @@ def _key(
     return hashlib.sha256(repr(parts).encode()).hexdigest()
 
 
+def _devices(compiled: Any) -> list[int]:
+    """The ids of the devices a compiled program runs on, in order (its shardings' devices; a
+    loaded program must be told them: left alone it would take every local device)."""
+    found: set[int] = set()
+    for sharding in jax.tree.leaves((compiled.input_shardings, compiled.output_shardings)):
+        found |= {d.id for d in sharding.device_set}
+    if not found:
+        raise ValueError("a program without devices")
+    return sorted(found)
+
+
 def call(
     jitted: Any,
     args: tuple,
@@ -168,15 +179,18 @@ def call(
     compiled = _LOADED.get(path)
     if compiled is None and path.is_file():
         try:
-            payload, in_tree, out_tree = pickle.loads(path.read_bytes())
-            compiled = deserialize_and_load(payload, in_tree, out_tree)
+            payload, in_tree, out_tree, ids = pickle.loads(path.read_bytes())
+            by_id = {d.id: d for d in jax.devices()}
+            compiled = deserialize_and_load(
+                payload, in_tree, out_tree, execution_devices=[by_id[i] for i in ids]
+            )
         except Exception:  # noqa: BLE001 (another version's file, cut short: compile again)
             compiled = None
     if compiled is None:
         compiled = jitted.lower(*args, **kwargs, **static).compile()
         try:
             folder.mkdir(parents=True, exist_ok=True)
-            data = pickle.dumps(serialize(compiled))
+            data = pickle.dumps((*serialize(compiled), _devices(compiled)))
 
             def write(tmp: Path) -> None:
                 tmp.write_bytes(data)

@@ -35,6 +35,7 @@ def test_the_split_ik_answers_as_one_device_does() -> None:
     assert r["asked_again"] is None
     assert r["ik_rows"] == 100 and r["ik_max_diff"] == 0.0
     assert r["motion_frames"] > 20 and r["motion_max_diff"] == 0.0
+    assert r["kept_and_loaded"]
 
 
 def test_a_running_backend_is_left_alone() -> None:

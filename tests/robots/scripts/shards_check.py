@@ -6,6 +6,7 @@ and the generic IK split over them answers as on one device, in ``Robot.ik`` and
 import json
 import os
 import sys
+import tempfile
 from pathlib import Path
 
 from jaxproj._internal import shards
@@ -18,6 +19,7 @@ import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
 from jaxproj import robots  # noqa: E402
+from jaxproj._internal import executables  # noqa: E402
 from jaxproj.io import datasets  # noqa: E402
 from jaxproj.motion import retarget as retarget_module  # noqa: E402
 
@@ -31,6 +33,14 @@ def main() -> None:
     split_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
     retarget_module.host_shards = lambda: 1  # the same call on one device
     one_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
+    # a kept one-device program, loaded again in this process of several devices (a loaded
+    # program is told its devices; left alone it took them all and refused its arguments)
+    with tempfile.TemporaryDirectory() as tmp, executables.kept_in(Path(tmp)):
+        double = jax.jit(lambda x: 2.0 * x)
+        x = np.arange(4, dtype=np.float32)
+        kept = np.asarray(executables.call(double, (x,), name="double", identity=("t",)))
+        executables._LOADED.clear()
+        loaded = np.asarray(executables.call(double, (x,), name="double", identity=("t",)))
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(json.dumps({
         "asked": asked,
@@ -42,6 +52,7 @@ def main() -> None:
         "ik_max_diff": float(np.abs(split - one).max()),
         "motion_frames": len(split_motion),
         "motion_max_diff": float(np.abs(split_motion - one_motion).max()),
+        "kept_and_loaded": kept.tolist() == loaded.tolist() == [0.0, 2.0, 4.0, 6.0],
     }))  # fmt: skip
 
 
