@@ -111,6 +111,7 @@ def _playable_rows(heading: str) -> dict[str, dict[str, str]]:
 
 PLAYABLE_COLUMNS: dict[str, Callable[[dict], str]] = {
     "flip steps": lambda r: str(r["flip_steps"]),
+    "speed-limit catch-ups": lambda r: str(r["catch_up_steps"]),
     "steps > 90 deg": lambda r: str(r["steps_over_90"]),
     "contact frames": lambda r: str(r["contact_frames"]),
     "lean robot / person, deg": lambda r: (
@@ -133,8 +134,8 @@ PLAYABLE_COLUMNS: dict[str, Callable[[dict], str]] = {
 )
 def test_the_g1_playable_tables_are_the_result_files(heading: str, result: str) -> None:
     """Every column of the results page's G1 playable tables that a result file holds (flip
-    steps, steps over 90 deg, contact frames, the lean, the foot pitch, the arms' median /
-    p90), recording by recording."""
+    steps, speed-limit catch-ups, steps over 90 deg, contact frames, the lean, the foot pitch,
+    the arms' median / p90), recording by recording."""
     rows = _playable_rows(heading)
     assert set(rows) == set(PLAYABLE_FILES), f"{heading}: rows {sorted(rows)}"
     got = json.loads((RESULTS / result).read_text(encoding="utf-8"))["rows"]
