@@ -91,9 +91,9 @@ def test_nothing_is_kept_without_a_folder_an_identity_or_a_stable_key(tmp_path: 
 
 def test_a_robot_is_identified_by_its_files_only_as_registered() -> None:
     g1 = robots.get("unitree_g1")
-    name, digest = executables.robot_identity(g1)  # type: ignore[misc]
+    name, digest = robots.identity(g1)  # type: ignore[misc]
     assert name == "unitree_g1" and len(digest) == 64
-    assert executables.robot_identity(dataclasses.replace(g1, track=None, track_step=None)) is None
+    assert robots.identity(dataclasses.replace(g1, track=None, track_step=None)) is None
     assert len(executables.source_digest()) == 64
 
 
@@ -119,3 +119,26 @@ def test_the_second_retarget_of_the_command_line_loads_its_program(tmp_path: Pat
     kept = sorted(p.name.split("-")[0] for p in (cache / "executables").glob("*.xla"))
     assert kept == ["retarget"]
     np.testing.assert_array_equal(outs[0], outs[1])
+
+
+def test_a_kept_program_that_fails_to_run_is_dropped(tmp_path: Path, monkeypatch) -> None:
+    """A program that loads but fails when it runs (XLA's runtime error): the file is deleted
+    and the call answers as the plain jit call does."""
+    x = np.ones(4, np.float32)
+    with executables.kept_in(tmp_path):
+        want = _call(x)
+        (path,) = tmp_path.glob("f-*.xla")
+        _new_process()
+
+        class Broken:
+            def __init__(self, *a: object, **k: object) -> None:
+                pass
+
+            def __call__(self, *a: object, **k: object) -> None:
+                raise jax.errors.JaxRuntimeError("NOT_FOUND: Function fusion not found")
+
+        import jax.experimental.serialize_executable as se
+
+        monkeypatch.setattr(se, "deserialize_and_load", Broken)
+        np.testing.assert_array_equal(_call(x), want)
+        assert not path.exists() and not executables._LOADED

@@ -75,7 +75,7 @@ from jaxproj.motion.smoothing import Smoothing, frame_gains, smoother_kind
 from jaxproj.projection.api import Model, check_neighbours
 from jaxproj.projection.confidence import DEVIATION_SCALE, LOW_CONFIDENCE, rescale
 from jaxproj.projection.config import FullConfig
-from jaxproj.robots import Robot, get
+from jaxproj.robots import Robot, get, identity
 
 Method = Literal["ik", "relaxed", "full"]
 METHODS: tuple[str, ...] = ("ik", "relaxed", "full")
@@ -148,11 +148,11 @@ def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
     """``retarget``'s last stage on the host: one motion's ``(T, n_joints)`` angles made
     playable in time order (``pipeline.playable_full``), compiled once per row bucket (the
     padding rows come after the motion's: the pass is causal, they change nothing)."""
-    identity = executables.robot_identity(robot)
+    key = identity(robot)
 
     def fn(x: np.ndarray) -> Any:
         return executables.call(
-            _playable_jit, (x,), static={"robot": robot}, name="playable", identity=identity
+            _playable_jit, (x,), static={"robot": robot}, name="playable", identity=key
         )
 
     return np.asarray(call_bucketed(fn, angles, 1, sizes=fine_bucket))
@@ -321,7 +321,7 @@ def retarget(
         static,
         name="retarget",
         # the projector's arrays are arguments, its layout is not: kept for the IK alone
-        identity=executables.robot_identity(spec) if p is None else None,
+        identity=identity(spec) if p is None else None,
     )
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check

@@ -20,12 +20,13 @@ default robot (``"nao_h25"``).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from pathlib import Path, PurePath
 
 from jaxproj.errors import ConfigError
 from jaxproj.robots.base import Chain, CoupledLimit, Export, Mjcf, Robot, clip_coupled
-from jaxproj.robots.robot_file import describe, load
+from jaxproj.robots.robot_file import describe, digest, load
 
 BUNDLED_FILES: tuple[Path, ...] = tuple(sorted(Path(__file__).parent.glob("*/robot.toml")))
 """The robot files shipped with jaxproj (one folder each, with its MJCF), registered on import."""
@@ -40,8 +41,8 @@ UNITREE_G1 = load(Path(__file__).parent / "unitree_g1" / "robot.toml")
 read from its robot file ``unitree_g1/robot.toml`` and MJCF ``unitree_g1/unitree_g1.xml``."""
 
 __all__ = ["DEFAULT", "NAO_H25", "UNITREE_G1", "Chain", "CoupledLimit", "Export", "Mjcf", "Robot",
-           "BUNDLED_FILES", "clip_coupled", "describe", "for_joints", "get", "is_file_name", "load",
-           "names", "register", "unregister"]  # fmt: skip
+           "BUNDLED_FILES", "clip_coupled", "describe", "for_joints", "get", "identity",
+           "is_file_name", "load", "names", "register", "unregister"]  # fmt: skip
 
 DEFAULT = "nao_h25"
 """Name of the default robot."""
@@ -148,3 +149,24 @@ def for_joints(joint_names: Sequence[str]) -> Robot:
 register(NAO_H25)
 for _file in BUNDLED_FILES:
     register(load(_file))
+
+
+@functools.cache
+def _digest(path: Path, mtime_ns: int, size: int) -> str:
+    return digest(path)
+
+
+def identity(robot: Robot) -> tuple[str, str] | None:
+    """``(name, digest)`` of a robot read from a robot file and registered under its name (the
+    robot ``get(name)`` gives), whose Python, if its file names any, is ``jaxproj``'s own;
+    ``None`` for any other robot (built in Python, a variant of a registered one, an IK module of
+    the user's). ``digest``: sha256 of the robot file and its MJCF (``robot_file.digest``). What
+    the command line's kept executables key a robot's programs by
+    (``jaxproj._internal.executables``)."""
+    if robot.file is None or not robot.file.is_file() or _REGISTRY.get(robot.name) is not robot:
+        return None
+    for fn in (robot.ik, robot.traced_ik):
+        if fn is not None and not str(getattr(fn, "__module__", "")).startswith("jaxproj."):
+            return None
+    stat = robot.file.stat()
+    return robot.name, _digest(robot.file.resolve(), stat.st_mtime_ns, stat.st_size)
