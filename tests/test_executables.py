@@ -142,3 +142,33 @@ def test_a_kept_program_that_fails_to_run_is_dropped(tmp_path: Path, monkeypatch
         monkeypatch.setattr(se, "deserialize_and_load", Broken)
         np.testing.assert_array_equal(_call(x), want)
         assert not path.exists() and not executables._LOADED
+
+
+def test_two_models_of_one_shape_share_the_program_not_the_answers(tmp_path: Path) -> None:
+    """The relaxed retarget of two models with the same shapes (seeds 0 and 1): one kept
+    program (a projector's arrays are its arguments), each model's own answers, the same as
+    without the kept program."""
+    from jaxproj.io import datasets
+    from jaxproj.motion.retarget import retarget
+    from jaxproj.projection import api as engine
+    from jaxproj.robots.nao_h25 import ik
+
+    train = np.unique(datasets.valid_descriptors(datasets.msr_action3d(subjects=[1])), axis=0)
+    human = train[np.sort(np.random.default_rng(0).choice(len(train), 120, replace=False))]
+    robot = np.asarray(ik.solve_driven(human), np.float32)
+    models = [
+        engine.from_landmarks(human, robot, engine.BuildConfig(k=16, hidden=32, seed=s))
+        for s in (0, 1)
+    ]
+    seq = datasets.msr_action3d(subjects=[2], actions=[1])[0]
+
+    def run(m: engine.Model) -> np.ndarray:
+        return retarget(seq.positions, seq.valid, model=m).angles
+
+    with executables.kept_in(tmp_path):
+        kept = [run(m) for m in models]
+    assert [p.name.split("-")[0] for p in tmp_path.glob("*.xla")] == ["retarget"]
+    plain = [run(m) for m in models]
+    np.testing.assert_array_equal(kept[0], plain[0])
+    np.testing.assert_array_equal(kept[1], plain[1])
+    assert np.abs(kept[0] - kept[1]).max() > 1e-3

@@ -144,6 +144,7 @@ def call(
     # the static arguments' words: those `identity` stands for left out (a robot's repr holds
     # its functions' addresses, which differ in every process); any other such repr: no key
     words = {k: repr(v) for k, v in static.items() if k not in identified}
+    words["(tree)"] = str(jax.tree.structure((args, kwargs)))  # a pytree's static fields too
     if folder is None or identity is None or any(" at 0x" in w for w in words.values()):
         return jitted(*args, **kwargs, **static)
     from jax.experimental.serialize_executable import deserialize_and_load, serialize

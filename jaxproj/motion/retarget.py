@@ -320,8 +320,8 @@ def retarget(
         {"neck_neutral": np.float32(neutral)},
         static,
         name="retarget",
-        # the projector's arrays are arguments, its layout is not: kept for the IK alone
-        identity=identity(spec) if p is None else None,
+        # a projector's arrays are arguments, its layout (static) in the tree's words
+        identity=identity(spec),
     )
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check
