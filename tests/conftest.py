@@ -53,8 +53,15 @@ def pytest_configure(config: pytest.Config) -> None:
         folder = tempfile.mkdtemp(prefix="jaxproj-test-xla-")
         _TEMP_CACHE.append(folder)
     # the command line's own cache (jaxproj.cli.cache) goes there too, never to the user's home
+    # the command line's kept executables off (jaxproj._internal.executables): their key does
+    # not see the monkeypatches of tests, and tests/test_executables.py turns them on itself
     os.environ.update(
-        {"JAX_COMPILATION_CACHE_DIR": folder, "JAXPROJ_CACHE_DIR": folder, **_CACHE_ENV}
+        {
+            "JAX_COMPILATION_CACHE_DIR": folder,
+            "JAXPROJ_CACHE_DIR": folder,
+            "JAXPROJ_KEEP_EXECUTABLES": "0",
+            **_CACHE_ENV,
+        }
     )
     jax.config.update("jax_compilation_cache_dir", folder)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)

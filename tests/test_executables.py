@@ -114,6 +114,7 @@ def test_the_second_retarget_of_the_command_line_loads_its_program(tmp_path: Pat
         out = tmp_path / f"m{i}.npz"
         with pytest.MonkeyPatch.context() as m:
             m.setenv("JAXPROJ_CACHE_DIR", str(cache))
+            m.setenv("JAXPROJ_KEEP_EXECUTABLES", "1")
             assert main(["retarget", str(rec), "--out", str(out)]) == 0, capsys.readouterr().err
         outs.append(np.load(out)["angles"])
     kept = sorted(p.name.split("-")[0] for p in (cache / "executables").glob("*.xla"))
@@ -172,3 +173,17 @@ def test_two_models_of_one_shape_share_the_program_not_the_answers(tmp_path: Pat
     np.testing.assert_array_equal(kept[0], plain[0])
     np.testing.assert_array_equal(kept[1], plain[1])
     assert np.abs(kept[0] - kept[1]).max() > 1e-3
+
+
+def test_the_environment_turns_the_kept_executables_off(monkeypatch, tmp_path: Path) -> None:
+    from jaxproj.cli import cache
+
+    monkeypatch.setenv("JAXPROJ_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("JAXPROJ_KEEP_EXECUTABLES", "0")
+    with cache.compilation_cache():
+        assert executables.active() is None
+    monkeypatch.setenv("JAXPROJ_KEEP_EXECUTABLES", "1")
+    with cache.compilation_cache():
+        assert executables.active() == tmp_path / cache.EXECUTABLES
+    with cache.compilation_cache(enabled=False):
+        assert executables.active() is None

@@ -38,6 +38,10 @@ EXECUTABLES = "executables"
 """The subfolder of the cache folder that holds whole executables (``jaxproj._internal.
 executables``: the retarget programs, loaded without tracing)."""
 
+KEEP_ENV = "JAXPROJ_KEEP_EXECUTABLES"
+"""``0`` in the environment: the compilation cache without the kept executables (for a process
+that changes jaxproj's code at run time, which their key cannot see; the test suite)."""
+
 MIN_COMPILE_SECONDS = 0.0
 """Programs that took at least this long to compile are cached (JAX's default: 1 s, which
 leaves out the small programs a retarget compiles dozens of)."""
@@ -105,7 +109,8 @@ def compilation_cache(enabled: bool = True) -> Iterator[Path | None]:
             jax.config.update("jax_compilation_cache_dir", str(path))
             if "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS" not in os.environ:
                 jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_SECONDS)
-        with executables.kept_in(None if path is None else path / EXECUTABLES):
+        keep = path is not None and os.environ.get(KEEP_ENV, "1") != "0"
+        with executables.kept_in(path / EXECUTABLES if keep and path is not None else None):
             yield path
     finally:
         for name, value in saved.items():
