@@ -1,7 +1,7 @@
 """Compiled programs kept on disk by the command line, so that a second run does not trace.
 
 The persistent compilation cache (``jaxproj.cli.cache``) spares a later run XLA's compiling, not
-JAX's tracing and lowering: the G1's retarget program traces for ~6 s on the 2-core VM each
+JAX's tracing and lowering: a 29-joint robot's retarget traced ~6 s on the 2-core VM each
 time a process first calls it, a third of a second run's time. ``call`` keeps the compiled
 executable itself (``jax.experimental.serialize_executable``) in a folder, keyed by everything
 that decides the program, and a later process loads it (milliseconds) and runs it without
@@ -92,7 +92,7 @@ def _aval(x: Any) -> tuple[tuple[int, ...], str]:
 def _key(
     name: str, args: tuple, kwargs: Mapping[str, Any], words: Mapping[str, str], identity: Any
 ) -> str:
-    leaves, tree = jax.tree.flatten((args, dict(kwargs)))
+    leaves = jax.tree.leaves((args, dict(kwargs)))  # their tree is in `words` ("(tree)")
     settings = tuple(
         str(getattr(jax.config, s, None))
         for s in (
@@ -112,7 +112,6 @@ def _key(
         os.environ.get("XLA_FLAGS", ""),
         settings,
         tuple(sorted(words.items())),
-        str(tree),
         tuple(_aval(x) for x in leaves),
         repr(identity),
     )

@@ -75,7 +75,7 @@ class BuildConfig:
         formulation (``Robot.whole_chain``).
       landmarks: target landmark count (the mean-shift bandwidth is found by bisection). One
         number sets each chain (and the whole-body chain) but those whose robot marks them
-        ``Chain.keep_bandwidth`` (the NAO's head: its neck direction varies little, so a count
+        ``Chain.keep_bandwidth`` (a head chain read from the neck alone varies little, so a count
         target would bisect over many mean-shift runs), which keep their robot's
         ``Chain.bandwidth``. A per-chain tuple may hold ``None`` where ``bandwidth`` gives it.
         With neither ``landmarks`` nor ``bandwidth`` given, ``DEFAULTS[chains]`` decides.
