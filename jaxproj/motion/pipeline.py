@@ -137,8 +137,8 @@ def glitch_frames(
     fps after resampling) a forearm turns 131 deg into one frame and 168 deg out of it, and the
     robot's shoulder, following it, swings 238 deg and back; another forearm turns 128 deg into
     two frames and 145 deg out of them (UTKinect person 9, e02, frames 894-895 at 7.5 fps), and
-    the G1's shoulder yaw, following it, swings 205 deg. Only runs whose neighbours are valid
-    are judged; the first and last frames never are.
+    a 29-joint robot's shoulder yaw, following it, swings 205 deg. Only runs whose neighbours
+    are valid are judged; the first and last frames never are.
 
     Args:
       d: ``(T, 3 * n_bones)`` descriptors of ``bones``; ok: ``(T,)`` their validity.
