@@ -12,7 +12,9 @@ positions, ``(T,)`` valid, ``(T,)`` times) or ONE frame::
     fill_invalid        invalid frames hold the last valid frame, leading ones back-fill
     smooth              the zero-lag offline smoother (``offline.rts_motion``: invalid frames'
                         values skipped, gaps bridged) or the paper's causal double exponential
-                        smoother (``smoothing.smooth_motion``, on the filled motion)
+                        smoother (``smoothing.smooth_motion``, on the filled motion); then
+                        ``Robot.bound_steps``: no step past the continuity pass's own bound
+                        (the smoother's overshoot cannot bring back a flip)
     clip_to_limits      (T, n) -> within the robot's limits (``Robot.lower`` / ``upper``) and
                         its coupled ranges (``Robot.coupled_limits``: a head envelope),
                         and out of self-collision where the robot says how (``Robot.separate``;
@@ -300,7 +302,8 @@ def finish(
     bones: str | tuple[str, ...] = "full",
 ) -> tuple[jax.Array, jax.Array]:
     """The stages after the mapping for one motion: the robot's continuity pass
-    (``Robot.continuous``) -> fill -> smooth -> clip, and the standing posture for a motion
+    (``Robot.continuous``) -> fill -> smooth (and ``Robot.bound_steps``) -> clip, and the
+    standing posture for a motion
     with no valid frame (``standing``: before or after the smoother).
 
     Args:
@@ -327,6 +330,7 @@ def finish(
     filled = q
     if gains is not None:
         q = smooth_any(q, valid, length, gains, smoother)
+        q = robot.bound_steps(q, valid, d, bones)  # no overshoot past the continuity bound
     q = robot.playable_motion(q)  # clip_to_limits over the motion, in time order
     if standing == "last":
         q = stand_if_lost(q, valid, robot)

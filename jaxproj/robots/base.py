@@ -393,6 +393,10 @@ class Robot:
         last output, (n_driven,) last valid answer, (n_driven,) this frame's answer, (m,) last
         valid descriptor, (m,) this frame's, bones) -> (n_driven,)`` (the G1's:
         ``GenericIK.track_step``); ``None``: no such pass. A robot with ``track`` gives both.
+      track_bounds: a traceable ``((T,) valid, (T, m) descriptors, bones) -> (T, n_driven)``:
+        how far each joint may move into each frame by ``track``'s rule (rad, ``inf``: no
+        bound; the G1's: ``GenericIK.step_bounds``), applied by ``bound_steps`` after the
+        smoother; ``None``: no bound.
       generic: the generic IK behind the hooks above (``jaxproj.robots.generic.GenericSolver``:
         its correspondence, settings and built solver), or ``None`` (a robot with its own IK).
       file: the robot file it was read from (``jaxproj.robots.robot_file``), or ``None``.
@@ -427,6 +431,7 @@ class Robot:
     deviation_scale: float | None = None
     track: Callable[..., jax.Array] | None = field(default=None, compare=False)
     track_step: Callable[..., jax.Array] | None = field(default=None, compare=False)
+    track_bounds: Callable[..., jax.Array] | None = field(default=None, compare=False)
     generic: Any = field(default=None, compare=False, repr=False)  # GenericSolver | None
     file: Path | None = field(default=None, compare=False)
 
@@ -735,6 +740,33 @@ class Robot:
         ``(T,)`` bool ``valid`` and, if given, the person's ``(T, m)`` descriptors of ``bones``:
         how far each limb turned), or returned as they are when the robot has no such pass."""
         return q if self.track is None else self.track(q, valid, d, bones)
+
+    def bound_steps(
+        self,
+        q: jax.Array,
+        valid: jax.Array,
+        d: jax.Array | None = None,
+        bones: str | tuple[str, ...] = "full",
+    ) -> jax.Array:
+        """One motion's ``(T, n_driven)`` angles with each step between two valid frames held
+        within ``track_bounds`` (in time order: a step over its bound is shortened to it and
+        the frames after follow from there), so that a later stage (the smoother's overshoot)
+        cannot move a joint further than the continuity pass lets it while the limb hardly
+        turns. Steps within their bound, and every step of a robot without ``track_bounds`` or
+        a call without ``d``, are kept to the bit. ``(T,)`` bool ``valid``, ``(T, m)``
+        descriptors of ``bones``. Traceable."""
+        if self.track_bounds is None or d is None:
+            return q
+        bound = self.track_bounds(valid, d, bones)
+
+        def step(prev: jax.Array, xs: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
+            q_t, r_t = xs
+            delta = q_t - prev
+            out = jnp.where(jnp.abs(delta) <= r_t, q_t, prev + jnp.clip(delta, -r_t, r_t))
+            return out, out
+
+        _, rest = jax.lax.scan(step, q[0], (q[1:], bound[1:]))
+        return jnp.concatenate([q[:1], rest])
 
     def continuous_step(
         self,

@@ -102,6 +102,12 @@ class GenericSolver:
         current ``(m,)`` descriptors of ``bones`` (``GenericIK.track_step``). Traceable."""
         return self.build().track_step(y, q_prev, q_t, None, (d_prev, d_t, resolve_bones(bones)))
 
+    def track_bounds(self, valid: jax.Array, d: jax.Array, bones: Bones = "full") -> jax.Array:
+        """``Robot.track_bounds``: ``(T,)`` valid and the person's ``(T, m)`` descriptors ->
+        ``(T, n_driven)`` each joint's step bound into each frame (``GenericIK.step_bounds``).
+        Traceable."""
+        return self.build().step_bounds(valid, d, bones)
+
     def separate(self, q: jax.Array, start: jax.Array | None = None) -> jax.Array:
         """``Robot.separate``: ``(..., n_driven)`` angles (and optionally a second start per
         pose) -> the same with the collision pairs pushed ``config.margin`` apart
@@ -154,6 +160,7 @@ def with_generic_ik(robot: Robot, correspondence: Correspondence, config: IKConf
         separate=solver.separate if colliding else None,  # nothing to push apart without
         track=solver.track,
         track_step=solver.track_step,
+        track_bounds=solver.track_bounds,
         generic=solver,
     )
     solver._robot = out

@@ -906,6 +906,48 @@ class GenericIK:
         _, out = jax.lax.scan(body, init, (q, h, valid))
         return out
 
+    @full_precision
+    def step_bounds(
+        self,
+        valid: jax.typing.ArrayLike,
+        d: jax.typing.ArrayLike,
+        bones: str | tuple[str, ...] = "full",
+        config: TrackConfig | None = None,
+    ) -> jax.Array:
+        """How far each driven joint may move into each frame by ``track``'s own rule, for the
+        stages after it (``Robot.bound_steps``): ``max(r_0, g * turn)`` of the joint's chain,
+        ``turn`` the largest angle a row's human direction turned since the previous frame.
+
+        Args:
+          valid: ``(T,)`` bool.
+          d: ``(T, 3 * n_bones)`` the person's descriptors (``bones`` layout).
+          bones: the descriptor's bones.
+          config: ``TrackConfig()`` by default (``r_0``, ``g``).
+
+        Returns:
+          ``(T, n_driven)`` float32 rad: the bound of the step from frame ``t - 1`` to ``t``;
+          ``inf`` where either frame is not valid, at ``t = 0`` and for a joint of no chain.
+          Traceable.
+        """
+        cfg = TrackConfig() if config is None else config
+        valid = jnp.asarray(valid, bool)
+        d = jnp.asarray(d, jnp.float32)
+        names = resolve_bones(bones)
+        targets = jax.vmap(lambda x: self._targets(x, names))
+        a, wa = targets(d[:-1])
+        b, wb = targets(d[1:])
+        cos = jnp.where((wa > 0) & (wb > 0), jnp.sum(a * b, axis=-1), 1.0)
+        turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (T - 1, C)
+        radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
+        didx = np.asarray(self.robot.driven_index)
+        member = (np.asarray(self.problems.data.joints)[:, :, None] == didx[None, None, :]).any(1)
+        per_joint = jnp.min(jnp.where(jnp.asarray(member)[None], radius[..., None], jnp.inf),
+                            axis=1)  # fmt: skip
+        both = valid[1:] & valid[:-1]
+        per_joint = jnp.where(both[:, None], per_joint, jnp.inf)
+        first = jnp.full((1, len(didx)), jnp.inf, jnp.float32)
+        return jnp.concatenate([first, per_joint.astype(jnp.float32)])
+
     def _directions(self, q_full: jax.Array) -> jax.Array:
         """``(C, R, 3)`` unit row directions of every chain at ``(n_joints,)`` ``q_full``
         (padded rows: ``(1, 1, 1) / sqrt(3)``)."""

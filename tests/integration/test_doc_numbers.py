@@ -129,7 +129,7 @@ PLAYABLE_COLUMNS: dict[str, Callable[[dict], str]] = {
     ("heading", "result"),
     [
         ("## The Unitree G1's output as a G1 would play it", "g1_playable_ik_cpu.json"),
-        ("With `--method relaxed --model G1.npz`", "g1_playable_relaxed_h200.json"),
+        ("With `--method relaxed --model G1.npz`", "g1_playable_relaxed_cpu.json"),
     ],
 )
 def test_the_g1_playable_tables_are_the_result_files(heading: str, result: str) -> None:

@@ -535,3 +535,52 @@ def test_mjcf_collision_pairs_are_what_mujoco_collides() -> None:
     data.qpos[:] = 0
     mujoco.mj_forward(model, data)
     assert data.ncon == 0
+
+
+def test_step_bounds_follow_the_limbs_turn(nao_case) -> None:
+    """``GenericIK.step_bounds``: a joint's bound into a frame is ``max(min_step, step_gain *
+    turn)`` of its own chain (the left forearm turns 20 deg: the left arm's joints may move
+    36 deg, the right arm's ``min_step``), ``inf`` at the first frame, into and out of an
+    invalid frame and for a joint of no chain (the head)."""
+    d, _, _, _, ik, _ = nao_case
+    cfg = TrackConfig()
+    frames = np.repeat(d[7][None], 5, axis=0).astype(np.float64)
+    fore = UPPER_BODY.index("forearm_left")
+    v = frames[2].reshape(len(UPPER_BODY), 3)[fore]
+    axis = np.cross(v, [0.0, 0.0, 1.0])
+    axis /= np.linalg.norm(axis)
+    a = np.radians(20.0)  # Rodrigues about an axis normal to the bone: a turn of exactly a
+    turned = v * np.cos(a) + np.cross(axis, v) * np.sin(a)
+    frames[2:, 3 * fore : 3 * fore + 3] = turned
+    valid = np.array([True, True, True, False, True])
+    bound = np.asarray(ik.step_bounds(valid, frames.astype(np.float32), "upper", cfg))
+    names = NAO_H25.driven_joints
+    left = [names.index(j) for j in NAO_H25.chain("left_arm").joints]
+    right = [names.index(j) for j in NAO_H25.chain("right_arm").joints]
+    head = [names.index(j) for j in NAO_H25.chain("head").joints]
+    assert bound.shape == (5, NAO_H25.n_driven) and bound.dtype == np.float32
+    assert np.isinf(bound[0]).all() and np.isinf(bound[3:]).all() and np.isinf(bound[:, head]).all()
+    np.testing.assert_allclose(bound[1, left + right], cfg.min_step, rtol=1e-6)
+    np.testing.assert_allclose(bound[2, left], cfg.step_gain * a, rtol=1e-3)
+    np.testing.assert_allclose(bound[2, right], cfg.min_step, rtol=1e-6)
+
+
+def test_bound_steps_shortens_only_what_overshoots() -> None:
+    """``Robot.bound_steps``: a step within its bound is kept to the bit, one over it is
+    shortened to the bound and the frames after follow from there; a robot without
+    ``track_bounds`` (or a call without descriptors) returns its input."""
+    rng = np.random.default_rng(3)
+    n = NAO_H25.n_driven
+    q = np.cumsum(rng.normal(0, 0.05, (6, n)), axis=0).astype(np.float32)
+    q[3, 0] = q[2, 0] + 0.5  # an overshoot of 0.3 over a bound of 0.2
+    bound = np.full((6, n), np.inf, np.float32)
+    bound[1:, 0] = 0.2
+    robot = dataclasses.replace(NAO_H25, track_bounds=lambda v, d, b: jnp.asarray(bound))
+    d = np.zeros((6, 3 * len(UPPER_BODY)), np.float32)
+    out = np.asarray(jax.jit(lambda x: robot.bound_steps(x, jnp.ones(6, bool), d, "upper"))(q))
+    assert np.array_equal(out[:, 1:], q[:, 1:]) and np.array_equal(out[:3], q[:3])
+    assert out[3, 0] == np.float32(q[2, 0] + np.float32(0.2))
+    assert np.abs(np.diff(out[:, 0])).max() <= 0.2 + 1e-6
+    assert np.abs(out[5, 0] - q[5, 0]) < np.abs(out[3, 0] - q[3, 0])  # catching up, bounded
+    assert NAO_H25.bound_steps(q, np.ones(6, bool), d) is q
+    assert robot.bound_steps(q, np.ones(6, bool), None) is q
