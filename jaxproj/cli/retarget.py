@@ -159,6 +159,17 @@ def add_parsers(sub: Any) -> None:
         "joint)",
     )
     pr.add_argument(
+        "--root",
+        default="fixed",
+        choices=("fixed", "world"),
+        help="fixed: joint angles only (the robot's base fixed); world: whole-body motion, the "
+        "root body's position and orientation in a world frame with the floor at z = 0, the "
+        "feet on the floor while the person's are (a robot whose correspondence has the legs, "
+        "docs: Whole-body motion): .npz adds root_pos, root_rot (x, y, z, w), dof_pos, fps, "
+        "contacts; .csv becomes the LAFAN1 retargeting layout (no header: root x y z, "
+        "quaternion x y z w, the joints; evenly spaced frames)",
+    )
+    pr.add_argument(
         "--plot",
         default=None,
         help="also write a PNG: human and robot at key frames, the robot's driven joints over "
@@ -194,6 +205,16 @@ def run(args: argparse.Namespace) -> int:
             f"--joints picks the joints of a robot's own document; --out {out} holds every joint: "
             "leave --joints out"
         )
+    if args.root == "world" and ext in robot.exports:
+        raise ConfigError(f"--root world writes .npz or .csv; --out {out} is the {robot.name}'s "
+                          "own document, which holds joint angles only")  # fmt: skip
+    if args.root == "world":
+        from jaxproj.motion.whole_body import check_robot
+
+        check_robot(robot)
+    if args.root == "world" and args.rate == "input":
+        raise ConfigError("--root world needs evenly spaced frames: leave --rate at auto or "
+                          "give a rate")  # fmt: skip
     joints = args.joints or "upper"
     for e in robot.exports.values():
         e.check(robot, joints, None)
@@ -251,8 +272,18 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.method == "full":
         meta["full_reading"] = args.full_reading
+    root: dict[str, Any] = {}
+    if args.root == "world":
+        from jaxproj.motion.whole_body import root_trajectory
+
+        body = root_trajectory(rec.positions, result.valid, result.times, angles, robot,
+                               skeleton=rec.skeleton)  # fmt: skip
+        root = {"root_pos": body.root_pos, "root_rot": body.root_rot, "contacts": body.contacts}
+        angles = body.angles  # the stance feet planted
+        meta["root"] = "world"
+        meta["scale"] = round(body.world.scale, 6)
     motion = Motion(angles, result.times, result.valid, rec.positions, meta,
-                    confidence=result.confidence, robot=robot)  # fmt: skip
+                    confidence=result.confidence, robot=robot, **root)  # fmt: skip
     save_motion(out, motion, joints=joints, overwrite=args.force)
     n, nv = len(result.valid), int(result.valid.sum())
     print(
@@ -267,6 +298,14 @@ def run(args: argparse.Namespace) -> int:
         f"{after['max_accel_ratio']:.2f}, max speed / rated {before['rated_speed_ratio']:.2f} "
         f"-> {after['rated_speed_ratio']:.2f} [{label}]"
     )
+    if root:
+        import numpy as np
+
+        travel = float(np.linalg.norm(root["root_pos"][-1, :2] - root["root_pos"][0, :2]))
+        share = root["contacts"].mean(axis=0) * 100
+        print(f"  whole body: scale {meta['scale']:.3f} robot m per person unit, root moved "
+              f"{travel:.2f} m, feet in contact {share[0]:.0f} / {share[1]:.0f} % of frames "
+              "(left / right)")  # fmt: skip
     if result.valid_share < MIN_VALID_SHARE:
         options.log(
             f"jaxproj: warning: {args.input}: only {nv} of {n} frames "

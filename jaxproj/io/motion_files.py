@@ -24,6 +24,16 @@ exports that suffix (the default robot first):
   positions and no meta); a last ``confidence`` column, as jaxproj 0.2.0 wrote, is still
   read. ``jaxproj retarget`` writes its motions at a uniform rate (``--rate``), so its CSV
   rows are evenly spaced in time.
+- **whole-body motions** (``Motion.root_pos`` / ``root_rot``: ``jaxproj.motion.whole_body``,
+  ``jaxproj retarget --root world``): the NPZ adds ``root_pos`` ``(T, 3)`` float32 m,
+  ``root_rot`` ``(T, 4)`` float32 quaternions ``(x, y, z, w)``, ``dof_pos`` (the angles again,
+  under the name GMR's files use), ``fps`` (0-d float64) and ``contacts`` ``(T, 2)`` bool (left,
+  right foot); the CSV is the LAFAN1 retargeting layout that BeyondMimic's and unitree_rl_lab's
+  ``csv_to_npz.py`` read (``motion[:, 3:7][:, [3, 0, 1, 2]]``: scalar last): no header, one row
+  per frame of root x, y, z, quaternion x, y, z, w, then every joint in the robot's SDK order,
+  frames evenly spaced (written only so) and no time column: ``load_motion(path, fps=...)``
+  (default ``ROOT_CSV_FPS``, the LAFAN1 files' 30) gives frame ``k`` the time ``k / fps``, and
+  the robot is the registered one with ``n_joints + 7`` columns unless ``robot=`` names it.
 - the robot's exports (the default robot's: ``.json``, the arguments of its software's
   ``angleInterpolation``; ``joints`` and ``lead_in`` of ``save_motion`` are its options): see
   the export's module in the robot's package (``jaxproj.robots``).
@@ -115,6 +125,11 @@ class Motion:
         default: the default robot, ``jaxproj.robots.get()``); a ``Robot`` once constructed.
       confidence: ``(T,)`` float32 in ``[0, 1]``, each frame's confidence
         (``jaxproj.projection.confidence``; ``RetargetResult.confidence``), or ``None``.
+      root_pos: ``(T, 3)`` float32 m, the root body's origin in the world (z up, the floor at
+        0; ``jaxproj.motion.whole_body``), or ``None``: a fixed base (joint angles only).
+      root_rot: ``(T, 4)`` float32 unit quaternions ``(x, y, z, w)``, the root body's
+        orientation; given with ``root_pos`` and only with it.
+      contacts: ``(T, 2)`` bool, the person's left and right foot on the floor, or ``None``.
 
     Raises:
       ConfigError: a wrong shape or dtype, a non-finite angle, times not finite and strictly
@@ -129,6 +144,9 @@ class Motion:
     meta: Mapping[str, MetaValue] = field(default_factory=dict)
     robot: Robot = field(default_factory=get_robot)
     confidence: np.ndarray | None = None
+    root_pos: np.ndarray | None = None
+    root_rot: np.ndarray | None = None
+    contacts: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.robot is None or isinstance(self.robot, str):
@@ -188,11 +206,45 @@ class Motion:
                 raise ConfigError(f"confidence must lie in [0, 1]; frame {bad} does not")
             conf = _frozen(conf)
         object.__setattr__(self, "confidence", conf)
+        self._check_root(n)
         object.__setattr__(self, "angles", _frozen(angles))
         object.__setattr__(self, "times", _frozen(times))
         object.__setattr__(self, "valid", _frozen(np.array(valid)))
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "meta", check_meta(self.meta))
+
+    def _check_root(self, n: int) -> None:
+        pos, rot, contacts = self.root_pos, self.root_rot, self.contacts
+        if (pos is None) != (rot is None):
+            raise ConfigError("root_pos and root_rot come together (a floating base) or not at all")
+        if pos is not None:
+            pos, rot = np.asarray(pos), np.asarray(rot)
+            for name, a, w in (("root_pos", pos, 3), ("root_rot", rot, 4)):
+                if a.dtype.kind not in "fiu" or a.shape != (n, w):
+                    raise ConfigError(f"{name} must be a real ({n}, {w}) array, got {a.dtype} "
+                                      f"{a.shape}")  # fmt: skip
+                if not np.isfinite(a).all():
+                    bad = int(np.flatnonzero(~np.isfinite(a).all(axis=1))[0])
+                    raise ConfigError(f"{name} must be finite; frame {bad} is not")
+            pos, rot = np.array(pos, np.float32), np.array(rot, np.float32)
+            norm = np.linalg.norm(rot.astype(np.float64), axis=1)
+            if (np.abs(norm - 1) > 1e-3).any():
+                bad = int(np.flatnonzero(np.abs(norm - 1) > 1e-3)[0])
+                raise ConfigError(f"root_rot must hold unit quaternions (x, y, z, w); frame {bad} "
+                                  f"has norm {norm[bad]:.4f}")  # fmt: skip
+            object.__setattr__(self, "root_pos", _frozen(pos))
+            object.__setattr__(self, "root_rot", _frozen(rot))
+        if contacts is not None:
+            contacts = np.asarray(contacts)
+            if contacts.dtype != np.bool_ or contacts.shape != (n, 2):
+                raise ConfigError(f"contacts must be a bool ({n}, 2) array, got {contacts.dtype} "
+                                  f"{contacts.shape}")  # fmt: skip
+            object.__setattr__(self, "contacts", _frozen(np.array(contacts)))
+
+    @property
+    def whole_body(self) -> bool:
+        """Whether the motion has a root trajectory (``root_pos`` / ``root_rot``)."""
+        return self.root_pos is not None
 
     @property
     def n_frames(self) -> int:
@@ -305,6 +357,10 @@ def save_motion(
     if ext == ".npz":
         return write_npz(path, _npz_arrays(motion), overwrite=overwrite)
     angles = motion.angles if margin is None else export_angles(robot, motion.angles, margin)
+    if ext == ".csv" and motion.whole_body:
+        _check_regular(path, motion.times)
+        return atomic_write(path, lambda tmp: _write_root_csv(tmp, motion, angles),
+                            overwrite=overwrite)  # fmt: skip
     if ext == ".csv":
         return atomic_write(path, lambda tmp: _write_csv(tmp, motion, angles), overwrite=overwrite)
     text = robot.exports[ext].write(
@@ -367,6 +423,11 @@ def _npz_arrays(motion: Motion) -> dict[str, np.ndarray]:
         arrays["positions"] = motion.positions
     if motion.confidence is not None:
         arrays["confidence"] = motion.confidence
+    if motion.root_pos is not None and motion.root_rot is not None:
+        arrays |= {"root_pos": motion.root_pos, "root_rot": motion.root_rot,
+                   "dof_pos": motion.angles, "fps": np.array(motion.fps)}  # fmt: skip
+    if motion.contacts is not None:
+        arrays["contacts"] = motion.contacts
     return arrays
 
 
@@ -398,10 +459,38 @@ def _write_csv(tmp: Path, motion: Motion, angles: np.ndarray) -> None:
     _write_text(tmp, "\n".join(lines) + "\n")
 
 
+ROOT_CSV_FPS = 30.0
+"""Frame rate a whole-body CSV is read at when ``load_motion`` is given none: the LAFAN1
+retargeting files' (30 fps)."""
+
+
+def _check_regular(path: Path, times: np.ndarray) -> None:
+    """A whole-body CSV has no time column: its frames must be evenly spaced."""
+    steps = np.diff(times)
+    if len(steps) and not np.allclose(steps, np.median(steps), rtol=1e-4, atol=0.0):
+        raise ConfigError(
+            f"{path}: a whole-body CSV holds no times, so its frames must be evenly spaced "
+            "(jaxproj retarget: leave --rate at auto or give a rate)"
+        )
+
+
+def _write_root_csv(tmp: Path, motion: Motion, angles: np.ndarray) -> None:
+    """The LAFAN1 retargeting layout: no header, one row per frame: root x, y, z (m), root
+    quaternion x, y, z, w, then the joints in the robot's SDK order (rad)."""
+    assert motion.root_pos is not None and motion.root_rot is not None
+    table = np.concatenate([motion.root_pos, motion.root_rot, angles], axis=1).astype(np.float32)
+    cells = exact_strings(table)
+    w = table.shape[1]
+    lines = [",".join(cells[t * w : (t + 1) * w]) for t in range(len(table))]
+    _write_text(tmp, "\n".join(lines) + "\n")
+
+
 # --- reading ---------------------------------------------------------------------------------
 
 
-def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) -> Motion:
+def load_motion(
+    path: str | os.PathLike[str], robot: Robot | str | None = None, fps: float | None = None
+) -> Motion:
     """Read a motion written by ``save_motion`` (or by ``jaxproj retarget``, ``.npz``).
 
     Args:
@@ -410,7 +499,10 @@ def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) 
       robot: the robot the motion is for: a ``Robot`` or a registered name; ``None`` (the
         default): the registered robot whose joints the file names (``jaxproj.robots.for_joints``:
         the default robot when it has them all), for a robot's own document the robot that
-        exports its suffix.
+        exports its suffix. A whole-body CSV (no header) names no joints: the registered
+        robot with ``n_joints + 7`` columns, when exactly one has.
+      fps: a whole-body CSV's frame rate (it holds no times; ``None``: ``ROOT_CSV_FPS``, the
+        LAFAN1 files' 30); its frames are then ``k / fps`` s. Refused for other files.
 
     Returns:
       The ``Motion``. Joints the file does not name take ``robot.standing``. CSV: every frame
@@ -426,13 +518,16 @@ def load_motion(path: str | os.PathLike[str], robot: Robot | str | None = None) 
     path = Path(path)
     given = None if robot is None else get_robot(robot)
     ext = _check_format(path, given)
+    if fps is not None and (ext != ".csv" or not (isinstance(fps, (int, float)) and fps > 0)):
+        raise ConfigError(f"fps= is a whole-body CSV's frame rate (a number > 0), got {fps!r} "
+                          f"for {path.name}")  # fmt: skip
     if not path.is_file():
         raise InputError(path, "no such file" if not path.exists() else "not a file")
     try:
         if ext == ".npz":
             return _read_npz(path, given)
         if ext == ".csv":
-            return _read_csv(path, given)
+            return _read_csv(path, given, fps)
         robot = given if given is not None else _robot_of_export(ext)
         angles, times, valid, meta, conf = robot.exports[ext].read(robot, path)
         return Motion(angles=angles, times=times, valid=valid, meta=meta, robot=robot,
@@ -525,13 +620,14 @@ def _read_npz(path: Path, robot: Robot | None) -> Motion:
         meta = check_meta(meta)
     except ConfigError as e:
         raise InputError(path, str(e)) from None
+    root = {k: data[k] for k in ("root_pos", "root_rot", "contacts") if k in data}
     return Motion(
         angles=angles, times=times, valid=valid, positions=positions, meta=meta, robot=robot,
-        confidence=conf,
+        confidence=conf, **root,
     )  # fmt: skip
 
 
-def _read_csv(path: Path, robot: Robot | None) -> Motion:
+def _read_csv(path: Path, robot: Robot | None, fps: float | None = None) -> Motion:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
@@ -544,6 +640,11 @@ def _read_csv(path: Path, robot: Robot | None) -> Motion:
     if not lines:
         raise InputError(path, "empty file (expected a header 'time,<joint names>')")
     header = [c.strip() for c in lines[0].split(",")]
+    if all(_is_float(c) for c in header):
+        return _read_root_csv(path, lines, robot, ROOT_CSV_FPS if fps is None else float(fps))
+    if fps is not None:
+        raise ConfigError(f"{path}: fps= is for a whole-body CSV (no header); this one has "
+                          "times")  # fmt: skip
     if header[0] != "time" or len(header) < 2:
         raise InputError(
             path, f"line 1: the header must be 'time,<joint names>', got {lines[0][:60]!r}"
@@ -574,6 +675,43 @@ def _read_csv(path: Path, robot: Robot | None) -> Motion:
     conf = values[:, -1].astype(np.float32) if has_conf else None
     return Motion(angles=angles, times=times, valid=np.ones(len(times), dtype=bool), robot=robot,
                   confidence=conf)  # fmt: skip
+
+
+def _read_root_csv(path: Path, lines: list[str], robot: Robot | None, fps: float) -> Motion:
+    """A whole-body CSV (``_write_root_csv``'s layout)."""
+    width = len(lines[0].split(","))
+    if robot is None:
+        fits = [r for r in map(get_robot, robot_names()) if r.n_joints + 7 == width]
+        if len(fits) != 1:
+            have = ", ".join(f"{r.name} {r.n_joints + 7}" for r in map(get_robot, robot_names()))
+            raise InputError(path, f"a whole-body CSV of {width} columns (root 7 + joints) fits "
+                             f"{len(fits)} registered robots ({have}): pass robot=")  # fmt: skip
+        robot = fits[0]
+    if width != robot.n_joints + 7:
+        raise InputError(path, f"line 1: {width} columns; the {robot.name}'s whole-body CSV has "
+                         f"{robot.n_joints + 7} (root x y z, quaternion x y z w, "
+                         f"{robot.n_joints} joints)")  # fmt: skip
+    values = np.empty((len(lines), width), dtype=np.float64)
+    for i, line in enumerate(lines):
+        cells = line.split(",")
+        if len(cells) != width:
+            raise InputError(path, f"line {i + 1}: expected {width} columns, got {len(cells)}")
+        try:
+            values[i] = [float(c) for c in cells]
+        except ValueError:
+            bad = next(c for c in cells if not _is_float(c))
+            raise InputError(path, f"line {i + 1}: not a number: {bad.strip()[:40]!r}") from None
+    table = values.astype(np.float32)
+    if not np.isfinite(table).all():
+        raise InputError(path, "values must be finite", frame=int(np.flatnonzero(
+            ~np.isfinite(table).all(axis=1))[0]))  # fmt: skip
+    n = len(table)
+    try:
+        return Motion(angles=table[:, 7:], times=np.arange(n, dtype=np.float64) / fps,
+                      valid=np.ones(n, dtype=bool), robot=robot, root_pos=table[:, :3],
+                      root_rot=table[:, 3:7], meta={"fps": fps})  # fmt: skip
+    except ConfigError as e:
+        raise InputError(path, str(e)) from None
 
 
 def _is_float(text: str) -> bool:

@@ -1,0 +1,187 @@
+"""Whole-body motion as the field measures it (issue 59): what ``jaxproj retarget REC --robot
+unitree_g1 --root world --out m.npz`` writes, read back from the file, replayed kinematically on
+the robot's own MJCF with its free base:
+
+* ``slide_cm_s``: stance-foot sliding, the horizontal speed (cm/s) of each foot's sole (the mean
+  of its geoms' lowest points) over the steps where the file says that foot is in contact in
+  both frames: median and p95 over both feet;
+* ``stance_height_mm``: the stance feet's lowest point above the floor: median and max;
+* ``sole_tilt_deg``: the stance feet's tilt (the foot body's z axis against the vertical; the
+  G1's sole box is square to it): median and p90;
+* ``penetration_mm``: how far the lowest point of any robot geom goes below the floor (max over
+  frames; 0 if none does);
+* ``root_jump_cm``: the largest amount by which one frame's root step exceeds the person's
+  scaled HipCenter step (``scale`` of the file's meta);
+* ``trunk_deg``: the robot's torso up axis against the person's trunk (HipCenter ->
+  ShoulderCenter), both in the world frame: median and p90 over valid frames;
+  ``torso_tilt_deg`` / ``person_tilt_deg``: each one's median angle from the vertical;
+* ``legs_deg``: the robot's thighs and shins (its correspondence rows' points) against the
+  person's, in the world frame: median and p90 over valid frames and the four bones;
+* ``contact_share``: frames with each foot in contact (left, right);
+* ``retarget_s``: the command's wall time in this process (compiling included).
+
+Self-contact does not depend on the root: ``benchmarks.g1_playable`` measures it on the same
+joint angles.
+
+    python -m benchmarks.whole_body [--data FOLDER] [--json OUT] [--extra "OPTIONS"] [FILES...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from benchmarks import g1_playable as gp
+from jaxproj import robots
+from jaxproj.cli.main import main as cli
+from jaxproj.human.skeleton import J
+from jaxproj.io.motion_files import Motion, load_motion
+from jaxproj.motion.feet import _foot_points, _subtree
+from jaxproj.motion.whole_body import world_frame
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    na = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    nb = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(np.sum(na * nb, -1), -1.0, 1.0)))
+
+
+def measure_motion(motion: Motion) -> dict:
+    """The measures of one whole-body motion (module doc)."""
+    robot = motion.robot
+    assert motion.root_pos is not None and motion.root_rot is not None
+    assert motion.contacts is not None and motion.positions is not None
+    model = robot.load_model("free")
+    data = mujoco.MjData(model)
+    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
+           for j in robot.joint_names]  # fmt: skip
+    free = int(model.jnt_qposadr[0])
+    corr = robot.generic.correspondence
+    torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, corr.base)
+    feet = [_subtree(model, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b))
+            for b, _ in robot.mjcf.figure.feet]  # fmt: skip
+    everything = list(range(1, model.nbody))
+    rows = {r.bone: (r.start, r.end) for r in corr.pairs}
+    legs = [f"{b}_{s}" for s in ("left", "right") for b in ("thigh", "shin")]
+
+    def point(name: str) -> np.ndarray:
+        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+        if sid >= 0:
+            return np.array(data.site_xpos[sid])
+        return np.array(data.xpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)])
+
+    n = motion.n_frames
+    sole = np.zeros((n, len(feet), 3))
+    sole_low = np.zeros((n, len(feet)))
+    lowest = np.zeros(n)
+    torso_up = np.zeros((n, 3))
+    sole_up = np.zeros((n, len(feet), 3))
+    robot_legs = np.zeros((n, len(legs), 3))
+    for t in range(n):
+        data.qpos[free : free + 3] = motion.root_pos[t]
+        data.qpos[free + 3 : free + 7] = np.roll(motion.root_rot[t], 1)  # xyzw -> wxyz
+        data.qpos[adr] = motion.angles[t]
+        mujoco.mj_kinematics(model, data)
+        for k, tree in enumerate(feet):
+            sole_up[t, k] = data.xmat[tree[0]].reshape(3, 3)[:, 2]
+            pts, rad = _foot_points(model, data, tree, 0)  # body 0: the world
+            sole[t, k] = pts.mean(axis=0)
+            sole_low[t, k] = np.min(pts[:, 2] - rad)
+        pts, rad = _foot_points(model, data, everything, 0)
+        lowest[t] = np.min(pts[:, 2] - rad)
+        torso_up[t] = data.xmat[torso].reshape(3, 3)[:, 2]
+        for i, bone in enumerate(legs):
+            a, b = rows[bone]
+            robot_legs[t, i] = point(b) - point(a)
+    c = motion.contacts
+    dt = np.diff(motion.times)
+    both = c[1:] & c[:-1]
+    speed = np.linalg.norm(np.diff(sole[..., :2], axis=0), axis=-1) / dt[:, None] * 100
+    slide = speed[both[:, : len(feet)]]
+    stance = sole_low[c[:, : len(feet)]] * 1000
+    tilt = _angle(sole_up, np.array([0.0, 0.0, 1.0]))[c[:, : len(feet)]]
+    # the person in the world (the file's positions, the world frame found again from them)
+    valid = motion.valid & np.isfinite(motion.positions).all(axis=(1, 2))
+    world = world_frame(motion.positions, valid, robot)
+    person = world.to_world(motion.positions)
+    trunk = person[:, J["ShoulderCenter"]] - person[:, J["HipCenter"]]
+    person_legs = np.stack(
+        [person[:, J[b]] - person[:, J[a]] for a, b in (("HipLeft", "KneeLeft"),
+         ("KneeLeft", "AnkleLeft"), ("HipRight", "KneeRight"), ("KneeRight", "AnkleRight"))],
+        axis=1,
+    )  # fmt: skip
+    hip_step = np.linalg.norm(np.diff(person[:, J["HipCenter"]], axis=0), axis=-1)
+    root_step = np.linalg.norm(np.diff(motion.root_pos.astype(np.float64), axis=0), axis=-1)
+    ok_step = valid[1:] & valid[:-1]
+    jump = (root_step - hip_step)[ok_step]
+    trunk_err = _angle(torso_up, trunk)[valid]
+    leg_err = _angle(robot_legs, person_legs)[valid]
+    vertical = np.array([0.0, 0.0, 1.0])
+    return {
+        "frames": n,
+        "fps": round(motion.fps, 3),
+        "scale": round(world.scale, 4),
+        "contact_share": [round(float(x), 3) for x in c.mean(axis=0)],
+        "slide_cm_s_median": round(float(np.median(slide)), 2) if slide.size else None,
+        "slide_cm_s_p95": round(float(np.percentile(slide, 95)), 2) if slide.size else None,
+        "stance_height_mm_median": round(float(np.median(stance)), 2) if stance.size else None,
+        "stance_height_mm_max": round(float(stance.max()), 2) if stance.size else None,
+        "sole_tilt_deg_median": round(float(np.median(tilt)), 2) if tilt.size else None,
+        "sole_tilt_deg_p90": round(float(np.percentile(tilt, 90)), 2) if tilt.size else None,
+        "penetration_mm": round(float(max(0.0, -lowest.min()) * 1000), 2),
+        "root_jump_cm": round(float(max(0.0, jump.max(initial=0.0)) * 100), 2),
+        "trunk_deg_median": round(float(np.median(trunk_err)), 2),
+        "trunk_deg_p90": round(float(np.percentile(trunk_err, 90)), 2),
+        "torso_tilt_deg": round(float(np.median(_angle(torso_up, vertical)[valid])), 2),
+        "person_tilt_deg": round(float(np.median(_angle(trunk, vertical)[valid])), 2),
+        "legs_deg_median": round(float(np.median(leg_err)), 2),
+        "legs_deg_p90": round(float(np.percentile(leg_err, 90)), 2),
+        "root_travel_m": round(
+            float(np.linalg.norm(motion.root_pos[-1, :2] - motion.root_pos[0, :2])), 3
+        ),  # fmt: skip
+    }
+
+
+def measure(path: Path, extra: list[str], out_dir: Path, robot: str = gp.ROBOT) -> dict:
+    """``jaxproj retarget PATH --robot ROBOT --root world`` in this process, then the file's
+    measures."""
+    out = out_dir / f"{path.stem}.npz"
+    t0 = time.perf_counter()
+    rc = cli(["retarget", str(path), "--robot", robot, "--root", "world", "--out", str(out),
+              "--force", *extra])  # fmt: skip
+    took = time.perf_counter() - t0
+    if rc != 0:
+        raise SystemExit(f"retarget {path} exited {rc}")
+    return {"file": path.name, "retarget_s": round(took, 1), **measure_motion(load_motion(out))}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("files", nargs="*", type=Path)
+    p.add_argument("--data", type=Path, default=None, help="a folder holding the six files")
+    p.add_argument("--robot", default=gp.ROBOT)
+    p.add_argument("--json", default=None)
+    p.add_argument("--extra", default="", help="more retarget options, one string")
+    a = p.parse_args(argv)
+    files = a.files or gp.default_files(a.data)
+    robot = robots.get(a.robot).name
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for f in files:
+            r = measure(f, a.extra.split(), Path(tmp), robot)
+            rows.append(r)
+            print(json.dumps(r), flush=True)
+    if a.json:
+        Path(a.json).write_text(json.dumps({"robot": robot, "rows": rows}, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,214 @@
+"""Whole-body motion (``jaxproj.motion.whole_body``) and its files.
+
+Cheap by construction: the G1 holds its standing angles under a bundled clip's person (CMU 131_03,
+every 6th frame: a walk of about 2.5 m with kicks), so nothing is retargeted or compiled; the
+root, the contacts and the stance IK run on the host (MuJoCo's kinematics).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from jaxproj import robots
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.human.skeleton import J
+from jaxproj.io.motion_files import Motion, load_motion, save_motion
+from jaxproj.io.readers import read_skeleton
+from jaxproj.motion import feet as feet_mod
+from jaxproj.motion import whole_body as wb
+from tests.fuzzing import assert_one_line_error, run_cli
+
+G1 = robots.get("unitree_g1")
+CLIP = Path(__file__).resolve().parents[1] / "data" / "cmu_bvh" / "131_03_every6.bvh"
+
+
+@pytest.fixture(scope="module")
+def walk():
+    rec = read_skeleton(CLIP)
+    angles = np.tile(G1.standing, (len(rec.times), 1)).astype(np.float32)
+    root = wb.root_trajectory(rec.positions, rec.valid, rec.times, angles, G1)
+    return rec, angles, root
+
+
+def _replay(root: wb.RootMotion):
+    """Per frame: the lowest point of every robot geom, each foot's lowest point and up axis."""
+    model = G1.load_model("free")
+    data = mujoco.MjData(model)
+    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
+           for j in G1.joint_names]  # fmt: skip
+    feet = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b, _ in G1.mjcf.figure.feet]
+    lowest, foot_low, foot_up, torso_x = [], [], [], []
+    torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "torso_link")
+    for t in range(len(root.root_pos)):
+        data.qpos[0:3] = root.root_pos[t]
+        data.qpos[3:7] = np.roll(root.root_rot[t], 1)  # (x, y, z, w) -> MuJoCo's (w, x, y, z)
+        data.qpos[adr] = root.angles[t]
+        mujoco.mj_kinematics(model, data)
+        pts, rad = feet_mod._foot_points(model, data, list(range(1, model.nbody)), 0)
+        lowest.append(np.min(pts[:, 2] - rad))
+        low = []
+        for f in feet:
+            p, r = feet_mod._foot_points(model, data, [f], 0)
+            low.append(np.min(p[:, 2] - r))
+        foot_low.append(low)
+        foot_up.append([data.xmat[f].reshape(3, 3)[:, 2] for f in feet])
+        torso_x.append(data.xmat[torso].reshape(3, 3)[:, 0])
+    return np.array(lowest), np.array(foot_low), np.array(foot_up), np.array(torso_x)
+
+
+def test_the_root_walks_with_the_person_over_the_floor(walk) -> None:
+    """No robot geom below the floor; the feet in contact on it (but where the standing legs
+    cannot reach: a straight leg under the person's leaning trunk) and level inside each
+    contact (away from the fades); the root starts at the origin facing +x and, with no foot in
+    contact, steps as the person's scaled pelvis; unit quaternions with w >= 0; the same
+    answer twice."""
+    rec, angles, root = walk
+    n = len(rec.times)
+    assert root.root_pos.shape == (n, 3) and root.root_rot.shape == (n, 4)
+    assert root.root_pos.dtype == root.root_rot.dtype == root.angles.dtype == np.float32
+    assert np.allclose(np.linalg.norm(root.root_rot, axis=1), 1, atol=1e-5)
+    assert (root.root_rot[:, 3] >= 0).all()
+    lowest, foot_low, foot_up, torso_x = _replay(root)
+    assert lowest.min() > -1e-4  # m
+    inside = np.zeros_like(root.contacts)
+    for k in range(2):
+        for t0, t1 in feet_mod._runs(root.contacts[:, k]):
+            inside[t0 + 1 : t1 - 1, k] = True
+    assert inside.sum() > n // 2
+    height = np.abs(foot_low[inside])  # m; standing angles under a walking trunk: the legs
+    assert np.median(height) < 0.005 and (height < 0.02).mean() > 0.9  # cannot always reach
+    tilt = np.degrees(np.arccos(np.clip(foot_up[inside][:, 2], -1, 1)))
+    assert np.median(tilt) < 1.0
+    assert np.linalg.norm(root.root_pos[0, :2]) < 0.05
+    heading = torso_x[0, :2] / np.linalg.norm(torso_x[0, :2])
+    assert heading[0] > np.cos(np.radians(30))
+    # without a foot in contact the root steps as the person's scaled pelvis (here the
+    # standing robot cannot walk: its feet stay, and it moves on only between contacts)
+    hip = root.world.to_world(rec.positions[:, J["HipCenter"]])
+    flight = ~root.contacts.any(axis=1)
+    both = flight[1:] & flight[:-1]
+    assert both.sum() >= 5
+    steps = np.diff(root.root_pos[:, :2].astype(np.float64), axis=0)[both]
+    assert np.abs(steps - np.diff(hip[:, :2], axis=0)[both]).max() < 1e-5
+    again = wb.root_trajectory(rec.positions, rec.valid, rec.times, angles, G1)
+    for a, b in zip(root[:3], again[:3], strict=True):
+        assert np.array_equal(a, b)
+    assert np.array_equal(root.angles, again.angles)
+    # only the legs' joints moved (the stance IK), the rest as given
+    legs = {j for j in G1.joint_names if any(w in j for w in ("hip", "knee", "ankle"))}
+    rest = [G1.index(j) for j in G1.joint_names if j not in legs]
+    assert np.array_equal(root.angles[:, rest], angles[:, rest])
+
+
+def test_contacts_of_a_person_who_lifts_a_foot() -> None:
+    """A person standing still is in contact with both feet; a foot held 20 cm up for ten
+    frames is not, there; a one-frame blip of contact is dropped (``min_frames``)."""
+    rec = read_skeleton(CLIP)
+    still = np.repeat(rec.positions[:1], 40, axis=0).astype(np.float64)
+    lifted = still.copy()
+    for j in ("AnkleLeft", "FootLeft"):
+        lifted[10:20, J[j], 1] += 0.2  # +y: up in the readers' capture frame
+    lifted[14, J["AnkleLeft"], 1] -= 0.2  # one frame back down: too short to count
+    lifted[14, J["FootLeft"], 1] -= 0.2
+    times = np.arange(40) / 30.0
+    valid = np.ones(40, bool)
+    world = wb.world_frame(lifted, valid, G1)
+    contact, clear = wb.contacts_of(lifted, valid, times, world)
+    assert contact[:, 1].all() and contact[:9, 0].all() and contact[22:, 0].all()
+    assert not contact[10:20, 0].any()
+    assert clear[12, 0] > 0.1 and clear[0].max() < 0.01
+    world = wb.world_frame(still, valid, G1)
+    assert wb.contacts_of(still, valid, times, world)[0].all()
+    with pytest.raises(ConfigError, match="min_frames"):
+        wb.ContactConfig(min_frames=0)
+
+
+def test_a_robot_without_legs_is_refused() -> None:
+    with pytest.raises(ConfigError, match="thigh_left"):
+        wb.check_robot(robots.get("nao_h25"))
+
+
+def test_whole_body_files_read_back_bit_exact(walk, tmp_path) -> None:
+    """NPZ (root_pos, root_rot, dof_pos, fps, contacts) and the LAFAN1-layout CSV (no header,
+    root 7 + 29 columns, read at ``fps=``) give back the written arrays to the bit; the CSV's
+    robot is found by its column count."""
+    rec, _, root = walk
+    motion = Motion(root.angles, rec.times, rec.valid, rec.positions, robot=G1,
+                    root_pos=root.root_pos, root_rot=root.root_rot,
+                    contacts=root.contacts)  # fmt: skip
+    assert motion.whole_body
+    save_motion(tmp_path / "m.npz", motion)
+    with np.load(tmp_path / "m.npz") as z:
+        assert {"root_pos", "root_rot", "dof_pos", "fps", "contacts"} <= set(z.files)
+        assert np.array_equal(z["dof_pos"], motion.angles) and float(z["fps"]) == motion.fps
+    back = load_motion(tmp_path / "m.npz")
+    for name in ("root_pos", "root_rot", "contacts", "angles", "times"):
+        assert np.array_equal(getattr(back, name), getattr(motion, name)), name
+    save_motion(tmp_path / "m.csv", motion, margin=None)
+    lines = (tmp_path / "m.csv").read_text().splitlines()
+    assert len(lines) == motion.n_frames and len(lines[0].split(",")) == 7 + G1.n_joints
+    csv = load_motion(tmp_path / "m.csv", fps=motion.fps)
+    assert csv.robot is G1 and csv.meta["fps"] == motion.fps
+    for name in ("root_pos", "root_rot", "angles"):
+        assert np.array_equal(getattr(csv, name), getattr(motion, name)), name
+    assert np.allclose(csv.times, np.arange(motion.n_frames) / motion.fps)
+    assert load_motion(tmp_path / "m.csv").times[1] == pytest.approx(1 / 30)  # LAFAN1's rate
+
+
+def test_whole_body_files_refuse_what_they_cannot_hold(walk, tmp_path) -> None:
+    rec, _, root = walk
+    n = len(rec.times)
+    with pytest.raises(ConfigError, match="come together"):
+        Motion(root.angles, rec.times, rec.valid, robot=G1, root_pos=root.root_pos)
+    bad = root.root_rot.copy()
+    bad[3] *= 2
+    with pytest.raises(ConfigError, match="frame 3 has norm"):
+        Motion(root.angles, rec.times, rec.valid, robot=G1, root_pos=root.root_pos, root_rot=bad)
+    uneven = rec.times.copy()
+    uneven[5:] += 0.01
+    motion = Motion(root.angles, uneven, rec.valid, robot=G1, root_pos=root.root_pos,
+                    root_rot=root.root_rot)  # fmt: skip
+    with pytest.raises(ConfigError, match="evenly spaced"):
+        save_motion(tmp_path / "u.csv", motion)
+    assert not (tmp_path / "u.csv").exists()
+    (tmp_path / "w.csv").write_text("0.0,1.0,2.0\n")
+    with pytest.raises(InputError, match="fits 0 registered robots"):
+        load_motion(tmp_path / "w.csv")
+    with pytest.raises(InputError, match="has 36"):
+        load_motion(tmp_path / "w.csv", robot=G1)
+    with pytest.raises(ConfigError, match="fps="):
+        load_motion(tmp_path / "w.npz", fps=30)
+    assert n > 10
+
+
+def test_the_command_line_writes_the_root(walk, tmp_path, capsys, monkeypatch) -> None:
+    """``retarget --root world``: what it writes is ``root_trajectory`` of the retargeted angles
+    (here the retargeting replaced by the standing posture: the wiring is under test, not the
+    IK); refusals come before any work, in one line."""
+    from jaxproj.motion import retarget as rt
+
+    rec, angles, root = walk
+
+    def standing(positions, valid, **kwargs):
+        return rt.RetargetResult(angles, np.asarray(valid), kwargs["times"])
+
+    monkeypatch.setattr(rt, "retarget", standing)
+    code, out, err = run_cli(capsys, "retarget", str(CLIP), "--robot", "unitree_g1", "--root",
+                             "world", "--out", str(tmp_path / "m.npz"))  # fmt: skip
+    assert code == 0, err
+    assert "whole body: scale" in out
+    m = load_motion(tmp_path / "m.npz")
+    assert m.meta["root"] == "world"
+    assert np.array_equal(m.root_pos, root.root_pos) and np.array_equal(m.angles, root.angles)
+    for argv, words in (
+        (["--out", str(tmp_path / "o.npz")], "whole-body motion needs correspondence rows"),
+        (["--out", str(tmp_path / "o.json")], "holds joint angles only"),
+        (["--robot", "unitree_g1", "--rate", "input", "--out", str(tmp_path / "o.npz")],
+         "evenly spaced frames"),
+    ):  # fmt: skip
+        code, _, err = run_cli(capsys, "retarget", str(CLIP), "--root", "world", *argv)
+        assert_one_line_error(code, err, words)
