@@ -18,12 +18,15 @@ the robot's own MJCF with its free base:
 * ``legs_deg``: the robot's thighs and shins (its correspondence rows' points) against the
   person's, in the world frame: median and p90 over valid frames and the four bones;
 * ``contact_share``: frames with each foot in contact (left, right);
-* ``retarget_s``: the command's wall time in this process (compiling included).
+* ``retarget_first_s``, ``fixed_s``, ``world_s``: the command's wall time in this process: the
+  first fixed-base run (compiling), a second one, and the whole-body run after them (the same
+  compiled programs: the difference is the whole-body stage).
 
 Self-contact does not depend on the root: ``benchmarks.g1_playable`` measures it on the same
 joint angles.
 
     python -m benchmarks.whole_body [--data FOLDER] [--json OUT] [--extra "OPTIONS"] [FILES...]
+    python -m benchmarks.whole_body --picture MOTION.npz OUT.png 0,300,500
 """
 
 from __future__ import annotations
@@ -149,17 +152,82 @@ def measure_motion(motion: Motion) -> dict:
     }
 
 
+_PERSON = (("HipCenter", "Spine"), ("Spine", "ShoulderCenter"), ("ShoulderCenter", "Head"),
+           ("ShoulderCenter", "ShoulderLeft"), ("ShoulderLeft", "ElbowLeft"),
+           ("ElbowLeft", "WristLeft"), ("ShoulderCenter", "ShoulderRight"),
+           ("ShoulderRight", "ElbowRight"), ("ElbowRight", "WristRight"), ("HipCenter", "HipLeft"),
+           ("HipLeft", "KneeLeft"), ("KneeLeft", "AnkleLeft"), ("AnkleLeft", "FootLeft"),
+           ("HipCenter", "HipRight"), ("HipRight", "KneeRight"), ("KneeRight", "AnkleRight"),
+           ("AnkleRight", "FootRight"))  # fmt: skip
+
+
+def picture(motion: Motion, out: Path, frames: list[int], beside: float = 0.9) -> None:
+    """A PNG of ``frames`` of a whole-body ``motion``: per frame a side view (top) and a front
+    view (bottom) of the robot (its bodies joined to their parents, blue) and the person (the
+    file's positions in the same world frame, red, ``beside`` m to the robot's left), over the
+    floor (grey)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    assert motion.root_pos is not None and motion.root_rot is not None
+    assert motion.positions is not None and motion.contacts is not None
+    robot = motion.robot
+    model = robot.load_model("free")
+    data = mujoco.MjData(model)
+    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
+           for j in robot.joint_names]  # fmt: skip
+    valid = motion.valid & np.isfinite(motion.positions).all(axis=(1, 2))
+    person = world_frame(motion.positions, valid, robot).to_world(motion.positions)
+    person = person + np.array([0.0, beside, 0.0])
+    fig = plt.figure(figsize=(2.6 * len(frames), 5.6))
+    for i, t in enumerate(frames):
+        data.qpos[0:3] = motion.root_pos[t]
+        data.qpos[3:7] = np.roll(motion.root_rot[t], 1)
+        data.qpos[adr] = motion.angles[t]
+        mujoco.mj_kinematics(model, data)
+        centre = (motion.root_pos[t] + person[t, J["HipCenter"]]) / 2
+        for row, view in enumerate(((0, -90), (0, 0))):
+            ax = fig.add_subplot(2, len(frames), row * len(frames) + i + 1, projection="3d")
+            for b in range(2, model.nbody):
+                a, c = data.xpos[model.body_parentid[b]], data.xpos[b]
+                ax.plot(*zip(a, c, strict=True), color="tab:blue", lw=1.5)
+            for a, b in _PERSON:
+                ax.plot(*zip(person[t, J[a]], person[t, J[b]], strict=True), color="tab:red",
+                        lw=1.5)  # fmt: skip
+            xs, ys = np.meshgrid(centre[0] + np.array([-0.8, 0.8]),
+                                 centre[1] + np.array([-1.0, 1.0]))  # fmt: skip
+            ax.plot_surface(xs, ys, 0 * xs, alpha=0.2, color="grey")
+            ax.set(xlim=centre[0] + np.array([-0.8, 0.8]), ylim=centre[1] + np.array([-1, 1]),
+                   zlim=(0, 1.6), xticklabels=[], yticklabels=[])  # fmt: skip
+            ax.view_init(*view)
+            feet = "".join("LR"[k] for k in range(2) if motion.contacts[t, k]) or "-"
+            ax.set_title(f"{motion.times[t]:.2f} s, contact {feet}", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=70)
+    plt.close(fig)
+
+
 def measure(path: Path, extra: list[str], out_dir: Path, robot: str = gp.ROBOT) -> dict:
-    """``jaxproj retarget PATH --robot ROBOT --root world`` in this process, then the file's
-    measures."""
+    """``jaxproj retarget PATH --robot ROBOT`` in this process: the fixed base twice (the first
+    compiles; the second is timed: ``fixed_s``), then ``--root world`` (timed: ``world_s``, its
+    programs already compiled by the fixed-base runs), then the whole-body file's measures."""
     out = out_dir / f"{path.stem}.npz"
-    t0 = time.perf_counter()
-    rc = cli(["retarget", str(path), "--robot", robot, "--root", "world", "--out", str(out),
-              "--force", *extra])  # fmt: skip
-    took = time.perf_counter() - t0
-    if rc != 0:
-        raise SystemExit(f"retarget {path} exited {rc}")
-    return {"file": path.name, "retarget_s": round(took, 1), **measure_motion(load_motion(out))}
+
+    def run(*more: str) -> float:
+        t0 = time.perf_counter()
+        rc = cli(["retarget", str(path), "--robot", robot, "--out", str(out), "--force",
+                  *more, *extra])  # fmt: skip
+        if rc != 0:
+            raise SystemExit(f"retarget {path} exited {rc}")
+        return time.perf_counter() - t0
+
+    first = run()
+    fixed = run()
+    world = run("--root", "world")
+    return {"file": path.name, "retarget_first_s": round(first, 1), "fixed_s": round(fixed, 1),
+            "world_s": round(world, 1), **measure_motion(load_motion(out))}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -169,7 +237,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robot", default=gp.ROBOT)
     p.add_argument("--json", default=None)
     p.add_argument("--extra", default="", help="more retarget options, one string")
+    p.add_argument(
+        "--picture",
+        nargs=3,
+        metavar=("MOTION", "OUT", "FRAMES"),
+        default=None,
+        help="only draw frames (comma-separated) of a whole-body MOTION file to a PNG",
+    )
     a = p.parse_args(argv)
+    if a.picture:
+        motion, out, frames = a.picture
+        picture(load_motion(motion), Path(out), [int(f) for f in frames.split(",")])
+        return 0
     files = a.files or gp.default_files(a.data)
     robot = robots.get(a.robot).name
     rows = []

@@ -93,9 +93,9 @@ PLAYABLE_FILES = {
 }
 
 
-def _playable_rows(heading: str) -> dict[str, dict[str, str]]:
-    """The first table after ``heading`` in docs/results.md: recording -> {column: cell}."""
-    text = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+def _playable_rows(heading: str, page: str = "docs/results.md") -> dict[str, dict[str, str]]:
+    """The first table after ``heading`` in ``page``: recording -> {column: cell}."""
+    text = (ROOT / page).read_text(encoding="utf-8")
     lines = text[text.index(heading) :].split("\n| recording", 1)[1].splitlines()
     header = [c.strip() for c in ("| recording" + lines[0]).strip("|").split("|")]
     rows = {}
@@ -146,3 +146,29 @@ def test_the_g1_playable_tables_are_the_result_files(heading: str, result: str) 
         assert len(quoted) >= 5, f"{heading}: columns {sorted(cells)}"
         page = {k: cells[k] for k in quoted}
         assert page == quoted, f"{result}, {name}: the page says {page}, the file {quoted}"
+
+
+WHOLE_BODY_COLUMNS: dict[str, Callable[[dict], str]] = {
+    "contact L / R": lambda r: " / ".join(f"{100 * x:.0f}" for x in r["contact_share"]) + " %",
+    "sliding median / p95, cm/s": lambda r: (
+        f"{r['slide_cm_s_median']:.2f} / {r['slide_cm_s_p95']:.2f}"
+    ),
+    "penetration, mm": lambda r: f"{r['penetration_mm']:.0f}",
+    "root jump, cm": lambda r: f"{r['root_jump_cm']:.1f}",
+    "trunk, deg": lambda r: f"{r['trunk_deg_median']:.1f}",
+    "legs, deg": lambda r: f"{r['legs_deg_median']:.1f}",
+    "fixed / whole-body retarget, s": lambda r: f"{r['fixed_s']:.1f} / {r['world_s']:.1f}",
+}
+
+
+def test_the_whole_body_table_is_the_result_file() -> None:
+    """The whole-body guide's measured table, every column, recording by recording, against
+    ``benchmarks/results/whole_body_cpu.json``."""
+    rows = _playable_rows("## Measured", "docs/guide/whole-body.md")
+    assert set(rows) == set(PLAYABLE_FILES), sorted(rows)
+    got = json.loads((RESULTS / "whole_body_cpu.json").read_text(encoding="utf-8"))["rows"]
+    by_file = {r["file"]: r for r in got}
+    for name, cells in rows.items():
+        quoted = {k: read(by_file[PLAYABLE_FILES[name]]) for k, read in WHOLE_BODY_COLUMNS.items()}
+        page = {k: cells[k] for k in quoted}
+        assert page == quoted, f"{name}: the page says {page}, the file {quoted}"
