@@ -248,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
             full=FULL_READINGS[args.full_reading],
             robot=None if model is not None else robot,
             skeleton=rec.skeleton,
+            level_legs=args.root == "fixed",
         )
     except NoValidFrameError as e:  # name the file (and the option that most often causes it)
         hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""

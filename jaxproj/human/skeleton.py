@@ -337,10 +337,12 @@ def level_body(
     *,
     skeleton: SkeletonLike = skeletons.DEFAULT,
     up: ArrayLike | None = None,
+    legs: bool = True,
 ) -> jax.Array:
     """One recording's descriptors levelled against its own medians, for robots that read the
-    legs: (1) every bone turned about the body's left axis so that the median shin (both sides,
-    valid frames) points straight down (``LEG_TILT_REFERENCE``), then (2) each bone of
+    legs: (1) (with ``legs``, the default) every bone turned about the body's left axis so
+    that the median shin (both sides, valid frames) points straight down
+    (``LEG_TILT_REFERENCE``), then (2) each bone of
     ``BONE_TILT_REFERENCES`` turned about the same axis so that its median tilt is the
     reference. Both take out where a tracker puts its points, not what the person does: a
     person's legs hang below the trunk and their feet stand flat for most of a recording, and
@@ -365,6 +367,10 @@ def level_body(
       valid: ``(T,)`` bool.
       bones, skeleton: the descriptor's bones and skeleton.
       up: ``(T, 3)`` the capture's up axis in each frame's body frame, or ``None``.
+      legs: take step (1). Without it every bone keeps its direction in the person's own body
+        frame (a whole-body motion places the robot's torso at that frame in the world, where
+        the turn would tilt every limb by it: ``jaxproj.motion.whole_body``); step (2) still
+        runs.
 
     Returns:
       ``(T, 3 * n_bones)`` float32.
@@ -379,7 +385,8 @@ def level_body(
         [-v[:, names.index("shin_left")], -v[:, names.index("shin_right")]], axis=0
     )
     neutral = _median(_tilt(shins), jnp.concatenate([valid, valid]), LEG_TILT_REFERENCE)
-    v = _turn(v, jnp.float32(LEG_TILT_REFERENCE) - neutral)
+    if legs:
+        v = _turn(v, jnp.float32(LEG_TILT_REFERENCE) - neutral)
     floor = None if up is None else _tilt(jnp.asarray(up, jnp.float32))  # (T,), unturned
     for bone, reference in BONE_TILT_REFERENCES.items():
         if bone in names:

@@ -194,6 +194,7 @@ def level(
     *,
     bones: str | tuple[str, ...],
     up: jax.Array | None = None,
+    legs: bool = True,
 ) -> jax.Array:
     """One motion's descriptors levelled: for descriptors with legs the body frame and the
     spine against the motion's own medians and the feet against the floor (``up``, the
@@ -211,10 +212,12 @@ def level(
       bones: the descriptor's bones (no neck bone: ``d`` unchanged).
       up: ``(T, 3)`` the capture's up axis in each frame's body frame (``skeleton.world_up``),
         or ``None``: the feet against the body's medians.
+      legs: ``level_body``'s first step (every bone turned so the median shin hangs straight
+        down); off for a whole-body motion.
     """
     if neck == "off":
         return d
-    d = level_body(d, ok, bones, up=up)
+    d = level_body(d, ok, bones, up=up, legs=legs)
     if "neck" not in resolve_bones(bones):
         return d
     if neck == "recording":
@@ -356,6 +359,7 @@ def motion(
     neck: NeckLevel = "off",
     neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
     shards: int = 1,
+    level_legs: bool = True,
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """The whole pipeline for one padded motion (``retarget``'s compiled call).
 
@@ -373,6 +377,7 @@ def motion(
       neck, neck_neutral: the neck's neutral tilt (``level``): ``"recording"``, the median of
         the motion's valid frames; ``"given"``, ``neck_neutral`` (rad); ``"off"``, none.
       shards: CPU devices the IK's frames are split over (``map_frames``; the same answers).
+      level_legs: ``level``'s ``legs``.
 
     Returns:
       ``((T, n_joints) angles, (T,) valid, (T,) confidence)``: ``robot.joint_names`` order,
@@ -381,7 +386,7 @@ def motion(
     """
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
     ok = ok & ~glitch_frames(d, ok, bones=bones, read=robot.ik_bones)
-    d = level(d, ok, neck, neck_neutral, bones=bones, up=world_up(positions))
+    d = level(d, ok, neck, neck_neutral, bones=bones, up=world_up(positions), legs=level_legs)
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot, shards=shards)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,

@@ -171,6 +171,7 @@ _motion_jit = jit(
         "robot",
         "neck",
         "shards",
+        "level_legs",
     ),
 )
 
@@ -191,6 +192,7 @@ def retarget(
     feasible: FeasibleConfig | None = None,
     robot: Robot | str | None = None,
     neck_neutral: float | Literal["recording"] | None = "recording",
+    level_legs: bool = True,
     skeleton: SkeletonLike = "kinect_v1",
 ) -> RetargetResult:
     """Retarget one motion (one compiled call: descriptor -> mapping -> fill -> smooth -> clip;
@@ -219,6 +221,10 @@ def retarget(
         frames; a number, that tilt in rad (e.g. measured on a calibration pose of the same
         set-up); ``None``, no levelling (``skeleton.NECK_TILT_REFERENCE``, MSR Action3D's
         median, for every recording). See ``pipeline.level`` and ``skeleton.level_neck``.
+      level_legs: for descriptors with legs, turn every bone so that the recording's median
+        shin hangs straight below the trunk (``skeleton.level_body``'s first step; default):
+        what a fixed base needs; ``False`` keeps the person's own body frame, for a whole-body
+        motion (``jaxproj.motion.whole_body``; ``jaxproj retarget --root world``).
       skeleton: the skeleton the positions were recorded in (``Recording.skeleton``; they are
         laid out as Kinect v1 whatever it is): every bone the robot's correspondence reads
         (``Robot.ik_bones``) must be one it defines, checked before anything is traced.
@@ -313,6 +319,7 @@ def retarget(
         robot=spec,
         neck=neck,
         shards=host_shards() if method == "ik" else 1,
+        level_legs=bool(level_legs),
     )
     angles, ok_out, conf = executables.call(
         _motion_jit,

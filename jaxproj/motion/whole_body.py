@@ -33,16 +33,19 @@ The root, frame by frame:
 * **orientation**: the robot's torso (the correspondence's base) takes the person's body frame in
   the world (up along HipCenter -> ShoulderCenter), so the robot's trunk leans as the person's
   does; the root body's orientation follows through the waist joints (forward kinematics of the
-  angles). Frames whose body frame is degenerate or invalid hold the last good one. ``retarget``
-  turns the legs against the trunk by each recording's median shin (``skeleton.level_body``'s
-  first step, up to 19 deg on the bundled clips), so in the world the robot's legs are off the
-  person's by about that angle (``benchmarks.whole_body`` measures it). ``level_soles`` instead
+  angles). Frames whose body frame is degenerate or invalid hold the last good one. The angles
+  should come from ``retarget(..., level_legs=False)`` (``jaxproj retarget --root world`` does
+  so): by default ``retarget`` turns every bone against the trunk by the recording's median
+  shin (``skeleton.level_body``'s first step, up to 19 deg on the bundled clips), which a fixed
+  base needs and which would tilt every limb by that angle in the world (measured on the CMU
+  clips: the legs 13-19 deg off the person's, against 5-6 without it). ``level_soles`` instead
   turns the whole recording so that its stance soles are level on the median.
 * **height**: with no foot in contact, the lowest foot point (each foot geom's lowest point: a
   box's corners, a sphere's or capsule's lowest surface point) at the person's scaled clearance
   less ``ContactConfig.height`` (continuous through a touchdown); with feet in contact, the
-  higher stance foot's lowest point on the floor (the other leg is then shortened by the stance
-  IK, which a leg can always do, where lengthening it may be past its reach); each foot's rule
+  higher stance foot on the floor, level (its sole's reference point at the height it has over
+  the floor when the sole is level; the other leg is then shortened by the stance IK, which a
+  leg can always do, where lengthening it may be past its reach); each foot's rule
   blends in and out over ``PLANT_RAMP_S`` around its contact, so the root does not jump.
 * **horizontal position**: the person's scaled HipCenter, moved by its frame-to-frame steps;
   while a foot is in contact in two consecutive frames the root instead moves so that the stance
@@ -80,6 +83,7 @@ from jaxproj.motion.feet import (
     _plant_feet,
     _root_body,
     _set,
+    _sole_heights,
     _stance_weights,
     _subtree,
 )
@@ -395,7 +399,12 @@ def root_trajectory(
     target = np.maximum(0.0, clear.min(axis=1) - cfg.height)
     weight = _stance_weights(stance, ramp)[1]
     free = target - low.min(axis=1)
-    z = np.min(weight * -low + (1.0 - weight) * free[:, None], axis=1)
+    # a stance foot: its sole's reference point at its height above the floor when level (the
+    # planting IK levels it: a tilted foot's lowest corner would leave the root too high, and
+    # the IK would straighten the leg to reach down)
+    flat = np.array(_sole_heights(model, data, robot, trees))
+    stand = flat[None] - centre[:, :, 2]
+    z = np.min(weight * stand + (1.0 - weight) * free[:, None], axis=1)
     # horizontal: the scaled pelvis's steps, or the stance feet held
     hip = world.to_world(p[_hold(ok), skeletons.get(skeleton).index["HipCenter"]])
     xy = np.zeros((n, 2))

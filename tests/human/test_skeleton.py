@@ -154,6 +154,14 @@ def test_level_body_takes_out_a_trackers_trunk_tilt_and_keeps_the_motion(frames)
         again = np.asarray(level_body(_tilted(d, angle), ok, "full"))
         assert np.abs(again - out).max() < 2e-3  # a constant tilt is taken out
     assert np.allclose(np.linalg.norm(v, axis=-1), 1.0, atol=1e-5)  # lengths kept
+    # legs=False (a whole-body motion): no turn; the calibrated bones still at their references
+    kept = np.asarray(level_body(d, ok, "full", legs=False)).reshape(len(d), -1, 3)
+    calibrated = [BONE_NAMES.index(b) for b in BONE_TILT_REFERENCES]
+    rest = [i for i in range(len(BONE_NAMES)) if i not in calibrated]
+    assert np.array_equal(kept[:, rest], d.reshape(len(d), -1, 3)[:, rest])
+    for bone, ref in BONE_TILT_REFERENCES.items():
+        b = kept[ok, BONE_NAMES.index(bone)]
+        assert abs(np.median(np.arctan2(b[:, 0], b[:, 2])) - ref) < 5e-3  # rad
     upper, ok_u = descriptor(frames, bones="upper")
     assert np.array_equal(np.asarray(level_body(upper, ok_u, "upper")), np.asarray(upper))
 

@@ -188,12 +188,15 @@ def test_whole_body_files_refuse_what_they_cannot_hold(walk, tmp_path) -> None:
 def test_the_command_line_writes_the_root(walk, tmp_path, capsys, monkeypatch) -> None:
     """``retarget --root world``: what it writes is ``root_trajectory`` of the retargeted angles
     (here the retargeting replaced by the standing posture: the wiring is under test, not the
-    IK); refusals come before any work, in one line."""
+    IK), retargeted without the legs' levelling; refusals come before any work, in one line."""
     from jaxproj.motion import retarget as rt
 
     rec, angles, root = walk
 
+    seen = {}
+
     def standing(positions, valid, **kwargs):
+        seen.update(kwargs)
         return rt.RetargetResult(angles, np.asarray(valid), kwargs["times"])
 
     monkeypatch.setattr(rt, "retarget", standing)
@@ -201,6 +204,7 @@ def test_the_command_line_writes_the_root(walk, tmp_path, capsys, monkeypatch) -
                              "world", "--out", str(tmp_path / "m.npz"))  # fmt: skip
     assert code == 0, err
     assert "whole body: scale" in out
+    assert seen["level_legs"] is False  # the legs keep the person's own body frame
     m = load_motion(tmp_path / "m.npz")
     assert m.meta["root"] == "world"
     assert np.array_equal(m.root_pos, root.root_pos) and np.array_equal(m.angles, root.angles)
