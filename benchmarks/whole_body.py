@@ -48,7 +48,8 @@ from jaxproj.cli.main import main as cli
 from jaxproj.human.skeleton import J
 from jaxproj.io.motion_files import Motion, load_motion
 from jaxproj.motion.feet import _foot_points, _subtree
-from jaxproj.motion.whole_body import world_frame
+from jaxproj.motion.whole_body import _point, world_frame
+from jaxproj.robots.base import joint_qpos_index
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -64,8 +65,7 @@ def measure_motion(motion: Motion) -> dict:
     assert motion.contacts is not None and motion.positions is not None
     model = robot.load_model("free")
     data = mujoco.MjData(model)
-    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
-           for j in robot.joint_names]  # fmt: skip
+    adr = joint_qpos_index(model, robot.joint_names)
     free = int(model.jnt_qposadr[0])
     corr = robot.generic.correspondence
     torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, corr.base)
@@ -74,12 +74,6 @@ def measure_motion(motion: Motion) -> dict:
     everything = list(range(1, model.nbody))
     rows = {r.bone: (r.start, r.end) for r in corr.pairs}
     legs = [f"{b}_{s}" for s in ("left", "right") for b in ("thigh", "shin")]
-
-    def point(name: str) -> np.ndarray:
-        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-        if sid >= 0:
-            return np.array(data.site_xpos[sid])
-        return np.array(data.xpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)])
 
     n = motion.n_frames
     sole = np.zeros((n, len(feet), 3))
@@ -103,7 +97,7 @@ def measure_motion(motion: Motion) -> dict:
         torso_up[t] = data.xmat[torso].reshape(3, 3)[:, 2]
         for i, bone in enumerate(legs):
             a, b = rows[bone]
-            robot_legs[t, i] = point(b) - point(a)
+            robot_legs[t, i] = _point(model, data, b) - _point(model, data, a)
     c = motion.contacts
     dt = np.diff(motion.times)
     both = c[1:] & c[:-1]
@@ -177,8 +171,7 @@ def picture(motion: Motion, out: Path, frames: list[int], beside: float = 0.9) -
     robot = motion.robot
     model = robot.load_model("free")
     data = mujoco.MjData(model)
-    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
-           for j in robot.joint_names]  # fmt: skip
+    adr = joint_qpos_index(model, robot.joint_names)
     valid = motion.valid & np.isfinite(motion.positions).all(axis=(1, 2))
     person = world_frame(motion.positions, valid, robot).to_world(motion.positions)
     person = person + np.array([0.0, beside, 0.0])

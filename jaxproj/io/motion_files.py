@@ -656,17 +656,7 @@ def _read_csv(path: Path, robot: Robot | None, fps: float | None = None) -> Moti
     robot = _robot_of_names(path, robot, names)
     if len(lines) < 2:
         raise InputError(path, "no frames (only a header)")
-    width = len(header)
-    values = np.empty((len(lines) - 1, width), dtype=np.float64)
-    for i, line in enumerate(lines[1:]):
-        cells = line.split(",")
-        if len(cells) != width:
-            raise InputError(path, f"line {i + 2}: expected {width} columns, got {len(cells)}")
-        try:
-            values[i] = [float(c) for c in cells]
-        except ValueError:
-            bad = next(c for c in cells if not _is_float(c))
-            raise InputError(path, f"line {i + 2}: not a number: {bad.strip()[:40]!r}") from None
+    values = _number_rows(path, lines[1:], len(header), first_line=2)
     times = values[:, 0]
     check_times(times)
     columns = values[:, 1 : 1 + len(names)].astype(np.float32)
@@ -691,17 +681,7 @@ def _read_root_csv(path: Path, lines: list[str], robot: Robot | None, fps: float
         raise InputError(path, f"line 1: {width} columns; the {robot.name}'s whole-body CSV has "
                          f"{robot.n_joints + 7} (root x y z, quaternion x y z w, "
                          f"{robot.n_joints} joints)")  # fmt: skip
-    values = np.empty((len(lines), width), dtype=np.float64)
-    for i, line in enumerate(lines):
-        cells = line.split(",")
-        if len(cells) != width:
-            raise InputError(path, f"line {i + 1}: expected {width} columns, got {len(cells)}")
-        try:
-            values[i] = [float(c) for c in cells]
-        except ValueError:
-            bad = next(c for c in cells if not _is_float(c))
-            raise InputError(path, f"line {i + 1}: not a number: {bad.strip()[:40]!r}") from None
-    table = values.astype(np.float32)
+    table = _number_rows(path, lines, width, first_line=1).astype(np.float32)
     if not np.isfinite(table).all():
         raise InputError(path, "values must be finite", frame=int(np.flatnonzero(
             ~np.isfinite(table).all(axis=1))[0]))  # fmt: skip
@@ -712,6 +692,27 @@ def _read_root_csv(path: Path, lines: list[str], robot: Robot | None, fps: float
                       root_rot=table[:, 3:7], meta={"fps": fps})  # fmt: skip
     except ConfigError as e:
         raise InputError(path, str(e)) from None
+
+
+def _number_rows(path: Path, lines: list[str], width: int, first_line: int) -> np.ndarray:
+    """``(len(lines), width)`` float64 of comma-separated ``lines`` (the file's line
+    ``first_line`` first), or ``InputError`` naming the line: a row of another width, a cell
+    that is not a number."""
+    values = np.empty((len(lines), width), dtype=np.float64)
+    for i, line in enumerate(lines):
+        cells = line.split(",")
+        if len(cells) != width:
+            raise InputError(
+                path, f"line {i + first_line}: expected {width} columns, got {len(cells)}"
+            )
+        try:
+            values[i] = [float(c) for c in cells]
+        except ValueError:
+            bad = next(c for c in cells if not _is_float(c))
+            raise InputError(
+                path, f"line {i + first_line}: not a number: {bad.strip()[:40]!r}"
+            ) from None
+    return values
 
 
 def _is_float(text: str) -> bool:

@@ -18,11 +18,12 @@ import mujoco
 import numpy as np
 
 from jaxproj.robots import Robot
+from jaxproj.robots.base import joint_qpos_index
 
 
-def _set(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot, q: np.ndarray) -> None:
-    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
-           for j in robot.joint_names]  # fmt: skip
+def _set(model: mujoco.MjModel, data: mujoco.MjData, adr: np.ndarray, q: np.ndarray) -> None:
+    """``q`` (the robot's joints) into ``data.qpos`` at ``adr`` (``joint_qpos_index``), then the
+    kinematics."""
     data.qpos[adr] = q
     mujoco.mj_kinematics(model, data)
 
@@ -207,8 +208,7 @@ def _plant_feet(
     angles, (T, 3) root positions)``, float64."""
     model = robot.load_model("free")
     data = mujoco.MjData(model)
-    adr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)])
-           for j in robot.joint_names]  # fmt: skip
+    adr = joint_qpos_index(model, robot.joint_names).tolist()
     free = int(model.jnt_qposadr[0])
     root = int(model.jnt_bodyid[0])
     out = np.array(q, np.float64)
@@ -313,7 +313,7 @@ def _sole_heights(
     """Per foot (``trees``: each foot body's subtree), how high its sole's reference point (the
     mean of its geoms' lowest points) is above the sole when the foot is level (the standing
     posture, the foot's own frame); what ``_plant_feet`` holds it at."""
-    _set(model, data, robot, robot.standing)
+    _set(model, data, joint_qpos_index(model, robot.joint_names), robot.standing)
     out = []
     for tree in trees:
         pts, rad = _foot_points(model, data, tree, tree[0])
@@ -331,9 +331,10 @@ def _below_floor(
     data = mujoco.MjData(model)
     root = _root_body(model)
     bodies = list(range(1, model.nbody))
+    adr = joint_qpos_index(model, robot.joint_names)
     out = np.zeros(len(q))
     for t in range(len(q)):
-        _set(model, data, robot, q[t])
+        _set(model, data, adr, q[t])
         pts, rad = _foot_points(model, data, bodies, root)
         out[t] = max(0.0, -(root_pos[t, 2] + np.min((pts @ rot_root[t].T)[:, 2] - rad)))
     return out

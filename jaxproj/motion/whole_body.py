@@ -88,6 +88,7 @@ from jaxproj.motion.feet import (
     _subtree,
 )
 from jaxproj.robots import Robot
+from jaxproj.robots.base import joint_qpos_index
 
 __all__ = ["HEADING_FRAMES", "ContactConfig", "RootMotion", "WorldFrame", "check_robot",
            "contacts_of", "robot_leg_length", "root_trajectory", "world_frame"]  # fmt: skip
@@ -208,7 +209,7 @@ def robot_leg_length(robot: Robot) -> float:
     rows = _leg_rows(robot)
     model = robot.load_model("fixed")
     data = mujoco.MjData(model)
-    _set(model, data, robot, robot.standing)
+    _set(model, data, joint_qpos_index(model, robot.joint_names), robot.standing)
     length = [
         np.linalg.norm(_point(model, data, b) - _point(model, data, a))
         for a, b in rows.values()
@@ -373,8 +374,9 @@ def root_trajectory(
     root_torso = np.zeros((n, 3, 3))
     foot_pts: list[list[tuple[np.ndarray, np.ndarray]]] = []
     foot_up = np.zeros((n, len(feet), 3))
+    adr = joint_qpos_index(model, robot.joint_names)
     for t in range(n):
-        _set(model, data, robot, q[t])
+        _set(model, data, adr, q[t])
         r_root = data.xmat[root].reshape(3, 3)
         root_torso[t] = r_root.T @ data.xmat[torso].reshape(3, 3)
         foot_pts.append([_foot_points(model, data, tree, root) for tree in trees])

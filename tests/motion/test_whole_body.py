@@ -20,6 +20,7 @@ from jaxproj.io.motion_files import Motion, load_motion, save_motion
 from jaxproj.io.readers import read_skeleton
 from jaxproj.motion import feet as feet_mod
 from jaxproj.motion import whole_body as wb
+from jaxproj.robots.base import joint_qpos_index
 from tests.fuzzing import assert_one_line_error, run_cli
 
 G1 = robots.get("unitree_g1")
@@ -38,8 +39,7 @@ def _replay(root: wb.RootMotion):
     """Per frame: the lowest point of every robot geom, each foot's lowest point and up axis."""
     model = G1.load_model("free")
     data = mujoco.MjData(model)
-    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
-           for j in G1.joint_names]  # fmt: skip
+    adr = joint_qpos_index(model, G1.joint_names)
     feet = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b, _ in G1.mjcf.figure.feet]
     lowest, foot_low, foot_up, torso_x = [], [], [], []
     torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "torso_link")
