@@ -22,8 +22,8 @@ trusted code (its files are unpickled).
 What the key cannot see: Python state that changes a trace without changing the code's bytes
 or the call's arguments (a module's function or default replaced at run time, a monkeypatch):
 a process that does that and calls ``retarget`` through the command line runs with
-``--no-cache`` (``benchmarks.experiments.g1_min_step`` does), else it gets the program the first
-such run kept.
+``--no-cache`` (the continuity-pass sweep of ``benchmarks/experiments`` does), else it gets the
+program the first such run kept.
 
 Off unless ``kept_in(folder)`` is active: the command line turns it on with its compilation
 cache (``--no-cache`` turns both off); a library import never does.

@@ -28,8 +28,9 @@ exports that suffix (the default robot first):
   ``jaxproj retarget --root world``): the NPZ adds ``root_pos`` ``(T, 3)`` float32 m,
   ``root_rot`` ``(T, 4)`` float32 quaternions ``(x, y, z, w)``, ``dof_pos`` (the angles again,
   under the name GMR's files use), ``fps`` (0-d float64) and ``contacts`` ``(T, 2)`` bool (left,
-  right foot); the CSV is the LAFAN1 retargeting layout that BeyondMimic's and unitree_rl_lab's
-  ``csv_to_npz.py`` read (``motion[:, 3:7][:, [3, 0, 1, 2]]``: scalar last): no header, one row
+  right foot); the CSV is the LAFAN1 retargeting layout that motion-tracking trainers'
+  ``csv_to_npz.py`` scripts read (``motion[:, 3:7][:, [3, 0, 1, 2]]``: scalar last; sources in
+  the guide, "Whole-body motion"): no header, one row
   per frame of root x, y, z, quaternion x, y, z, w, then every joint in the robot's SDK order,
   frames evenly spaced (written only so) and no time column: ``load_motion(path, fps=...)``
   (default ``ROOT_CSV_FPS``, the LAFAN1 files' 30) gives frame ``k`` the time ``k / fps``, and

@@ -60,8 +60,8 @@ after ``retarget``'s feasibility filter, so a leg joint's speed can exceed its b
 (``benchmarks.whole_body`` counts it).
 
 Quaternions are written ``(x, y, z, w)`` (scalar last: GMR's ``root_rot`` and the LAFAN1
-retargeting CSVs that BeyondMimic and unitree_rl_lab read; MuJoCo's own ``qpos`` is scalar
-first).
+retargeting CSVs that motion-tracking trainers read, sources in the guide's "Whole-body motion";
+MuJoCo's own ``qpos`` is scalar first).
 """
 
 from __future__ import annotations
