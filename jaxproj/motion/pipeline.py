@@ -445,8 +445,12 @@ def frame(
                          robot=robot)  # fmt: skip
     answer = r[0]
     tracked, last_answer, last_d = carried
+    # as GenericIK.track: the first valid frame is a step from its own answer
+    tracked = jnp.where(started, tracked, answer)
+    last_answer = jnp.where(started, last_answer, answer)
+    last_d = jnp.where(started, last_d, d)
     step = robot.continuous_step(tracked, last_answer, answer, last_d, d, bones)
-    r = jnp.where(started & ok, step, answer)  # as GenericIK.track: the first frame as it is
+    r = jnp.where(ok, step, answer)
     carried = (
         jnp.where(ok, r, tracked),
         jnp.where(ok, answer, last_answer),

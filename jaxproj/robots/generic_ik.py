@@ -733,16 +733,26 @@ class GenericIK:
         iterations: int = 8,
         stay: float = 1.0,
         start: jax.typing.ArrayLike | None = None,
+        keep_rows: bool = False,
     ) -> jax.Array:
         """Push a robot pose's collision pairs apart, moving its joints as little as it can.
 
-        Per chain, in chain order (later chains see earlier chains' answers), from the given
+        Per chain, those that move the fewest collision pairs first (later chains see earlier
+        chains' answers: a limb yields before the trunk; among as many pairs, with ``start``,
+        the chain farthest from ``start`` first, the limb that came into the contact; then
+        chain order), from the given
         angles ``x_in`` (and, with ``start``, from ``start``'s angles too, keeping the end
         with the lower objective), ``iterations`` Levenberg-Marquardt steps on::
 
             minimise   stay * |x - x_in|^2  +  collision(x)     x within the robot's limits
 
-        (``collision`` the IK's term: ``IKConfig.collision`` and ``margin``). A pose whose
+        (``collision`` the IK's term: ``IKConfig.collision`` and ``margin``). With
+        ``keep_rows``, also ``sum_k w_k |dir_k(x) - dir_k(x_in)|^2 + lam * |x - x_0|^2`` (the
+        chain's rows and weights, the IK's ``neutral`` pull): the pose moves where its rows'
+        directions change least (an arm swung out from the shoulder as a whole rather than its
+        elbow bent), which is what ``track`` wants of an answer whose directions it then
+        follows; without it every joint costs the same, so a loose joint (a straight leg's hip
+        yaw), which turns no row, is not the first to swing. A pose whose
         pairs are all ``margin`` apart is returned unchanged; a chain without collision pairs
         is not touched. For poses that did not come from this IK (a projection's answers),
         which the IK's collision term never saw. Traceable.
@@ -757,6 +767,7 @@ class GenericIK:
           iterations: LM steps per chain.
           stay: weight of the pull toward the given angles (rad^-2).
           start: ``(..., n_driven)`` a second start per pose, or ``None`` (``x_in`` only).
+          keep_rows: also keep the rows' directions (above).
 
         Returns:
           ``(..., n_driven)`` float32 angles within the robot's limits.
@@ -777,24 +788,45 @@ class GenericIK:
         sq = np.float32(math.sqrt(stay))
         standing = self._extended(jnp.asarray(self.robot.standing))
         didx = self.robot.driven_index
-        # the chains with a collision pair, in chain order (the others are not touched)
+        # the chains with a collision pair (the others are not touched), those that move the
+        # fewest pairs first, ties in chain order: a chain that moves much of the body (the
+        # waist turns the pelvis and legs against the torso) is left what the limbs could not
+        # clear; first, it would clear a hand in the hip by turning the trunk. With ``start``,
+        # among chains that move as many pairs, the one that moved most from ``start`` first:
+        # the limb that came into the contact (a tracker's glitching leg) yields, not the one
+        # it came into
+        n_pairs = self.problems.data.pair_mask.sum(axis=1)
         with_pairs = np.flatnonzero(self.problems.has_pairs)
+        with_pairs = with_pairs[np.argsort(n_pairs[with_pairs], kind="stable")]
         data = jax.tree.map(jnp.asarray, self.problems.take(with_pairs))
 
         def one(row: jax.Array, other: jax.Array | None = None) -> jax.Array:
             other_ext = None if other is None else standing.at[didx].set(other)
+            chains = data
+            if other_ext is not None:
+                q_in = standing.at[didx].set(row)
+                moved = jnp.max(jnp.abs(q_in[data.joints] - other_ext[data.joints]), axis=1)
+                # by pair count, then the farthest moved first, then chain order (stable)
+                order = jnp.lexsort((-moved, jnp.asarray(n_pairs[with_pairs], jnp.int32)))
+                chains = jax.tree.map(lambda a: a[order], data)
 
             def chain(q_ext: jax.Array, c: _ChainData[jax.Array]) -> tuple[jax.Array, None]:
                 x_in = jnp.clip(q_ext[c.joints], c.lim_lo, c.lim_hi)
+                p_in = self._chain_points(x_in, q_ext, c)[0]
+                t_in = _row_directions(p_in, c)  # the rows' directions as given: kept
 
                 def res_jac(x: jax.Array) -> tuple[jax.Array, jax.Array]:
-                    p, dp = self._chain_points(x, q_ext, c)
-                    pen, dpen = self._collision_terms(p, dp, c)
-                    assert dpen is not None
+                    if keep_rows:
+                        r, jac = self._residual(x, q_ext, t_in, c.weights, c)
+                    else:
+                        p, dp = self._chain_points(x, q_ext, c)
+                        r, d_pen = self._collision_terms(p, dp, c)
+                        assert d_pen is not None
+                        jac = d_pen
                     eye = jnp.eye(x.shape[-1], dtype=jnp.float32)
                     return (
-                        jnp.concatenate([sq * (x - x_in), pen]),
-                        jnp.concatenate([sq * eye, dpen], axis=0),
+                        jnp.concatenate([r, sq * (x - x_in)]),
+                        jnp.concatenate([jac, sq * eye], axis=0),
                     )
 
                 def run(x_start: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -814,11 +846,11 @@ class GenericIK:
                 # (its objective is 0 there, and no step lowers it; the start x_in wins a tie):
                 # skipped then (a real branch for one pose, as `playable_motion` passes them;
                 # under vmap both branches run and the answer is the same)
-                pen, _ = self._collision_terms(self._chain_points(x_in, q_ext, c)[0], None, c)
+                pen, _ = self._collision_terms(p_in, None, c)
                 x = jax.lax.cond(jnp.any(pen > 0), search, lambda: x_in)
                 return q_ext.at[c.joints].set(x), None
 
-            q_ext, _ = jax.lax.scan(chain, standing.at[didx].set(row), data)
+            q_ext, _ = jax.lax.scan(chain, standing.at[didx].set(row), chains)
             return q_ext[didx]
 
         st = None
@@ -866,7 +898,9 @@ class GenericIK:
         far as its limb turned (at least ``r_0``): a flip cannot enter where the person hardly
         moved; where a limb needs more (near a singular pose) the output follows over the next
         frames. A frame that is not valid, and frames before the first valid one, output the
-        frame's answer (``fill_invalid`` replaces them later) and leave the state as it was.
+        frame's answer (``fill_invalid`` replaces them later) and leave the state as it was; the
+        first valid frame is a step from its own answer (so it too leaves ``separate``'s pairs
+        apart).
         Causal: frame ``t``'s output depends on frames ``<= t`` only (``track_step``).
         Traceable.
 
@@ -895,9 +929,12 @@ class GenericIK:
         ) -> tuple[Carry, jax.Array]:
             y, q_prev, h_prev, started = carry
             q_t, h_t, ok = xs
+            # the first valid frame steps from itself (its answer, cleared of contact)
+            y, q_prev = jnp.where(started, y, q_t), jnp.where(started, q_prev, q_t)
+            h_prev = jnp.where(started, h_prev, h_t)
             human = None if d is None else (h_prev, h_t, names)
             out = self.track_step(y, q_prev, q_t, cfg, human)
-            out = jnp.where(started & ok, out, q_t)
+            out = jnp.where(ok, out, q_t)
             nxt = (jnp.where(ok, out, y), jnp.where(ok, q_t, q_prev), jnp.where(ok, h_t, h_prev))
             return (*nxt, started | ok), out
 
@@ -972,6 +1009,15 @@ class GenericIK:
         cfg = TrackConfig() if config is None else config
         standing = jnp.asarray(self.robot.standing)
         didx = self.robot.driven_index
+        if self.config.collision > 0 and self.problems.has_pairs.any():
+            # the answer's pairs between chains (which its per-frame solve did not count: a
+            # hand in the hip) cleared first, from the answer and from the last output; left
+            # in, the pass below clears them each frame by a step of whichever chain comes
+            # last, and a standing leg walks away from the hand (CMU 131_03: 18 deg in 0.25 s)
+            # (a step from the answer itself, the first frame: from the cleared answer)
+            same = jnp.all(y == q_t)
+            q_t = self.separate(q_t, start=y, keep_rows=True)
+            y = jnp.where(same, q_t, y)
         q_full = standing.at[didx].set(q_t)
         y_full = standing.at[didx].set(y)
         t = self._directions(q_full)  # (C, R, 3): every chain's targets at once
@@ -1033,6 +1079,14 @@ class GenericIK:
         """``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` float32 angles, rad, within
         limits, finite (``solve_info`` without the diagnostics). Traceable."""
         return self.solve_info(d, bones)[0]
+
+
+def _row_directions(p: jax.Array, c: _ChainData[jax.Array]) -> jax.Array:
+    """``(R, 3)`` unit directions of chain ``c``'s rows at FK points ``p`` ``(P, 3)`` (padded
+    rows: ``(1, 1, 1) / sqrt(3)``, as ``GenericIK._residual`` computes them)."""
+    seg = p[c.row_points[:, 1]] - p[c.row_points[:, 0]]
+    seg = jnp.where(c.row_mask[:, None], seg, jnp.float32(1.0))
+    return seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
 
 
 def _levenberg_marquardt(

@@ -584,3 +584,44 @@ def test_bound_steps_shortens_only_what_overshoots() -> None:
     assert np.abs(out[5, 0] - q[5, 0]) < np.abs(out[3, 0] - q[3, 0])  # catching up, bounded
     assert NAO_H25.bound_steps(q, np.ones(6, bool), d) is q
     assert robot.bound_steps(q, np.ones(6, bool), None) is q
+
+
+# The G1's per-frame IK answer for a person standing with the hands at the hips (CMU 131_03,
+# frame 0; deg): the arm chains' solve does not count the pairs between chains, and both hands
+# are 2-5 cm inside the hip capsules.
+_HANDS_IN_HIPS = {
+    "left_hip_pitch_joint": -11.5, "left_hip_roll_joint": 3.1, "left_hip_yaw_joint": 9.0,
+    "left_knee_joint": 32.5, "left_ankle_pitch_joint": -20.8, "right_hip_pitch_joint": -8.7,
+    "right_hip_roll_joint": 0.9, "right_hip_yaw_joint": 2.2, "right_knee_joint": 30.9,
+    "right_ankle_pitch_joint": -23.1, "waist_yaw_joint": -0.8, "waist_roll_joint": -0.1,
+    "waist_pitch_joint": -0.2, "left_shoulder_pitch_joint": 15.9, "left_shoulder_roll_joint": 2.7,
+    "left_shoulder_yaw_joint": -16.8, "left_elbow_joint": 41.1, "right_shoulder_pitch_joint": 14.4,
+    "right_shoulder_roll_joint": 2.5, "right_shoulder_yaw_joint": 6.5, "right_elbow_joint": 49.8,
+}  # fmt: skip
+
+
+def test_g1_track_clears_a_hand_in_the_hip_with_the_arm_and_holds_the_standing_leg() -> None:
+    """That answer held for 12 frames (the person still): the continuity pass clears the hands
+    from the hips with the arms (``separate`` visits the limbs before the trunk) and holds the
+    legs and the waist at the answer's angles on every frame. Before, the pass cleared the pair
+    each frame by a step of the last chain, a leg: the left hip pitch walked 10 deg away from
+    the hand in 10 frames while the person stood still."""
+    g1 = UNITREE_G1
+    q = np.radians([_HANDS_IN_HIPS[n] for n in g1.driven_joints]).astype(np.float32)
+    answers = np.repeat(q[None], 12, axis=0)
+    out = np.asarray(jax.jit(lambda a: g1.continuous(a, jnp.ones(12, bool)))(answers))
+    model = g1.load_model("fixed")
+    data = mujoco.MjData(model)
+
+    def deepest(row: np.ndarray) -> float:  # m, MuJoCo's own contacts (0: none)
+        data.qpos[:] = g1.driven_to_full(row)
+        mujoco.mj_forward(model, data)
+        return min([0.0, *(c.dist for c in data.contact[: data.ncon])])
+
+    assert deepest(q) < -0.02  # the answer: a hand 2 cm or more inside a hip
+    assert min(deepest(row) for row in out) > -1e-3  # the output: no contact over 1 mm
+    arms = [i for i, n in enumerate(g1.driven_joints) if "shoulder" in n or "elbow" in n]
+    rest = [i for i in range(g1.n_driven) if i not in arms]
+    off = np.degrees(np.abs(out[:, rest] - q[rest]))
+    assert off.max() < 2.0 and off[-4:].max() < 0.2  # the legs and waist: no walk
+    assert np.degrees(np.abs(np.diff(out[-5:], axis=0))).max() < 0.1  # settled
