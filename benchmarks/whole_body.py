@@ -23,8 +23,12 @@ the robot's own MJCF with its free base:
   retargeted without the legs' levelling, compiled by the first: the difference from
   ``fixed_s`` is the whole-body stage).
 
-Self-contact does not depend on the root: ``benchmarks.g1_playable`` measures it on the same
-joint angles.
+* ``contact_frames``: frames where two of the robot's geoms penetrate by more than 1 mm (MuJoCo,
+  the MJCF's own exclusions; ``benchmarks.g1_playable``'s measure) in the file's angles, which
+  the stance IK has moved from the fixed-base ones (self-contact does not depend on the root);
+* ``speed_spikes``: steps where a joint moves faster than its rated speed
+  (``Robot.speed_limits("rated")``, the feasibility filter's cap at ``speed_fraction`` 1): the
+  stance IK runs after the filter.
 
     python -m benchmarks.whole_body [--data FOLDER] [--json OUT] [--extra "OPTIONS"] [FILES...]
     python -m benchmarks.whole_body --picture MOTION.npz OUT.png 0,300,500
@@ -122,6 +126,18 @@ def measure_motion(motion: Motion) -> dict:
     trunk_err = _angle(torso_up, trunk)[valid]
     leg_err = _angle(robot_legs, person_legs)[valid]
     vertical = np.array([0.0, 0.0, 1.0])
+    fixed = robot.load_model("fixed")
+    fixed_data = mujoco.MjData(fixed)
+    fixed_adr = joint_qpos_index(fixed, robot.joint_names)
+    touching = 0
+    for t in range(n):
+        fixed_data.qpos[fixed_adr] = motion.angles[t]
+        mujoco.mj_forward(fixed, fixed_data)
+        touching += bool(gp.contact_pairs(fixed, fixed_data))
+    driven = np.asarray(robot.driven_index)
+    rated = np.asarray(robot.speed_limits("rated"), np.float64)[driven]
+    joint_step = np.abs(np.diff(motion.angles[:, driven].astype(np.float64), axis=0))
+    spikes = int(np.sum(np.any(joint_step / dt[:, None] > rated[None], axis=1)))
     return {
         "frames": n,
         "fps": round(motion.fps, 3),
@@ -141,6 +157,8 @@ def measure_motion(motion: Motion) -> dict:
         "person_tilt_deg": round(float(np.median(_angle(trunk, vertical)[valid])), 2),
         "legs_deg_median": round(float(np.median(leg_err)), 2),
         "legs_deg_p90": round(float(np.percentile(leg_err, 90)), 2),
+        "contact_frames": touching,
+        "speed_spikes": spikes,
         "root_travel_m": round(
             float(np.linalg.norm(motion.root_pos[-1, :2] - motion.root_pos[0, :2])), 3
         ),  # fmt: skip

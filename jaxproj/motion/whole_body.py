@@ -53,10 +53,12 @@ The root, frame by frame:
 
 Then ``jaxproj.motion.feet`` plants each stance foot where it touched down, level, by one IK a
 frame over the root's position and the stance legs' joints (the root moves rather than a foot
-slides; only the legs' joints change), lifts a swing foot that went below the floor, and the
-root is raised by whatever of the robot is still below it: no geom of the output is below the
-floor. The angles returned (``RootMotion.angles``) are the given ones with the legs so moved:
-after ``retarget``'s feasibility filter, so a leg joint's speed can exceed its bound there
+slides; only the legs' joints change) and lifts a swing foot that went below the floor;
+``retarget``'s last stage then runs once more on the planted angles (``separate``: a leg the IK
+moved into a hand hanging at the hip; the arms yield first), and the root is raised by whatever
+of the robot is still below the floor: no geom of the output is below it. The angles returned
+(``RootMotion.angles``) are the given ones with the legs so moved (and the arms where they
+touched): after ``retarget``'s feasibility filter, so a joint's speed can exceed its bound there
 (``benchmarks.whole_body`` counts it).
 
 Quaternions are written ``(x, y, z, w)`` (scalar last: GMR's ``root_rot`` and the LAFAN1
@@ -322,6 +324,7 @@ def root_trajectory(
     skeleton: skeletons.SkeletonLike = skeletons.DEFAULT,
     contact: ContactConfig | None = None,
     level_soles: bool = LEVEL_SOLES,
+    separate: bool = True,
 ) -> RootMotion:
     """The root of one motion in the world, and its stance feet planted (module doc).
 
@@ -336,6 +339,11 @@ def root_trajectory(
       contact: ``ContactConfig()`` by default.
       level_soles: turn the whole recording by the one rotation that levels its stance soles
         on the median (``LEVEL_SOLES``).
+      separate: after planting, ``retarget``'s last stage once more
+        (``retarget.separate_motion``: the robot's self-contacts pushed apart in time order,
+        the limbs before the trunk): the stance IK moves the legs, into a hand that hangs at
+        the hip (measured, CMU 131_03: 64 frames with a hand in a thigh or hip). ``False``:
+        the planted angles as they are.
 
     Returns:
       ``RootMotion``.
@@ -419,6 +427,10 @@ def root_trajectory(
             xy[t] = xy[t - 1] + hip[t, :2] - hip[t - 1, :2]
     root_pos = np.concatenate([xy, z[:, None]], axis=1)
     q_out, root_pos = _plant_feet(robot, q, root_pos, rot_root, stance, ramp, trees)
+    if separate:
+        from jaxproj.motion.retarget import separate_motion  # the fixed base's compiled pass
+
+        q_out = separate_motion(q_out.astype(np.float32), robot).astype(np.float64)
     root_pos[:, 2] += _below_floor(robot, q_out, root_pos, rot_root)
     quat = np.zeros((n, 4))
     for t in range(n):

@@ -43,17 +43,21 @@ def robot_label(robot: Robot) -> str:
     return (robot.mjcf.figure.label if robot.mjcf is not None else "") or robot.title
 
 
-def robot_qpos(robot: Robot, model: Any, angles: np.ndarray) -> np.ndarray:
+def robot_qpos(
+    robot: Robot, model: Any, angles: np.ndarray, root: np.ndarray | None = None
+) -> np.ndarray:
     """MuJoCo ``qpos`` of one configuration of ``robot``.
 
     Args:
       model: ``robot.load_model(...)`` (either mount).
       angles: ``(n_joints,)`` joint angles, ``robot.joint_names`` order, rad.
+      root: ``(7,)`` the root body's position (m) and orientation (quaternion x, y, z, w: a
+        whole-body motion's ``root_pos`` and ``root_rot``) for the free mount, or ``None``.
 
     Returns:
       ``(nq,)`` float64: ``model.qpos0`` with the angles placed, each coupled follower at its
-      leader (``Robot.couple``) and, for the free mount, the base at the origin with identity
-      orientation.
+      leader (``Robot.couple``) and, for the free mount, the base at ``root`` (default: the
+      origin with identity orientation).
     """
     import mujoco
 
@@ -66,6 +70,9 @@ def robot_qpos(robot: Robot, model: Any, angles: np.ndarray) -> np.ndarray:
     if free.size:
         a = int(model.jnt_qposadr[free[0]])
         qpos[a : a + 7] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+        if root is not None:
+            r = np.asarray(root, np.float64)
+            qpos[a : a + 7] = (*r[:3], r[6], *r[3:6])  # MuJoCo's quaternion: w first
     qpos[joint_qpos_index(model, robot.joint_names)] = q
     return qpos
 
@@ -183,6 +190,39 @@ def robot_box(
     return (lo + hi) / 2.0, half
 
 
+def world_box(
+    robot: Robot, model: Any, angles: np.ndarray, roots: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """The cube a robot panel of a whole-body motion shows, as ``robot_box`` but in the world
+    (floor at z = 0) and horizontally relative to the root: the panel's view follows the root
+    over the floor, so what must fit is the robot about its root, and the floor under it.
+
+    Args:
+      model: ``robot.load_model("free")``.
+      angles: ``(N, n_joints)`` configurations drawn, rad; roots: ``(N, 7)`` their root poses
+        (``robot_qpos``'s ``root``). At most ``MAX_BOX_FRAMES`` frames are read.
+
+    Returns:
+      ``(offset, half)``: the cube's centre less ``(root_x, root_y, 0)``, ``(3,)`` m, and its
+      half side, m.
+    """
+    import mujoco
+
+    a = np.asarray(angles, np.float64).reshape(-1, robot.n_joints)
+    r = np.asarray(roots, np.float64).reshape(-1, 7)
+    pick = np.linspace(0, len(a) - 1, min(len(a), MAX_BOX_FRAMES)).round().astype(int)
+    data = mujoco.MjData(model)
+    lo, hi = np.array([np.inf, np.inf, 0.0]), np.full(3, -np.inf)  # the floor is shown
+    for i in pick:
+        data.qpos[:] = robot_qpos(robot, model, a[i], r[i])
+        mujoco.mj_kinematics(model, data)
+        pts = np.concatenate([data.xpos[1:], data.site_xpos, data.geom_xpos])
+        pts = pts - np.array([r[i, 0], r[i, 1], 0.0])
+        lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
+    half = max(float((hi - lo).max()) / 2.0 * BOX_SPARE, 0.05)
+    return (lo + hi) / 2.0, half
+
+
 # --- matplotlib panels ----------------------------------------------------------------------
 
 
@@ -209,6 +249,29 @@ class _Canvas:
         (self.head,) = ax.plot([], [], [], "o", color=CENTRE_COLOR, ms=10)
         font = float(np.clip(size[1] / 32.0, 6.0, 14.0))
         self.text = self.fig.text(0.02, 0.985, "", fontsize=font, va="top", family="monospace")
+        self.grid_lines: Any = None  # follow()'s floor lines
+
+    def follow(self, centre: np.ndarray, half: float, step: float = 0.5) -> None:
+        """Move the view to the cube of half side ``half`` about ``centre`` (a whole-body
+        motion's panel follows its figure over the floor) and draw the floor lines at z = 0,
+        ``step`` m apart, that fall in it: fixed in the world, so the figure is seen to move
+        over them (matplotlib's 3-D axes do not clip, so only the lines inside are drawn)."""
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        for i, set_lim in enumerate((self.ax.set_xlim, self.ax.set_ylim, self.ax.set_zlim)):
+            set_lim(centre[i] - half, centre[i] + half)
+        if self.grid_lines is None:
+            self.grid_lines = Line3DCollection([], colors=[(0.8, 0.8, 0.8)], linewidths=0.8)
+            self.ax.add_collection3d(self.grid_lines, autolim=False)
+        lo, hi = centre[:2] - half, centre[:2] + half
+        segs = [
+            np.array([[x, lo[1], 0.0], [x, hi[1], 0.0]])
+            for x in np.arange(math.ceil(lo[0] / step), math.floor(hi[0] / step) + 1) * step
+        ] + [
+            np.array([[lo[0], y, 0.0], [hi[0], y, 0.0]])
+            for y in np.arange(math.ceil(lo[1] / step), math.floor(hi[1] / step) + 1) * step
+        ]
+        self.grid_lines.set_segments(segs if abs(centre[2]) <= half else [])
 
     def floor(self, z: float, centre: np.ndarray, half: float) -> None:
         """A faint square on the floor at height ``z``, for depth."""
@@ -248,14 +311,45 @@ def side_color(name: str) -> tuple[float, float, float]:
     return CENTRE_COLOR
 
 
-class _HumanPanel:
-    """The Kinect skeleton in its own body frame (hips at 0), matplotlib."""
+def _follow_box(points: np.ndarray, ok: np.ndarray, anchor: np.ndarray) -> tuple[np.ndarray, float]:
+    """``world_box`` of a point figure: ``(T, n, 3)`` world points (floor z = 0) of the ``(T,)``
+    ``ok`` frames about ``(T, 3)`` ``anchor`` (its x, y) -> ``(offset, half)``."""
+    rel = points[ok] - (anchor[ok] * np.array([1.0, 1.0, 0.0]))[:, None, :]
+    lo = np.minimum(rel.min(axis=(0, 1)), [np.inf, np.inf, 0.0])
+    hi = rel.max(axis=(0, 1))
+    return (lo + hi) / 2.0, max(float((hi - lo).max()) / 2.0 * BOX_SPARE, 0.3)
 
-    def __init__(self, positions: np.ndarray, size: tuple[int, int], camera: Camera):
+
+class _HumanPanel:
+    """The Kinect skeleton in its own body frame (hips at 0), matplotlib; or, given
+    ``world`` ``(T, 20, 3)`` (a whole-body motion: the person in the world frame, floor at
+    z = 0), there, the view following the hips over the floor."""
+
+    def __init__(
+        self,
+        positions: np.ndarray,
+        size: tuple[int, int],
+        camera: Camera,
+        world: np.ndarray | None = None,
+    ):
         import jax.numpy as jnp
 
         from jaxproj.human.skeleton import body_frame
 
+        self.pairs = [(J[a], J[b]) for a, b in BONES]
+        self.colors = [side_color(b) for _, b in BONES]
+        self.world = world is not None
+        if world is not None:
+            self.points = np.asarray(world, np.float64)
+            self.ok: np.ndarray = np.asarray(np.isfinite(self.points).all(axis=(1, 2)))
+            hips = np.where(self.ok[:, None], self.points[:, J["HipCenter"]], 0.0)
+            self.anchor = hips
+            self.offset: np.ndarray = np.zeros(3)
+            self.half = 1.0
+            if self.ok.any():
+                self.offset, self.half = _follow_box(self.points, self.ok, hips)
+            self.canvas = _Canvas(size, camera, self.offset, self.half)
+            return
         raw = np.asarray(positions, dtype=np.float32)
         p = np.where(np.isfinite(raw), raw, 0.0)  # non-finite frames: not ok, drawn empty
         rot_j, ok_j = body_frame(jnp.asarray(p))
@@ -273,13 +367,13 @@ class _HumanPanel:
         half = max(half, 0.3)
         self.canvas = _Canvas(size, camera, centre, half)
         self.canvas.floor(floor, centre, half)
-        self.pairs = [(J[a], J[b]) for a, b in BONES]
-        self.colors = [side_color(b) for _, b in BONES]
 
     def draw(self, t: int, label: str) -> np.ndarray:
         if not self.ok[t]:
             return self.canvas.draw([], [], None, label + "\n(no skeleton)")
         pts = self.points[t]
+        if self.world:
+            self.canvas.follow(self.offset + self.anchor[t] * [1.0, 1.0, 0.0], self.half)
         segments = [pts[[i, j]] for i, j in self.pairs]
         return self.canvas.draw(segments, self.colors, pts[J["Head"]], label)
 
@@ -290,7 +384,9 @@ class _HumanPanel:
 class _StickRobotPanel:
     """A robot as a stick figure from MuJoCo CPU kinematics (no OpenGL), matplotlib: body origins
     joined parent -> child, its feet and head marker (``robot.mjcf.figure``), in the cube of
-    ``robot_box`` over ``angles`` (``(N, n_joints)``, the frames to be drawn)."""
+    ``robot_box`` over ``angles`` (``(N, n_joints)``, the frames to be drawn); with ``roots``
+    (``(N, 7)``, a whole-body motion's root poses of those frames) in the world, the view
+    following the root over the floor (``world_box``)."""
 
     name = "matplotlib"
 
@@ -300,13 +396,15 @@ class _StickRobotPanel:
         size: tuple[int, int],
         camera: Camera,
         angles: np.ndarray | None = None,
+        roots: np.ndarray | None = None,
     ):
         import mujoco
 
         self._mj = mujoco
         self.robot = robot
         figure = robot.require_mjcf().figure
-        self.model = robot.load_model("fixed")
+        self.world = roots is not None
+        self.model = robot.load_model("free" if self.world else "fixed")
         self.data = mujoco.MjData(self.model)
         m = self.model
         body = {m.body(b).name: b for b in range(m.nbody)}
@@ -340,13 +438,23 @@ class _StickRobotPanel:
         soles = [site[s] for _, s in figure.feet] or [b for _, b in self.link_pairs]
         lowest = self.data.site_xpos[soles, 2] if soles else self.data.xpos[1:, 2]
         floor = float(lowest.min())
+        if roots is not None:
+            assert angles is not None
+            self.offset, self.half = world_box(robot, m, angles, roots)
+            self.canvas = _Canvas(size, camera, self.offset, self.half)
+            return
         centre, half = robot_box(robot, m, angles)  # after the standing kinematics above
         self.canvas = _Canvas(size, camera, centre, half)
         self.canvas.floor(floor, centre, half)
 
-    def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
+    def draw(self, angles: np.ndarray, label: str, root: np.ndarray | None = None) -> np.ndarray:
+        """One frame: ``(n_joints,)`` angles, and ``(7,)`` its root pose for a whole-body
+        panel."""
         d = self.data
-        d.qpos[:] = robot_qpos(self.robot, self.model, angles)
+        d.qpos[:] = robot_qpos(self.robot, self.model, angles, root)
+        if self.world:
+            assert root is not None
+            self.canvas.follow(self.offset + np.array([root[0], root[1], 0.0]), self.half)
         self._mj.mj_kinematics(self.model, d)
         segments = [d.site_xpos[[a, b]].copy() for a, b in self.link_pairs]
         segments += [d.xpos[[a, b]].copy() for a, b in self.body_pairs]

@@ -9,6 +9,13 @@ hips at the origin), the robot with its root body welded where its MJCF puts it,
 its figure over the frames drawn (``panels.robot_box``: any robot whole in the picture). Left
 limbs are orange, right limbs blue (the MJCF's colours).
 
+A whole-body motion (``Motion.root_pos`` / ``root_rot``: ``retarget --root world``) is drawn in
+its world instead: the robot on its free joint at the root pose of each frame, over a floor at
+z = 0 (MuJoCo: a 0.5 m checker plane, ``floor_model``; matplotlib: lines 0.5 m apart), the
+person beside it in the same world frame (``whole_body.world_frame``: floor at z = 0, x the
+first heading, robot metres); each panel's view follows its figure's root (hips) over the floor
+(``panels.world_box``), so a walk is seen as the floor passing under the feet.
+
 Backends of the robot panel (``render_frames(..., backend=)``):
 
 - ``"mujoco"``: MuJoCo's offscreen OpenGL renderer (``mujoco.Renderer``) of the bundled MJCF,
@@ -33,7 +40,7 @@ lasted rather than skipped.
 The panels live in ``jaxproj.viz.panels`` (matplotlib) and here (MuJoCo), the video writers in
 ``jaxproj.viz.video``; this module re-exports their public names.
 
-Size: just over 500 lines: the two back-ends (MuJoCo, matplotlib), their shared framing and
+Size: about 590 lines: the two back-ends (MuJoCo, matplotlib), their shared framing and
 the writers are one unit a reader checks together; the panels themselves live in
 ``viz.panels``.
 """
@@ -67,6 +74,7 @@ from jaxproj.viz.panels import (
     robot_box,
     robot_label,
     robot_qpos,
+    world_box,
 )
 from jaxproj.viz.video import (
     MAX_GIF_FPS,
@@ -181,26 +189,60 @@ def _create_renderer(model: Any, width: int, height: int) -> Any:
     raise RenderError(_gl_failure[0])
 
 
+def floor_model(robot: Robot) -> Any:
+    """``robot``'s MJCF with its free joint (the whole-body mount) and a floor at z = 0: an
+    infinite plane with a 0.5 m checker, for drawing only (it collides with nothing)."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(robot.require_mjcf().path))
+    spec.add_texture(name="jaxproj_floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.82, 0.82],
+                     rgb2=[0.66, 0.66, 0.66], width=64, height=64)  # fmt: skip
+    mat = spec.add_material(name="jaxproj_floor", texrepeat=[1.0, 1.0], texuniform=True)
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "jaxproj_floor"
+    spec.worldbody.add_geom(name="jaxproj_floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
+                            size=[0.0, 0.0, 0.05], material="jaxproj_floor", contype=0,
+                            conaffinity=0)  # fmt: skip
+    spec.worldbody.add_light(name="jaxproj_sun", pos=[0.0, 0.0, 4.0], dir=[0.3, 0.2, -1.0],
+                             type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, castshadow=False,
+                             diffuse=[0.6, 0.6, 0.6])  # fmt: skip
+    return spec.compile()
+
+
 class _MujocoPanel:
     """A robot rendered by MuJoCo's OpenGL renderer, root body fixed, free camera (framed on
-    ``robot_box`` over ``angles`` unless the camera says where)."""
+    ``robot_box`` over ``angles`` unless the camera says where); with ``roots`` (``(N, 7)``, a
+    whole-body motion's root poses of those frames), on a floor in the world, the camera
+    following the root (``world_box``)."""
 
     name = "mujoco"
 
     def __init__(
-        self, robot: Robot, size: tuple[int, int], camera: Camera, angles: np.ndarray | None = None
+        self,
+        robot: Robot,
+        size: tuple[int, int],
+        camera: Camera,
+        angles: np.ndarray | None = None,
+        roots: np.ndarray | None = None,
     ):
         import mujoco
 
         self._mj = mujoco
         self.robot = robot
         width, height = size
-        self.model = robot.load_model("fixed")
+        self.world = roots is not None
+        self.model = floor_model(robot) if self.world else robot.load_model("fixed")
         vis = self.model.vis.global_
         vis.offwidth, vis.offheight = max(vis.offwidth, width), max(vis.offheight, height)
         self.renderer = _create_renderer(self.model, width, height)
         self.data = mujoco.MjData(self.model)
-        centre, half = robot_box(robot, self.model, angles)
+        if roots is not None:
+            assert angles is not None
+            centre, half = world_box(robot, self.model, angles, roots)
+            self.offset = centre
+        else:
+            centre, half = robot_box(robot, self.model, angles)
+        self.follow = self.world and camera.lookat is None
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
         cam.lookat[:] = centre if camera.lookat is None else camera.lookat
@@ -210,9 +252,14 @@ class _MujocoPanel:
         cam.elevation = -camera.elevation
         self.camera = cam
 
-    def draw(self, angles: np.ndarray, label: str) -> np.ndarray:
+    def draw(self, angles: np.ndarray, label: str, root: np.ndarray | None = None) -> np.ndarray:
+        """One frame: ``(n_joints,)`` angles, and ``(7,)`` its root pose for a whole-body
+        panel."""
         del label  # no text on OpenGL images
-        self.data.qpos[:] = robot_qpos(self.robot, self.model, angles)
+        self.data.qpos[:] = robot_qpos(self.robot, self.model, angles, root)
+        if self.follow:
+            assert root is not None
+            self.camera.lookat[:] = self.offset + np.array([root[0], root[1], 0.0])
         self._mj.mj_forward(self.model, self.data)
         self.renderer.update_scene(self.data, camera=self.camera)
         return np.ascontiguousarray(self.renderer.render())
@@ -227,12 +274,14 @@ def _robot_panel(
     size: tuple[int, int],
     camera: Camera,
     angles: np.ndarray | None = None,
+    roots: np.ndarray | None = None,
 ) -> _MujocoPanel | _StickRobotPanel:
-    """The robot panel of ``backend``, framed on ``robot`` in ``angles`` ``(N, n_joints)``."""
+    """The robot panel of ``backend``, framed on ``robot`` in ``angles`` ``(N, n_joints)``
+    (and, for a whole-body motion, their ``(N, 7)`` root poses ``roots``)."""
     if backend == "matplotlib":
-        return _StickRobotPanel(robot, size, camera, angles)
+        return _StickRobotPanel(robot, size, camera, angles, roots)
     try:
-        return _MujocoPanel(robot, size, camera, angles)
+        return _MujocoPanel(robot, size, camera, angles, roots)
     except RenderError:
         if backend == "mujoco":
             raise
@@ -242,7 +291,7 @@ def _robot_panel(
             file=sys.stderr,
             flush=True,
         )
-        return _StickRobotPanel(robot, size, camera, angles)
+        return _StickRobotPanel(robot, size, camera, angles, roots)
 
 
 # --- frames ---------------------------------------------------------------------------------
@@ -263,13 +312,19 @@ class _Frames:
     ):
         self.motion = motion
         self.index = np.asarray(index)
-        self.robot = _robot_panel(motion.robot, backend, size, camera, motion.angles[self.index])
+        self.roots = None
+        if motion.root_pos is not None and motion.root_rot is not None:  # whole-body
+            self.roots = np.concatenate([motion.root_pos, motion.root_rot], axis=1)
+        drawn = None if self.roots is None else self.roots[self.index]
+        self.robot = _robot_panel(motion.robot, backend, size, camera, motion.angles[self.index],
+                                  drawn)  # fmt: skip
         self.label = robot_label(motion.robot)
         self.backend = self.robot.name
         self.human = None
         if motion.positions is not None:
             try:
-                self.human = _HumanPanel(motion.positions, size, camera)
+                world = None if self.roots is None else _person_in_world(motion)
+                self.human = _HumanPanel(motion.positions, size, camera, world)
             except BaseException:
                 self.robot.close()  # an OpenGL context is freed now, never at exit
                 raise
@@ -284,7 +339,8 @@ class _Frames:
                 t = int(i)
                 held = "" if m.valid[t] else "\ninvalid input: pose held"
                 clock = f"t={m.times[t] - m.times[0]:.2f}s #{t}"
-                robot_img = self.robot.draw(m.angles[t], f"{self.label} {clock}{held}")
+                root = None if self.roots is None else self.roots[t]
+                robot_img = self.robot.draw(m.angles[t], f"{self.label} {clock}{held}", root)
                 if self.human is None:
                     yield robot_img
                 else:
@@ -297,6 +353,18 @@ class _Frames:
         self.robot.close()
         if self.human is not None:
             self.human.close()
+
+
+def _person_in_world(motion: Motion) -> np.ndarray:
+    """A whole-body motion's person in the world frame its root was placed in (the recording's
+    ``whole_body.world_frame``: floor at z = 0, x the first heading, robot metres)."""
+    from jaxproj.motion.whole_body import world_frame
+
+    assert motion.positions is not None
+    p = np.asarray(motion.positions, np.float64)
+    ok = motion.valid & np.isfinite(p).all(axis=(1, 2))
+    out = world_frame(p, ok, motion.robot).to_world(p)
+    return np.where(ok[:, None, None], out, np.nan)
 
 
 def render_frames(
@@ -349,6 +417,8 @@ class Rendered(NamedTuple):
     """Whether the human skeleton was drawn (the motion holds ``positions``) beside the robot."""
     robot: str = "robot"
     """How the robot was named (``robot.mjcf.figure.label``)."""
+    world: bool = False
+    """Whether the motion was drawn in its world (a whole-body motion: root and floor)."""
 
     def describe(self) -> str:
         """What the video shows, in words (``jaxproj render`` prints it)."""
@@ -363,9 +433,10 @@ class Rendered(NamedTuple):
             if self.longest_hold_s > 1.5 / self.fps
             else ""
         )
+        world = "; whole body: the root in the world, over the floor" if self.world else ""
         return (
-            f"{who}; real time: {self.seconds:.2f} s at {self.fps:g} fps, {self.frames} motion "
-            f"frames drawn{gap}; backend={self.backend}"
+            f"{who}{world}; real time: {self.seconds:.2f} s at {self.fps:g} fps, {self.frames} "
+            f"motion frames drawn{gap}; backend={self.backend}"
         )
 
 
@@ -411,7 +482,8 @@ def render_to_file(
     finally:
         frames.close()
     return Rendered(path, len(frames), frames.backend, sched.fps, sched.seconds,
-                    sched.longest_hold_s, frames.human is not None, frames.label)  # fmt: skip
+                    sched.longest_hold_s, frames.human is not None, frames.label,
+                    frames.roots is not None)  # fmt: skip
 
 
 def _rate(motion: Motion, stride: int, fps: float | None, ext: str) -> float:
@@ -506,6 +578,7 @@ __all__ = [
     "RenderOptions",
     "Rendered",
     "check_video_path",
+    "floor_model",
     "gif_delays_ms",
     "playback",
     "render_frames",

@@ -157,6 +157,8 @@ WHOLE_BODY_COLUMNS: dict[str, Callable[[dict], str]] = {
     "root jump, cm": lambda r: f"{r['root_jump_cm']:.1f}",
     "trunk, deg": lambda r: f"{r['trunk_deg_median']:.1f}",
     "legs, deg": lambda r: f"{r['legs_deg_median']:.1f}",
+    "self-contact frames": lambda r: str(r["contact_frames"]),
+    "speed spikes": lambda r: str(r["speed_spikes"]),
     "fixed / whole-body retarget, s": lambda r: f"{r['fixed_s']:.1f} / {r['world_s']:.1f}",
 }
 

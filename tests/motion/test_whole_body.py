@@ -216,3 +216,36 @@ def test_the_command_line_writes_the_root(walk, tmp_path, capsys, monkeypatch) -
     ):  # fmt: skip
         code, _, err = run_cli(capsys, "retarget", str(CLIP), "--root", "world", *argv)
         assert_one_line_error(code, err, words)
+
+
+def test_planted_legs_leave_no_self_contact(walk) -> None:
+    """The arms hanging at the hips (a G1 IK answer for a person standing so, CMU 131_03): the
+    stance IK moves the legs into the hands on some frames; the last stage run once more
+    (``separate=True``, the default) leaves no two robot geoms in contact (> 1 mm, MuJoCo) on
+    any frame; the arms yield (the limbs before the trunk: the waist moves less than 1 deg)."""
+    rec, angles, _ = walk
+    arms = {"left_shoulder_pitch_joint": 15.9, "left_shoulder_roll_joint": 2.7,
+            "left_shoulder_yaw_joint": -16.8, "left_elbow_joint": 41.1,
+            "right_shoulder_pitch_joint": 14.4, "right_shoulder_roll_joint": 2.5,
+            "right_shoulder_yaw_joint": 6.5, "right_elbow_joint": 49.8}  # fmt: skip
+    q = angles.copy()
+    for name, deg in arms.items():
+        q[:, G1.index(name)] = np.radians(deg)
+    model = G1.load_model("fixed")
+    data = mujoco.MjData(model)
+    adr = joint_qpos_index(model, G1.joint_names)
+
+    def touching(a: np.ndarray) -> int:
+        frames = 0
+        for row in a:
+            data.qpos[adr] = row
+            mujoco.mj_forward(model, data)
+            frames += any(c.dist < -1e-3 for c in data.contact[: data.ncon])
+        return frames
+
+    raw = wb.root_trajectory(rec.positions, rec.valid, rec.times, q, G1, separate=False)
+    out = wb.root_trajectory(rec.positions, rec.valid, rec.times, q, G1)
+    assert touching(raw.angles) > 10 and touching(out.angles) == 0
+    moved = np.degrees(np.abs(out.angles - raw.angles).max(axis=0))
+    assert moved[[G1.index(n) for n in arms]].max() > 5.0  # the arms yielded
+    assert moved[[G1.index(n) for n in G1.joint_names if n.startswith("waist")]].max() < 1.0

@@ -504,3 +504,60 @@ def test_gif_of_identical_frames_is_one_frame_held(tmp_path):
     moving[1] += 1  # distinct frames stay apart
     out = save_video(moving, tmp_path / "moving.gif", 10.0, holds=[1, 2, 1])
     assert iio.imread(out, index=None).shape[0] == 3
+
+
+def _light_grey(img: np.ndarray) -> np.ndarray:
+    """The floor lines' pixels of a matplotlib panel (light grey, neither ink nor white)."""
+    s = img.astype(int)
+    return (np.ptp(s, axis=-1) < 12) & (s.min(axis=-1) > 170) & (s.max(axis=-1) < 235)
+
+
+def test_a_whole_body_motion_is_drawn_on_the_floor_following_its_root(
+    tmp_path, capsys, no_sigint_fork
+):
+    """A motion with a root (``--root world``): the robot stands on the floor in the world and
+    the view follows its root, so between two frames whose roots are 0.25 m apart (the same
+    joint angles) the robot's pixels stay where they are and the floor's lines move under it;
+    the person is drawn in the same world; the MuJoCo panel's model (free joint and a floor
+    plane) compiles without OpenGL."""
+    import mujoco
+
+    from jaxproj.viz.panels import robot_qpos
+
+    g1 = robots.get("unitree_g1")
+    model = g1.load_model("free")
+    data = mujoco.MjData(model)
+    data.qpos[:] = robot_qpos(g1, model, g1.standing)
+    mujoco.mj_kinematics(model, data)
+    soles = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s) for _, s in g1.mjcf.figure.feet]
+    height = -float(data.site_xpos[soles, 2].min())  # the root's height standing on the floor
+    q = np.tile(g1.standing, (3, 1)).astype(np.float32)
+    root_pos = np.array([[0.0, 0.0, height], [0.25, 0.0, height], [0.25, 0.0, height]],
+                        np.float32)  # fmt: skip
+    root_rot = np.tile(np.float32([0, 0, 0, 1]), (3, 1))
+    person = np.stack([_skeleton(), _skeleton(), _skeleton(0.3)])
+    m = Motion(q, np.arange(3) / 15.0, np.ones(3, bool), person, robot=g1, root_pos=root_pos,
+               root_rot=root_rot, contacts=np.ones((3, 2), bool))  # fmt: skip
+    w, h = 120, 160
+    frames = render_frames(m, backend="matplotlib", size=(w, h))
+    assert frames.shape == (3, h, 2 * w, 3)
+    robot0, robot1 = frames[0, LABEL_ROWS:, w:], frames[1, LABEL_ROWS:, w:]
+    top, bottom, left, right = _robot_ink_box(robot0)
+    assert 0 < top and bottom < h - LABEL_ROWS - 1 and 0 < left and right < w - 1
+    assert bottom - top > 0.4 * h  # the whole robot, not a speck
+    moved = np.subtract(_robot_ink_box(robot1), (top, bottom, left, right))
+    assert np.abs(moved).max() <= 2, moved  # the view follows the root (unfollowed: ~20 px)
+    floor0, floor1 = _light_grey(robot0), _light_grey(robot1)
+    assert floor0.sum() > 50 and (floor0 != floor1).sum() > 20  # the floor moved under it
+    person0 = frames[0, LABEL_ROWS:, :w]
+    assert _ink(person0) > 100 and _light_grey(person0).sum() > 50  # the person, on a floor
+    assert _changed(frames[1, :, :w], frames[2, :, :w]) > 10  # the person's arm, not the floor
+    src = save_motion(tmp_path / "wb.npz", m)  # and through `jaxproj render`, from the file
+    code, stdout, err = _cli(capsys, "render", str(src), "--out", str(tmp_path / "wb.gif"),
+                             "--backend", "matplotlib", "--size", "64x64")  # fmt: skip
+    assert code == 0, err
+    assert "whole body: the root in the world, over the floor" in stdout
+    floor = render.floor_model(g1)
+    assert floor.nq == model.nq and floor.ngeom == model.ngeom + 1
+    plane = floor.geom("jaxproj_floor")
+    assert plane.type[0] == mujoco.mjtGeom.mjGEOM_PLANE and plane.contype[0] == 0
