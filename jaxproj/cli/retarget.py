@@ -277,8 +277,8 @@ def run(args: argparse.Namespace) -> int:
     if args.root == "world":
         from jaxproj.motion.whole_body import root_trajectory
 
-        body = root_trajectory(rec.positions, result.valid, result.times, angles, robot,
-                               skeleton=rec.skeleton)  # fmt: skip
+        # rec.positions are Kinect v1's 20 joints whatever the file recorded (rec.skeleton)
+        body = root_trajectory(rec.positions, result.valid, result.times, angles, robot)
         root = {"root_pos": body.root_pos, "root_rot": body.root_rot, "contacts": body.contacts}
         angles = body.angles  # the stance feet planted
         meta["root"] = "world"
