@@ -153,7 +153,7 @@ class Camera:
 
 
 def robot_box(
-    robot: Robot, model: Any, angles: np.ndarray | None = None
+    robot: Robot, model: Any, angles: np.ndarray | None = None, roots: np.ndarray | None = None
 ) -> tuple[np.ndarray, float]:
     """The cube a robot panel shows: it holds the robot in its standing posture and in every
     configuration of ``angles``, with ``BOX_SPARE`` to spare.
@@ -162,62 +162,42 @@ def robot_box(
     every body origin, site and geom centre, in ``model``'s world frame (the frame the panels
     draw in). No robot's size is assumed.
 
+    With ``roots`` (a whole-body motion's panel, whose view follows the root over the floor):
+    the robot at each configuration's root pose, its points taken about the root horizontally,
+    the floor (z = 0) included; the standing posture is not added.
+
     Args:
-      model: ``robot.load_model("fixed")``.
+      model: ``robot.load_model("fixed")``, or ``"free"`` with ``roots``.
       angles: ``(N, n_joints)`` configurations drawn, rad (``robot.joint_names`` order), or
         ``None``: the standing posture only. At most ``MAX_BOX_FRAMES`` of them are read,
         evenly spread.
+      roots: ``(N, 7)`` their root poses (``robot_qpos``'s ``root``), or ``None``.
 
     Returns:
-      ``(centre, half)``: ``(3,)`` float64 m, the cube's centre, and its half side, m.
+      ``(centre, half)``: ``(3,)`` float64 m, the cube's centre (with ``roots``: less
+      ``(root_x, root_y, 0)``), and its half side, m.
     """
     import mujoco
 
-    q = np.asarray(robot.standing, np.float64)[None]
+    q = np.empty((0, robot.n_joints))
     if angles is not None and len(angles):
-        a = np.asarray(angles, np.float64).reshape(-1, robot.n_joints)
-        if len(a) > MAX_BOX_FRAMES:
-            a = a[np.linspace(0, len(a) - 1, MAX_BOX_FRAMES).round().astype(int)]
-        q = np.concatenate([q, a])
+        q = np.asarray(angles, np.float64).reshape(-1, robot.n_joints)
+    r = None if roots is None else np.asarray(roots, np.float64).reshape(-1, 7)
+    if len(q) > MAX_BOX_FRAMES:
+        pick = np.linspace(0, len(q) - 1, MAX_BOX_FRAMES).round().astype(int)
+        q, r = q[pick], None if r is None else r[pick]
+    if r is None:
+        q = np.concatenate([np.asarray(robot.standing, np.float64)[None], q])
     data = mujoco.MjData(model)
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for row in q:
-        data.qpos[:] = robot_qpos(robot, model, row)
+    if r is not None:
+        lo[2] = 0.0  # the floor is shown
+    for i, row in enumerate(q):
+        data.qpos[:] = robot_qpos(robot, model, row, None if r is None else r[i])
         mujoco.mj_kinematics(model, data)
         pts = np.concatenate([data.xpos[1:], data.site_xpos, data.geom_xpos])
-        lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
-    half = max(float((hi - lo).max()) / 2.0 * BOX_SPARE, 0.05)
-    return (lo + hi) / 2.0, half
-
-
-def world_box(
-    robot: Robot, model: Any, angles: np.ndarray, roots: np.ndarray
-) -> tuple[np.ndarray, float]:
-    """The cube a robot panel of a whole-body motion shows, as ``robot_box`` but in the world
-    (floor at z = 0) and horizontally relative to the root: the panel's view follows the root
-    over the floor, so what must fit is the robot about its root, and the floor under it.
-
-    Args:
-      model: ``robot.load_model("free")``.
-      angles: ``(N, n_joints)`` configurations drawn, rad; roots: ``(N, 7)`` their root poses
-        (``robot_qpos``'s ``root``). At most ``MAX_BOX_FRAMES`` frames are read.
-
-    Returns:
-      ``(offset, half)``: the cube's centre less ``(root_x, root_y, 0)``, ``(3,)`` m, and its
-      half side, m.
-    """
-    import mujoco
-
-    a = np.asarray(angles, np.float64).reshape(-1, robot.n_joints)
-    r = np.asarray(roots, np.float64).reshape(-1, 7)
-    pick = np.linspace(0, len(a) - 1, min(len(a), MAX_BOX_FRAMES)).round().astype(int)
-    data = mujoco.MjData(model)
-    lo, hi = np.array([np.inf, np.inf, 0.0]), np.full(3, -np.inf)  # the floor is shown
-    for i in pick:
-        data.qpos[:] = robot_qpos(robot, model, a[i], r[i])
-        mujoco.mj_kinematics(model, data)
-        pts = np.concatenate([data.xpos[1:], data.site_xpos, data.geom_xpos])
-        pts = pts - np.array([r[i, 0], r[i, 1], 0.0])
+        if r is not None:
+            pts = pts - np.array([r[i, 0], r[i, 1], 0.0])
         lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
     half = max(float((hi - lo).max()) / 2.0 * BOX_SPARE, 0.05)
     return (lo + hi) / 2.0, half
@@ -312,8 +292,8 @@ def side_color(name: str) -> tuple[float, float, float]:
 
 
 def _follow_box(points: np.ndarray, ok: np.ndarray, anchor: np.ndarray) -> tuple[np.ndarray, float]:
-    """``world_box`` of a point figure: ``(T, n, 3)`` world points (floor z = 0) of the ``(T,)``
-    ``ok`` frames about ``(T, 3)`` ``anchor`` (its x, y) -> ``(offset, half)``."""
+    """``robot_box`` with roots, of a point figure: ``(T, n, 3)`` world points (floor z = 0)
+    of the ``(T,)`` ``ok`` frames about ``(T, 3)`` ``anchor`` (its x, y) -> ``(offset, half)``."""
     rel = points[ok] - (anchor[ok] * np.array([1.0, 1.0, 0.0]))[:, None, :]
     lo = np.minimum(rel.min(axis=(0, 1)), [np.inf, np.inf, 0.0])
     hi = rel.max(axis=(0, 1))
@@ -386,7 +366,7 @@ class _StickRobotPanel:
     joined parent -> child, its feet and head marker (``robot.mjcf.figure``), in the cube of
     ``robot_box`` over ``angles`` (``(N, n_joints)``, the frames to be drawn); with ``roots``
     (``(N, 7)``, a whole-body motion's root poses of those frames) in the world, the view
-    following the root over the floor (``world_box``)."""
+    following the root over the floor (``robot_box`` with ``roots``)."""
 
     name = "matplotlib"
 
@@ -440,7 +420,7 @@ class _StickRobotPanel:
         floor = float(lowest.min())
         if roots is not None:
             assert angles is not None
-            self.offset, self.half = world_box(robot, m, angles, roots)
+            self.offset, self.half = robot_box(robot, m, angles, roots)
             self.canvas = _Canvas(size, camera, self.offset, self.half)
             return
         centre, half = robot_box(robot, m, angles)  # after the standing kinematics above

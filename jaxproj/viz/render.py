@@ -14,7 +14,7 @@ its world instead: the robot on its free joint at the root pose of each frame, o
 z = 0 (MuJoCo: a 0.5 m checker plane, ``floor_model``; matplotlib: lines 0.5 m apart), the
 person beside it in the same world frame (``whole_body.world_frame``: floor at z = 0, x the
 first heading, robot metres); each panel's view follows its figure's root (hips) over the floor
-(``panels.world_box``), so a walk is seen as the floor passing under the feet.
+(``panels.robot_box`` with the roots), so a walk is seen as the floor passing under the feet.
 
 Backends of the robot panel (``render_frames(..., backend=)``):
 
@@ -74,7 +74,6 @@ from jaxproj.viz.panels import (
     robot_box,
     robot_label,
     robot_qpos,
-    world_box,
 )
 from jaxproj.viz.video import (
     MAX_GIF_FPS,
@@ -213,7 +212,7 @@ class _MujocoPanel:
     """A robot rendered by MuJoCo's OpenGL renderer, root body fixed, free camera (framed on
     ``robot_box`` over ``angles`` unless the camera says where); with ``roots`` (``(N, 7)``, a
     whole-body motion's root poses of those frames), on a floor in the world, the camera
-    following the root (``world_box``)."""
+    following the root (``robot_box`` with ``roots``)."""
 
     name = "mujoco"
 
@@ -238,7 +237,7 @@ class _MujocoPanel:
         self.data = mujoco.MjData(self.model)
         if roots is not None:
             assert angles is not None
-            centre, half = world_box(robot, self.model, angles, roots)
+            centre, half = robot_box(robot, self.model, angles, roots)
             self.offset = centre
         else:
             centre, half = robot_box(robot, self.model, angles)
