@@ -72,7 +72,7 @@ import math
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Generic, Literal, NamedTuple, TypeVar
+from typing import Any, Generic, Literal, NamedTuple, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -988,11 +988,7 @@ class GenericIK:
     def _directions(self, q_full: jax.Array) -> jax.Array:
         """``(C, R, 3)`` unit row directions of every chain at ``(n_joints,)`` ``q_full``
         (padded rows: ``(1, 1, 1) / sqrt(3)``)."""
-        c = self.problems.data
-        p = self.problems.fk.points(q_full)
-        seg = p[c.row_points[..., 1]] - p[c.row_points[..., 0]]
-        seg = jnp.where(jnp.asarray(c.row_mask)[..., None], seg, jnp.float32(1.0))
-        return seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
+        return _row_directions(self.problems.fk.points(q_full), self.problems.data)
 
     def track_step(
         self,
@@ -1081,11 +1077,12 @@ class GenericIK:
         return self.solve_info(d, bones)[0]
 
 
-def _row_directions(p: jax.Array, c: _ChainData[jax.Array]) -> jax.Array:
-    """``(R, 3)`` unit directions of chain ``c``'s rows at FK points ``p`` ``(P, 3)`` (padded
-    rows: ``(1, 1, 1) / sqrt(3)``, as ``GenericIK._residual`` computes them)."""
-    seg = p[c.row_points[:, 1]] - p[c.row_points[:, 0]]
-    seg = jnp.where(c.row_mask[:, None], seg, jnp.float32(1.0))
+def _row_directions(p: jax.Array, c: _ChainData[Any]) -> jax.Array:
+    """``(..., R, 3)`` unit directions of the rows of chain ``c`` (or of every chain, stacked:
+    ``(C, R, 3)``) at FK points ``p`` ``(P, 3)`` (padded rows: ``(1, 1, 1) / sqrt(3)``, as
+    ``GenericIK._residual`` computes them)."""
+    seg = p[c.row_points[..., 1]] - p[c.row_points[..., 0]]
+    seg = jnp.where(jnp.asarray(c.row_mask)[..., None], seg, jnp.float32(1.0))
     return seg / jnp.sqrt(jnp.sum(seg * seg, axis=-1, keepdims=True))
 
 
