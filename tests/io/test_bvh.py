@@ -398,11 +398,15 @@ def test_joint_maps_presets_files_and_errors(clips, tmp_path):
 def test_joint_maps_map_onto_the_registered_kinect_v1_skeleton():
     target = bvh.TARGET_SKELETON
     assert target is skeletons.get("kinect_v1") and target.joints == JOINT_NAMES
-    # required and derived joints split the skeleton's joints; the presets name only its joints
+    # required and derived joints split the skeleton's joints; the presets name only its joints,
+    # every required one (the CMU presets all 20; LAFAN1 and Mixamo derive the hands)
     assert set(bvh.REQUIRED_JOINTS) | set(bvh.DERIVED_JOINTS) == set(target.joints)
     assert not set(bvh.REQUIRED_JOINTS) & set(bvh.DERIVED_JOINTS)
-    for table in bvh.JOINT_MAPS.values():
-        assert set(table) == set(target.joints)
+    for name, table in bvh.JOINT_MAPS.items():
+        assert set(bvh.REQUIRED_JOINTS) <= set(table) <= set(target.joints), name
+        assert set(target.joints) - set(table) == (
+            set() if name.startswith("cmu") else {"HandLeft", "HandRight"}
+        ), name
 
 
 # --- bad files -----------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""BVH motion capture (Biovision hierarchy: CMU, LAFAN1, Xsens exports) -> Kinect v1 skeletons.
+"""BVH motion capture (Biovision hierarchy: CMU, LAFAN1, Mixamo, Xsens exports) -> Kinect v1
+skeletons.
 
 ``read_bvh(path, bvh_map="auto", scale="auto", fps=None)`` returns the same ``Recording`` as
 every other reader (``(T, 20, 3)`` float32 metres, Kinect SDK joint order), so everything
@@ -19,7 +20,7 @@ public:
    local rotation is the product of its rotation channels' axis rotations in the order the
    channels are listed (``Zrotation Xrotation Yrotation`` -> ``Rz @ Rx @ Ry``, i.e. intrinsic
    Z-X-Y); position channels replace the corresponding ``OFFSET`` component (the root's
-   translation; LAFAN1-style files carry every joint's offset as position channels);
+   translation; some exporters write position channels on every joint);
    ``p_joint = p_parent + R_parent @ offset``, ``R_joint = R_parent @ R_local``.
 3. A joint map (``JOINT_MAPS``, ``resolve_joint_map``) picks, for each of the 20 Kinect joints
    (the joints of ``TARGET_SKELETON``, the registered ``"kinect_v1"`` skeleton), the BVH joint
@@ -36,8 +37,23 @@ Joint maps (``bvh_map=``, CLI ``--bvh-map``):
   ``LeftUpLeg``/``LeftLeg``/``LeftFoot``/``LeftToeBase``. Its joint names and offsets were
   checked against published hierarchies of that release, not against motion data of it (no such
   file is bundled).
+- ``"lafan1"``: Ubisoft La Forge's LAFAN1 dataset (22 joints, the layout of e.g.
+  ``aiming1_subject1.bvh``): ``Hips``, ``Spine1``, ``Neck``, ``Head``,
+  ``LeftArm``/``LeftForeArm``/``LeftHand`` (``LeftShoulder`` is the clavicle),
+  ``LeftUpLeg``/``LeftLeg``/``LeftFoot``/``LeftToe``; the hands derived.
+- ``"mixamo"``: Adobe Mixamo rigs, the same names with ``LeftToeBase`` for the toe, behind the
+  rig's namespace (``mixamorig:Hips``, ``mixamorig1:Hips``..., or none); the hands derived.
+  ``joint_maps.JOINT_MAPS`` gives the reasons for each joint (``ShoulderCenter`` = ``Neck``,
+  ``Spine`` = ``Spine1``) and the public sources the names were checked against; they were
+  checked on files written in those layouts (``tests/io/test_bvh_presets.py``), not on the
+  datasets' own files (none is bundled).
 - ``"auto"`` (default): the preset whose every joint the hierarchy has, when exactly one does;
-  otherwise an ``InputError`` listing, per preset, the Kinect joints it could not map.
+  otherwise an ``InputError`` listing, per preset, the Kinect joints it could not map. A
+  preset's names are matched behind any namespace prefix, the text before ``Hips`` in the
+  hierarchy's name for it, the same for every joint (``namespaces``); ``mixamo`` also asks for
+  ``Spine2`` (``DETECTION_MARKS``), which tells a Mixamo rig from CMU's MotionBuilder release
+  (LAFAN1 has ``LeftToe``, Mixamo ``LeftToeBase``). The recording's ``time_source`` names the
+  map and the prefix.
 - a ``dict`` (Kinect joint name -> BVH joint name) or the path of a JSON or TOML file holding
   that table (flat: ``{"HipCenter": "Hips", "ShoulderLeft": "LeftArm", ...}``).
 
@@ -69,7 +85,8 @@ converted skeletons keep the ASF lengths). With it the bundled subject 131 has i
 0.96 m and its ankles ~0.1 m above the floor, thighs 0.41 m, shins 0.39 m, upper arms 0.24 m, a
 plausible adult's legs; the converted torso is short (pelvis to neck base 0.32 m, top of the
 head End Site 1.44 m above the floor), a property of that skeleton, not of the scale. For
-other skeletons the unit among
+other skeletons (LAFAN1 and Mixamo among them: centimetres, 167 and 155 units head to ankle, so
+``cm``; a file converted to metres reads as ``m``) the unit among
 ``UNITS`` (m, cm, mm, in) that makes the rest pose's head-to-ankle height (the lengths of the
 ``OFFSET`` chains from the root to ``Head`` and to ``AnkleLeft``) nearest to ``REFERENCE_HEIGHT_M``
 (1.5 m, in ratio). Or a unit name of ``UNITS`` (``"cmu"``, ``"m"``, ``"cm"``, ``"mm"``, ``"in"``)
@@ -102,12 +119,16 @@ and marked invalid, as in every reader.
 
 from jaxproj.io.formats.bvh.joint_maps import (
     DERIVED_JOINTS,
+    DETECTION_MARKS,
     HAND_EXTENSION,
     JOINT_MAPS,
     REQUIRED_JOINTS,
+    ROOT_JOINT,
     TARGET_SKELETON,
     detect_joint_map,
     load_joint_map,
+    namespaces,
+    preset_table,
     resolve_joint_map,
 )
 from jaxproj.io.formats.bvh.kinematics import BVH_TO_KINECT, forward_kinematics, kinect_positions
@@ -127,12 +148,14 @@ __all__ = [
     "BVH_TO_KINECT",
     "CMU_SCALE",
     "DERIVED_JOINTS",
+    "DETECTION_MARKS",
     "FORMAT",
     "HAND_EXTENSION",
     "JOINT_MAPS",
     "REFERENCE_HEIGHT_M",
     "REQUIRED_JOINTS",
     "REST_FRAMES",
+    "ROOT_JOINT",
     "TARGET_SKELETON",
     "UNITS",
     "BvhClip",
@@ -141,7 +164,9 @@ __all__ = [
     "forward_kinematics",
     "kinect_positions",
     "load_joint_map",
+    "namespaces",
     "parse_bvh",
+    "preset_table",
     "read_bvh",
     "resolve_joint_map",
     "rest_pose_first",

@@ -46,6 +46,21 @@ DERIVED_JOINTS: dict[str, str] = {
 }
 """Kinect joints a joint map may leave out, and how they are made when it does."""
 
+
+def _humanik_map(toe: str) -> dict[str, str]:
+    """LAFAN1's and Mixamo's map (the same MotionBuilder / HumanIK joint names; only the toe
+    differs): ``JOINT_MAPS`` says why each joint."""
+    table = {"HipCenter": "Hips", "Spine": "Spine1", "ShoulderCenter": "Neck", "Head": "Head"}
+    for side in ("Left", "Right"):
+        table |= {
+            f"Shoulder{side}": f"{side}Arm", f"Elbow{side}": f"{side}ForeArm",
+            f"Wrist{side}": f"{side}Hand", f"Hip{side}": f"{side}UpLeg",
+            f"Knee{side}": f"{side}Leg", f"Ankle{side}": f"{side}Foot",
+            f"Foot{side}": f"{side}{toe}",
+        }  # fmt: skip
+    return table
+
+
 JOINT_MAPS: dict[str, dict[str, str]] = {
     "cmu": {
         "HipCenter": "Hips", "Spine": "Chest", "ShoulderCenter": "Neck", "Head": "Head",
@@ -69,15 +84,63 @@ JOINT_MAPS: dict[str, dict[str, str]] = {
         "HipRight": "RightUpLeg", "KneeRight": "RightLeg", "AnkleRight": "RightFoot",
         "FootRight": "RightToeBase",
     },
+    "lafan1": _humanik_map("Toe"),
+    "mixamo": _humanik_map("ToeBase"),
 }  # fmt: skip
-"""Built-in joint maps (Kinect joint -> BVH joint) of the two CMU BVH releases.
+"""Built-in joint maps (Kinect joint -> BVH joint): the two CMU BVH releases, LAFAN1 and Mixamo.
 
 ``cmu`` (3dsMax-friendly): ``LeftShoulder`` is the shoulder joint (``LeftCollar`` the clavicle),
 ``Neck`` the base of the neck at shoulder height (``lowerneck`` sits lower, at ``Chest2``),
 ``LFingers`` the hand (``lhand`` coincides with ``LeftWrist``). ``cmu-mb`` (MotionBuilder-friendly):
 ``LeftShoulder`` is the clavicle and ``LeftArm`` the shoulder joint, ``Neck1`` the upper neck
 (``Neck`` coincides with ``Spine1``), ``LeftHandIndex1`` the hand (``LeftFingerBase`` coincides
-with ``LeftHand``)."""
+with ``LeftHand``).
+
+``lafan1`` (Ubisoft La Forge's LAFAN1, github.com/ubisoft/ubisoft-laforge-animation-dataset; its 22
+joints: ``Hips``; ``LeftUpLeg``/``LeftLeg``/``LeftFoot``/``LeftToe`` and the right side;
+``Spine``/``Spine1``/``Spine2``/``Neck``/``Head``; ``LeftShoulder``/``LeftArm``/``LeftForeArm``/
+``LeftHand`` and the right side; every End Site at offset 0) and ``mixamo`` (Adobe Mixamo rigs:
+the same names, ``LeftToeBase`` for the toe, ``HeadTop_End`` / ``LeftToe_End`` ends and, in most
+rigs, finger chains ``LeftHandThumb1..3``, ``LeftHandIndex1..3``, ...; every name behind a
+namespace prefix, ``namespaces``) share one map: ``LeftShoulder`` is the clavicle and
+``LeftArm`` the shoulder joint, ``LeftForeArm`` the elbow, ``LeftHand`` the wrist,
+``LeftUpLeg`` / ``LeftLeg`` / ``LeftFoot`` hip, knee and ankle, ``LeftToe`` / ``LeftToeBase`` the
+foot (the ball of the foot, as CMU's ``LeftToe``). ``ShoulderCenter`` is ``Neck``, the base of the
+neck, about 6 cm above the shoulder joints in both rest skeletons (LAFAN1: ``Neck`` 25.8 cm above
+``Spine2``, the clavicles 19.7 cm, level with the shoulder joints in a T-pose; Mixamo: ``Neck``
+15.0 cm, the shoulder joints 8.8 cm), which is where the Kinect v1 tracker puts its
+``ShoulderCenter`` too (a median 8 cm above the mid-shoulder point, along the trunk, in the
+bundled MSR Action3D recordings of subjects 1, 3 and 5); the derived mid-shoulder point would
+sit on the shoulder line. ``Spine`` is ``Spine1``, the middle of the three spine joints: 34 %
+(LAFAN1) and 43 % (Mixamo) of the way up from the hips to the neck, the Kinect ``Spine`` 42 %
+(the same recordings); a joint of the spine rather than the derived midpoint, so the spine's
+bend shows. ``Head`` is ``Head`` (the base of the skull,
+as in the CMU maps; LAFAN1 has no head top). The hands are derived (``DERIVED_JOINTS``): LAFAN1
+has no joint beyond the wrist and Mixamo's finger chains are left out of some rigs (the 25-joint
+"no fingers" skeleton).
+
+Sources for the names and offsets: the header of LAFAN1's ``aiming1_subject1.bvh`` (7184 frames)
+as reproduced in two independent public notes of retargeting projects (they agree: root
+``Hips`` with ``Xposition Yposition Zposition Zrotation Yrotation Xrotation``, every other joint
+``Zrotation Yrotation Xrotation``, each bone along its joint's local +x, centimetres, y up,
+``Frame Time: 0.033333``); GMR's ``utils/lafan1.py`` (positions / 100, cm -> m) and its
+``ik_configs/bvh_lafan1_to_*.json`` (``LeftArm``, ``LeftForeArm``, ``LeftUpLeg``, ``LeftLeg``,
+``LeftToe``); the dataset's ``lafan1/extract.py`` and README (30 fps). Mixamo: the Mixamo BVH
+``tests/test_freebvh.bvh`` of github.com/20tab/bvh-python (root ``mixamorig:Hips``, T-pose rest
+pose, y up, facing +z, left at +x, centimetres, ``HeadTop_End`` / eyes / three-segment fingers as
+joints, ``Zrotation Yrotation Xrotation``); ``mixamorig1:`` / ``mixamorig2:`` namespaces and
+colon-less ``mixamorigHips`` / ``mixamorig_Hips`` names from the bone-name tables of projects
+that load Mixamo rigs (Unity, three.js, Godot)."""
+
+DETECTION_MARKS: dict[str, tuple[str, ...]] = {"mixamo": ("Spine2",)}
+"""Joints (bare names, before the namespace) that ``bvh_map="auto"`` also asks of a hierarchy to
+pick the preset, beyond the preset's own joints: a Mixamo rig has three spine joints,
+``Spine``, ``Spine1``, ``Spine2``, where CMU's MotionBuilder-friendly release, whose other names
+the ``mixamo`` map shares, has two."""
+
+ROOT_JOINT = "Hips"
+"""The pelvis joint every preset maps ``HipCenter`` to; a namespace is the text before it in the
+hierarchy's name for it (``namespaces``)."""
 
 
 def load_joint_map(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -121,27 +184,86 @@ def _unmapped(table: Mapping[str, str], names: tuple[str, ...]) -> list[str]:
     return out
 
 
+def namespaces(clip: BvhClip) -> list[str]:
+    """The namespace prefixes the hierarchy's joints may carry: for each joint (End Sites aside)
+    whose name ends with ``ROOT_JOINT``, the text before it, in hierarchy order, then ``""`` (no
+    prefix) if no joint is called ``ROOT_JOINT`` itself.
+
+    Mixamo rigs name every joint ``mixamorig:Hips``, ``mixamorig:Spine``, ...; a rig imported
+    more than once becomes ``mixamorig1:``, ``mixamorig2:``...; tools that drop the colon leave
+    ``mixamorig_Hips`` or ``mixamorigHips``; some exporters write no prefix. Any such prefix is
+    taken as it is found, so a preset fits under any namespace, provided every joint it maps
+    carries the same one.
+    """
+    found = [
+        name[: len(name) - len(ROOT_JOINT)]
+        for name, end in zip(clip.names, clip.end_site, strict=True)
+        if not end and name.endswith(ROOT_JOINT)
+    ]
+    return list(dict.fromkeys([*found, ""]))
+
+
+def _with_prefix(table: Mapping[str, str], prefix: str) -> dict[str, str]:
+    return {k: prefix + v for k, v in table.items()}
+
+
+def _preset_problems(
+    clip: BvhClip, name: str, prefix: str, detecting: bool
+) -> tuple[list[str], list[str]]:
+    """What keeps preset ``name`` under namespace ``prefix`` from the hierarchy (nothing: it
+    fits): the Kinect joints it cannot map (``_unmapped``) and, when ``detecting``, its
+    ``DETECTION_MARKS`` the hierarchy lacks (prefixed)."""
+    unmapped = _unmapped(_with_prefix(JOINT_MAPS[name], prefix), clip.names)
+    marks = [prefix + m for m in DETECTION_MARKS.get(name, ()) if prefix + m not in clip.names]
+    return unmapped, marks if detecting else []
+
+
+def _fits(problems: tuple[list[str], list[str]]) -> bool:
+    return not (problems[0] or problems[1])
+
+
+def preset_table(clip: BvhClip, name: str, detecting: bool = False) -> tuple[str, dict[str, str]]:
+    """``(namespace, table)`` of preset ``name`` for this hierarchy: the first of its
+    ``namespaces`` under which the preset fits (every BVH joint of the table, and for
+    ``detecting`` its ``DETECTION_MARKS``, in the hierarchy), its joint names prefixed with it;
+    the first namespace if none fits (``resolve_joint_map`` then reports what is missing)."""
+    spaces = namespaces(clip)
+    prefix = next((p for p in spaces if _fits(_preset_problems(clip, name, p, detecting))),
+                  spaces[0])  # fmt: skip
+    return prefix, _with_prefix(JOINT_MAPS[name], prefix)
+
+
 def detect_joint_map(clip: BvhClip) -> str:
-    """The preset of ``JOINT_MAPS`` whose every joint the hierarchy has.
+    """The preset of ``JOINT_MAPS`` whose every joint (and ``DETECTION_MARKS``) the hierarchy has,
+    under one namespace (``namespaces``).
 
     Raises:
-      InputError: no preset fits (lists, per preset, the Kinect joints it could not map) or more
-        than one does.
+      InputError: no preset fits (lists, per preset and for the namespace it came nearest under,
+        the Kinect joints it could not map and the marks the hierarchy lacks) or more than one
+        does.
     """
-    fits = [k for k, table in JOINT_MAPS.items() if not _unmapped(table, clip.names)]
+    spaces = namespaces(clip)
+    problems = {  # per preset, under the namespace it comes nearest to fitting
+        k: min((_preset_problems(clip, k, p, True) for p in spaces),
+               key=lambda problem: len(problem[0]) + len(problem[1]))
+        for k in JOINT_MAPS
+    }  # fmt: skip
+    fits = [k for k, problem in problems.items() if _fits(problem)]
     if len(fits) == 1:
         return fits[0]
     if fits:
         raise InputError(clip.source, f"the hierarchy fits several joint maps ({', '.join(fits)}):"
                                       " give one (--bvh-map, bvh_map=)")  # fmt: skip
-    why = "; ".join(
-        f"{k!r} could not map {', '.join(_unmapped(t, clip.names))}" for k, t in JOINT_MAPS.items()
-    )
+    why = []
+    for k, (unmapped, marks) in problems.items():
+        parts = [f"could not map {', '.join(unmapped)}"] if unmapped else []
+        parts += [f"lacks {', '.join(marks)} (which a {k} hierarchy has)"] if marks else []
+        why.append(f"{k!r} {' and '.join(parts)}")
     raise InputError(
         clip.source,
         f"no built-in joint map fits this BVH skeleton ({len(clip.names)} joints, root "
-        f"{clip.names[0]}): {why}. Give a map (--bvh-map FILE.json|FILE.toml, bvh_map=dict) "
-        "of Kinect joint -> BVH joint",
+        f"{clip.names[0]}): {'; '.join(why)}. Give a map (--bvh-map FILE.json|FILE.toml, "
+        "bvh_map=dict) of Kinect joint -> BVH joint",
     )
 
 
@@ -149,7 +271,8 @@ def resolve_joint_map(
     clip: BvhClip, bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto"
 ) -> tuple[str, dict[str, str]]:
     """``(name, table)`` of the joint map for ``clip``: a preset name, ``"auto"``, a file path
-    (JSON / TOML) or a dict; checked against the hierarchy.
+    (JSON / TOML) or a dict; checked against the hierarchy. A preset's joint names come with the
+    hierarchy's namespace prefix (``preset_table``); a dict's or a file's are taken as they are.
 
     Raises:
       ConfigError: a dict with unknown Kinect names or non-string values.
@@ -160,9 +283,10 @@ def resolve_joint_map(
         name, table = "dict", _check_map(bvh_map, ConfigError)
     elif str(bvh_map) == "auto":
         name = detect_joint_map(clip)
-        table = JOINT_MAPS[name]
+        table = preset_table(clip, name, detecting=True)[1]
     elif str(bvh_map) in JOINT_MAPS:
-        name, table = str(bvh_map), JOINT_MAPS[str(bvh_map)]
+        name = str(bvh_map)
+        table = preset_table(clip, name)[1]
     else:
         p = Path(bvh_map)
         if not p.exists():

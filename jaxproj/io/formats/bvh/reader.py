@@ -17,7 +17,7 @@ import numpy as np
 
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.io.formats.base import Format
-from jaxproj.io.formats.bvh.joint_maps import resolve_joint_map
+from jaxproj.io.formats.bvh.joint_maps import JOINT_MAPS, ROOT_JOINT, resolve_joint_map
 from jaxproj.io.formats.bvh.kinematics import kinect_positions
 from jaxproj.io.formats.bvh.parser import BvhClip, parse_bvh
 from jaxproj.io.recording import MAX_DURATION_S, Recording, check_fps, make_recording, resample
@@ -131,8 +131,9 @@ def read_bvh(
 
     Args:
       path: the ``.bvh`` file.
-      bvh_map: ``"auto"`` (detect a preset), ``"cmu"``, ``"cmu-mb"``, a JSON / TOML map file or
-        a dict of Kinect joint -> BVH joint (``jaxproj.io.formats.bvh``).
+      bvh_map: ``"auto"`` (detect a preset), a preset of ``JOINT_MAPS`` (``"cmu"``,
+        ``"cmu-mb"``, ``"lafan1"``, ``"mixamo"``), a JSON / TOML map file or a dict of Kinect
+        joint -> BVH joint (``jaxproj.io.formats.bvh``).
       scale: ``"auto"``, a unit name of ``UNITS`` or metres per file unit.
       fps: ``None`` keeps the clip's frames (``Frame Time``); a rate resamples the clip to it.
       data: the file's bytes, if already read.
@@ -168,6 +169,9 @@ def read_bvh(
             "Frame Time or Frames",
         )
     rec = make_recording(positions, None, str(path), "bvh")
+    prefix = table["HipCenter"][: -len(ROOT_JOINT)] if map_name in JOINT_MAPS else ""
+    if prefix:
+        map_name += f" (joint names prefixed {prefix!r})"
     note = (f"BVH Frame Time {clip.frame_time:g} s ({clip.fps:.6g} fps); map {map_name}; "
             f"scale {scale_note}")  # fmt: skip
     if dropped:
