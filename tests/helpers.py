@@ -66,3 +66,54 @@ def clip_driven_np(q: np.ndarray) -> np.ndarray:
     bounds = [np.interp(q[..., 0], robot.HEAD_ENVELOPE_YAW, b) for b in env]
     q[..., 1] = np.clip(q[..., 1], *bounds)
     return q
+
+
+# A standing person in Kinect v1 camera space (metres, y up, facing the camera, the performer's
+# left at smaller x), our own numbers of adult proportions: upper arm 0.27 m, forearm 0.23,
+# thigh 0.42, shin 0.41, trunk (HipCenter -> ShoulderCenter) 0.50.
+PERSON: dict[str, tuple[float, float, float]] = {
+    "HipCenter": (0.0, 0.0, 2.5), "Spine": (0.0, 0.25, 2.5), "ShoulderCenter": (0.0, 0.5, 2.5),
+    "Head": (0.0, 0.7, 2.5),
+    "ShoulderLeft": (-0.18, 0.45, 2.5), "ElbowLeft": (-0.21, 0.18, 2.5),
+    "WristLeft": (-0.23, -0.05, 2.48), "HandLeft": (-0.24, -0.12, 2.47),
+    "ShoulderRight": (0.18, 0.45, 2.5), "ElbowRight": (0.21, 0.18, 2.5),
+    "WristRight": (0.23, -0.05, 2.48), "HandRight": (0.24, -0.12, 2.47),
+    "HipLeft": (-0.09, -0.05, 2.5), "KneeLeft": (-0.1, -0.47, 2.5),
+    "AnkleLeft": (-0.1, -0.88, 2.52), "FootLeft": (-0.1, -0.92, 2.42),
+    "HipRight": (0.09, -0.05, 2.5), "KneeRight": (0.1, -0.47, 2.5),
+    "AnkleRight": (0.1, -0.88, 2.52), "FootRight": (0.1, -0.92, 2.42),
+}  # fmt: skip
+
+
+def person_motion(n_frames: int = 7, seed: int = 0, jitter: float = 0.02) -> np.ndarray:
+    """``(T, 20, 3)`` float64 Kinect v1 positions: ``PERSON`` with each joint moved by up to
+    ``jitter`` m per frame, rounded to 6 decimals (exactly representable in every format)."""
+    from jaxproj.human.skeleton import JOINT_NAMES
+
+    base = np.array([PERSON[n] for n in JOINT_NAMES])
+    rng = np.random.default_rng(seed)
+    return np.round(base + rng.uniform(-jitter, jitter, size=(n_frames, 20, 3)), 6)
+
+
+def person_joints(skeleton: str, n_frames: int = 2, seed: int = 0) -> np.ndarray:
+    """``(T, len(sensor_joints), 3)`` joints of a registered skeleton holding ``person_motion``:
+    each joint Kinect v1 takes a position from sits at that position; every other joint a few
+    centimetres from its parent (the skeleton's own axes are not applied: MediaPipe's y-down
+    landmarks come out upside down, which changes no bone length)."""
+    from jaxproj.human import skeletons
+
+    s = skeletons.get(skeleton)
+    kin = person_motion(n_frames, seed)
+    out = np.full((n_frames, len(s.joints), 3), np.nan)
+    for i, j in enumerate(s.kinect_v1_sources):
+        if j >= 0:
+            out[:, j] = kin[:, i]
+    rng = np.random.default_rng(seed + 1)
+    while np.isnan(out[0, :, 0]).any():
+        for j in np.flatnonzero(np.isnan(out[0, :, 0])):
+            p = s.parents[j]
+            if p < 0:
+                out[:, j] = kin[:, 0]
+            elif not np.isnan(out[0, p, 0]):
+                out[:, j] = out[:, p] + rng.uniform(-0.03, 0.03, size=3)
+    return out[:, : len(s.sensor_joints)]

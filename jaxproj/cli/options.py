@@ -227,8 +227,9 @@ def add_bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> Non
         "--bvh-map",
         default="auto",
         help="BVH input: joint map, Kinect joint -> BVH joint: auto (the built-in map that fits "
-        "the hierarchy), cmu (CMU 3dsMax-friendly release), cmu-mb (CMU MotionBuilder-friendly) "
-        "or a JSON / TOML file of {Kinect joint: BVH joint} (jaxproj.io.formats.bvh)",
+        "the hierarchy), cmu (CMU 3dsMax-friendly release), cmu-mb (CMU MotionBuilder-friendly), "
+        "lafan1 (Ubisoft LAFAN1), mixamo (Mixamo characters, any 'mixamorig:' prefix) or a JSON "
+        "/ TOML file of {Kinect joint: BVH joint} (jaxproj.io.formats.bvh)",
     )
     if scale:
         parser.add_argument(
@@ -246,6 +247,52 @@ def add_bvh_options(parser: argparse.ArgumentParser, scale: bool = False) -> Non
             "unit of m, cm, mm, in that gives a human-sized skeleton), a unit name (cmu, m, "
             "cm, mm, in) or a number",
         )
+
+
+def add_reading_options(parser: argparse.ArgumentParser) -> None:
+    """``--skeleton``, ``--body``, ``--up`` and ``--units``: what ``read_skeleton`` cannot
+    always tell from a file (``jaxproj.io.readers``)."""
+    from jaxproj.human import skeletons
+
+    parser.add_argument(
+        "--skeleton",
+        default=None,
+        choices=skeletons.names(),
+        help="npz / npy input: the skeleton the joint array holds (None: the file's skeleton "
+        "key, else guessed from the joint count, which the summary says)",
+    )
+    parser.add_argument(
+        "--body",
+        default="first",
+        type=_body,
+        help="NTU RGB+D / Azure Kinect input (several people per frame): first, or a 0-based "
+        "index into each frame's bodies",
+    )
+    parser.add_argument(
+        "--up",
+        default="y",
+        choices=("y", "z"),
+        help="npz / npy input: the axis that points up in the file (y: SMPL, Kinect, HumanML3D; "
+        "z: AMASS, most mocap)",
+    )
+    parser.add_argument(
+        "--units",
+        default="auto",
+        choices=("auto", "m", "cm", "mm"),
+        help="npz / npy / csv input: the positions' unit (auto: read from the bones' lengths, "
+        "converted to metres with a note)",
+    )
+
+
+def _body(text: str) -> str | int:
+    if text == "first":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected 'first' or a 0-based body index, got {text!r}"
+        ) from None
 
 
 def add_data_options(

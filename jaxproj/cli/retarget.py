@@ -75,6 +75,7 @@ def add_parsers(sub: Any) -> None:
         help="input format (auto: by extension and content)",
     )
     options.add_bvh_options(pr, scale=True)
+    options.add_reading_options(pr)
     pr.add_argument(
         "--method",
         default="ik",
@@ -183,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.io.motion_files import Motion, save_motion
     from jaxproj.io.readers import read_skeleton
     from jaxproj.motion import feasible
-    from jaxproj.motion.retarget import MIN_VALID_SHARE, retarget
+    from jaxproj.motion.retarget import MIN_VALID_SHARE, no_valid_frame_problem, retarget
     from jaxproj.projection import api as engine
 
     # every check that needs no computation first: the options, the model's metadata (not its
@@ -225,7 +226,8 @@ def run(args: argparse.Namespace) -> int:
         )
     rec = read_skeleton(
         args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale,
-        rest_frame=args.bvh_rest_frame,
+        rest_frame=args.bvh_rest_frame, skeleton=args.skeleton, body=args.body, up=args.up,
+        units=args.units,
     )  # fmt: skip
     rec = output_rate(rec, args.rate)
     model = None
@@ -252,7 +254,13 @@ def run(args: argparse.Namespace) -> int:
         )
     except NoValidFrameError as e:  # name the file (and the option that most often causes it)
         hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""
-        problem = f"{e.problem}{hint}; nothing written"
+        problem = e.problem
+        if rec.invalid_reason:  # the reader says why it marked frames (MediaPipe: visibility)
+            import numpy as np
+
+            finite = np.isfinite(rec.positions).all(axis=(1, 2))
+            problem = no_valid_frame_problem(rec.valid, finite, rec.invalid_reason)
+        problem = f"{problem}{hint}; nothing written"
         raise NoValidFrameError(args.input, problem, e.n_frames) from None
     angles = result.angles
     unfiltered = angles if result.unfiltered is None else result.unfiltered
@@ -270,6 +278,8 @@ def run(args: argparse.Namespace) -> int:
         "rate": args.rate if isinstance(args.rate, str) else round(float(args.rate), 6),
         "format": rec.format,
         "skeleton": rec.skeleton,
+        "skeleton_from": rec.skeleton_from,
+        "reading_notes": " | ".join(rec.notes),
     }
     if args.method == "full":
         meta["full_reading"] = args.full_reading
@@ -288,9 +298,11 @@ def run(args: argparse.Namespace) -> int:
     save_motion(out, motion, joints=joints, overwrite=args.force)
     n, nv = len(result.valid), int(result.valid.sum())
     print(
-        f"{args.input}: {n} frames ({nv} valid, {result.times[-1]:.2f} s, {rec.time_source}) -> "
-        f"{out} [method={args.method}]"
+        f"{args.input}: {n} frames ({nv} valid, {result.times[-1]:.2f} s, {rec.time_source}; "
+        f"{rec.format}, skeleton {rec.skeleton}) -> {out} [method={args.method}]"
     )
+    for note in rec.notes:
+        print(f"  note: {note}")
     label = "feasible" if args.feasible else "not filtered (--no-feasible)"
     print(
         f"  speed-limit frames {before['speed_violation_frames']} -> "
@@ -313,7 +325,7 @@ def run(args: argparse.Namespace) -> int:
             f"({100 * result.valid_share:.0f} %) are valid, under the "
             f"{100 * MIN_VALID_SHARE:.0f} % jaxproj warns at: the others hold or bridge the "
             "valid poses around them (valid = false in the output); check the recording "
-            "(lost tracking, units)"
+            f"({rec.invalid_reason or 'lost tracking, units'})"
         )
     if args.method != "ik":
         calibrated = model is None or model.deviation_scale is not None

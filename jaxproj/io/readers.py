@@ -1,6 +1,7 @@
 """Read a recorded skeleton file -> ``Recording`` with ``(T, 20, 3)`` positions in SDK joint order.
 
-``read_skeleton(path, format="auto", fps=None, *, bvh_map=, scale=, up=)`` (``jaxproj.read``)
+``read_skeleton(path, format="auto", fps=None, *, bvh_map=, scale=, up=, body=, skeleton=,
+units=)`` (``jaxproj.read``)
 dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one module per format):
 
 - ``"msr"``: MSR Action3D real-world text (``aXX_sYY_eZZ_skeleton3D.txt``): 4 whitespace-separated
@@ -16,6 +17,8 @@ dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one modu
   data (AMASS) into y up. An optional ``valid`` ``(T,)`` bool mask (and MediaPipe
   ``visibility``) is honoured, and optional timing: ``times`` ``(T,)`` seconds (strictly
   increasing) or ``fps`` (a scalar) (``formats.table``).
+- ``"npy"``: a NumPy ``.npy`` ``(T, J, 3)`` joint array alone (HumanML3D's ``new_joints``),
+  read as an NPZ holding it as ``joints`` (``formats.table``).
 - ``"csv"``: comma-separated, 60 numeric columns per row (``x, y, z`` per joint, SDK order); one
   header line of non-numeric column names is allowed and skipped (``formats.table``).
 - ``"bvh"``: BVH motion capture (CMU, LAFAN1, Xsens exports...): the hierarchy's forward
@@ -32,9 +35,11 @@ dispatches through the format registry (``jaxproj.io.formats.FORMATS``; one modu
   joint Kinect v1 reads has confidence 0 (``confidence_levels``, when present); detected by
   content only (``formats.azure_kinect``).
 - ``"mediapipe"``: MediaPipe Pose world landmarks as JSON (frames of 33 ``{x, y, z,
-  visibility}`` objects) or CSV (a ``nose_x,nose_y,nose_z,...`` header), turned from MediaPipe's
-  y-down axes into Kinect's, completed and laid out as Kinect v1; a checked landmark's
-  visibility below 0.5 makes its frame invalid (``formats.mediapipe``).
+  visibility}`` objects; TensorFlow.js ``keypoints3D``, the JavaScript solution's
+  ``poseWorldLandmarks``, Pose Landmarker results) or CSV (one row per frame under a
+  ``nose_x,...`` / ``x0,y0,...`` / ``x1,y1,...`` header, or one row per landmark), turned
+  from MediaPipe's y-down axes into Kinect's, completed and laid out as Kinect v1; a checked
+  landmark's visibility below 0.5 makes its frame invalid (``formats.mediapipe``).
 - ``"auto"`` (default): detected (``jaxproj.io.formats.detect``): by the file name's suffix
   (``.npz`` / ``.csv`` / ``.bvh``) and the content (a zip signature; a first non-blank line of 4
   (MSR Action3D) or 61 (UTKinect) numbers, of 60 comma-separated fields, or ``HIERARCHY``; a
@@ -47,6 +52,12 @@ timing: assumed 30 fps; BVH: its ``Frame Time``; MediaPipe: a JSON's ``fps``, a 
 column at 30 fps, else assumed 30 fps; ``fps=`` overrides, or resamples a BVH).
 NTU RGB+D files carry no timing (assumed 30 fps, the Kinect v2's rate); Azure Kinect times
 come from ``timestamp_usec``.
+
+Units and skeleton (``jaxproj.io.plausible``): the table formats (NPZ, NPY, CSV) state neither
+their units nor, named by the joint count alone, their skeleton; the bones' lengths decide the
+units (metres, centimetres or millimetres, converted with a note; else an error asking for
+``units=``), and a skeleton guessed from the joint count must have a person's proportions.
+``Recording.notes`` say what was assumed (a frame rate, units, a guessed skeleton).
 
 Every problem with the file raises ``jaxproj.errors.InputError`` with a one-line message naming
 the file, the problem and, where local, the 1-based line (text) or 0-based frame (npz).
@@ -61,11 +72,13 @@ same detection, which there does not trust the suffix alone.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from pathlib import Path
 
-from jaxproj.errors import InputError
+from jaxproj.errors import ConfigError, InputError
+from jaxproj.io import plausible
 from jaxproj.io.formats import describe_formats, detect, format_names, get_format
 from jaxproj.io.formats import recording_format as recording_format
 from jaxproj.io.formats.bodies import BodyChoice, body_index
@@ -93,6 +106,8 @@ def read_skeleton(
     up: str = "y",
     body: BodyChoice = "first",
     rest_frame: str = "drop",
+    skeleton: str | None = None,
+    units: str = "auto",
 ) -> Recording:
     """Read a skeleton file into a ``Recording`` (``(T, 20, 3)`` float32 positions, SDK order).
 
@@ -105,6 +120,7 @@ def read_skeleton(
         the file has or the format assumes. A BVH states its own rate (``Frame Time``): there
         ``fps`` resamples the clip to ``fps`` frames per second (``resample``).
       bvh_map: BVH only: the joint map, ``"auto"`` (detect a preset), ``"cmu"``, ``"cmu-mb"``,
+        ``"lafan1"``, ``"mixamo"``,
         a JSON / TOML file or a dict of Kinect joint -> BVH joint (``jaxproj.io.formats.bvh``).
       scale: BVH only: metres per file unit, a unit name (``jaxproj.io.formats.bvh.UNITS``) or
         ``"auto"``.
@@ -119,15 +135,24 @@ def read_skeleton(
       body: NTU RGB+D and Azure Kinect only (files of several bodies per frame): ``"first"`` or
         a 0-based index into each frame's bodies; a frame without it is invalid
         (``jaxproj.io.formats.bodies``).
+      skeleton: NPZ / NPY: the registered skeleton the joints are (``jaxproj.human.skeletons``
+        names); it wins over the file's ``skeleton`` key and the joint count. Another format
+        records one skeleton: naming another is a ``ConfigError``.
+      units: NPZ / NPY / CSV: the positions' unit, ``"auto"`` (read from the bones' lengths,
+        ``jaxproj.io.plausible``), ``"m"``, ``"cm"`` or ``"mm"``.
 
     Returns:
-      ``Recording`` with ``positions`` ``(T, 20, 3)`` float32 and ``valid`` ``(T,)`` bool.
+      ``Recording`` with ``positions`` ``(T, 20, 3)`` float32 metres and ``valid`` ``(T,)``
+      bool; ``notes`` say what was assumed or changed (a rate the file does not give, units
+      converted, a skeleton guessed from the joint count).
 
     Raises:
       InputError: missing / empty / malformed file, unknown format, or a file of no known format;
         the message names the file and the problem.
       ConfigError: ``fps`` out of range, a bad BVH ``scale`` or map dict, a bad ``body``, ``up``
-        neither ``"y"`` nor ``"z"`` (or ``"z"`` for an NPZ of MediaPipe landmarks).
+        neither ``"y"`` nor ``"z"`` (or ``"z"`` for an NPZ of MediaPipe landmarks), an unknown
+        ``skeleton`` (or one the format does not record), a bad ``units`` (or one for a format
+        that states its own).
     """
     names = format_names()
     if format != "auto" and format not in names:
@@ -137,12 +162,25 @@ def read_skeleton(
         check_fps(fps)
     body_index(body)
     check_up(up)
+    plausible.check_units(units)
     data = read_bytes(path)
     if format == "auto":
         format = _detect_file(path, data)
-    return get_format(format).read(
-        path, data, fps, bvh_map=bvh_map, scale=scale, body=body, up=up, rest_frame=rest_frame
-    )
+    rec = get_format(format).read(
+        path, data, fps, bvh_map=bvh_map, scale=scale, body=body, up=up, rest_frame=rest_frame,
+        skeleton=skeleton,
+    )  # fmt: skip
+    if skeleton is not None and rec.skeleton != skeleton:
+        raise ConfigError(
+            f"skeleton={skeleton!r}: a {rec.format} file records {rec.skeleton} joints "
+            "(skeleton= names the joints of an npz / npy array)"
+        )
+    rec = plausible.check(rec, units)
+    if rec.time_source.startswith("assumed"):
+        rate = rec.time_source.removeprefix("assumed ")
+        note = f"the file gives no frame times: {rate} assumed (--fps says the rate)"
+        rec = dataclasses.replace(rec, notes=(*rec.notes, note))
+    return rec
 
 
 def _detect_file(path: str | os.PathLike[str], data: bytes) -> str:

@@ -79,6 +79,17 @@ class Recording:
         20 joints, made from that skeleton's through the canonical bones
         (``skeletons.to_kinect_v1``); the bones it lacks (``Skeleton.bones``) were filled and
         must not be read (``retarget`` refuses a model or robot that reads them).
+      skeleton_from: how ``skeleton`` was chosen: ``"format"`` (the format has one skeleton),
+        ``"file"`` (named in the file: an NPZ's ``skeleton`` key), ``"option"``
+        (``read_skeleton(skeleton=)``, the CLI's ``--skeleton``) or ``"count"`` (guessed from
+        an NPZ's / NPY's joint count; ``read_skeleton`` then checks the bones look like a
+        person's, ``jaxproj.io.plausible``).
+      notes: what the reader assumed or changed that the user should hear of (an assumed frame
+        rate, units converted, a skeleton guessed), one sentence each; the CLI prints them.
+      invalid_reason: why the reader marked frames of the file invalid, in words, where it knows
+        more than "lost tracking or non-finite values" (MediaPipe: whose visibility was below
+        the threshold, in how many frames); ``None``: nothing more to say. The CLI's messages
+        about invalid frames quote it.
     """
 
     positions: np.ndarray
@@ -89,6 +100,9 @@ class Recording:
     time_source: str
     nominal_fps: float | None = None
     skeleton: str = "kinect_v1"
+    skeleton_from: str = "format"
+    notes: tuple[str, ...] = ()
+    invalid_reason: str | None = None
 
     @property
     def fps(self) -> float:

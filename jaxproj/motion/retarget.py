@@ -364,7 +364,9 @@ def check_skeleton(skeleton: SkeletonLike, robot: Robot) -> None:
         )
 
 
-def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
+def no_valid_frame_problem(
+    marked: np.ndarray, finite: np.ndarray, why_marked: str | None = None
+) -> str:
     """Why no frame of a motion is valid, in words: how many frames hold non-finite values,
     how many others ``valid`` marked (a reader marks lost tracking and non-finite values, and
     zeroes them), and how many the descriptor found degenerate.
@@ -372,6 +374,8 @@ def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
     Args:
       marked: ``(T,)`` bool, the ``valid`` given to ``retarget`` (the reader's).
       finite: ``(T,)`` bool, whether every coordinate of the frame is finite.
+      why_marked: why the reader marked frames, where it says (``Recording.invalid_reason``);
+        ``None``: "lost tracking or non-finite values".
     """
     t = len(marked)
     n_nonfinite = int((~finite).sum())
@@ -381,7 +385,8 @@ def no_valid_frame_problem(marked: np.ndarray, finite: np.ndarray) -> str:
     if n_nonfinite:
         parts.append(f"{n_nonfinite} with non-finite coordinates (NaN / inf)")
     if n_lost:
-        parts.append(f"{n_lost} marked invalid (lost tracking or non-finite values)")
+        why = why_marked or "lost tracking or non-finite values"
+        parts.append(f"{n_lost} marked invalid ({why})")
     if n_degenerate:
         parts.append(
             f"{n_degenerate} with a degenerate skeleton (collapsed joints, bones shorter than "

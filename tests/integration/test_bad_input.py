@@ -62,7 +62,18 @@ class TestReaderFuzz:
     def test_bad_frames_are_kept_zeroed_and_marked_invalid(self, kinds, seed, fmt, variant):
         pos = make_frames(kinds, seed)
         with tempfile.TemporaryDirectory() as tmp:
-            rec = read_skeleton(write_recording(Path(tmp), fmt, pos, variant))
+            path = write_recording(Path(tmp), fmt, pos, variant)
+            try:
+                rec = read_skeleton(path)
+            except InputError as e:
+                # a table's bones are read for units and a guessed layout (jaxproj.io.plausible):
+                # refused, in one line, only where a person's frames are not the majority
+                msg = str(e)
+                assert msg.startswith(f"{path}: ") and "\n" not in msg, msg
+                assert fmt in ("csv", "npz"), msg
+                assert "units are none of" in msg or "bones are no person's" in msg, msg
+                assert 2 * kinds.count("ok") <= len(kinds), msg
+                return
         bad = np.array([k in READER_BAD for k in kinds])
         assert rec.format == fmt and rec.positions.dtype == np.float32
         np.testing.assert_array_equal(rec.valid, ~bad)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import MSR_ROW, msr_text
+from helpers import MSR_ROW, msr_text, person_motion
 
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human.skeleton import JOINT_NAMES, J
@@ -16,9 +16,10 @@ from jaxproj.io.readers import Recording, read_skeleton
 
 
 def motion(n_frames: int = 7, seed: int = 0) -> np.ndarray:
-    """(T, 20, 3) float64 positions with 6 decimals (exactly representable in every format)."""
-    rng = np.random.default_rng(seed)
-    return np.round(rng.uniform(-1.5, 3.5, size=(n_frames, 20, 3)), 6)
+    """(T, 20, 3) float64 positions with 6 decimals (exactly representable in every format): a
+    person (the readers check a table's bones are a person's, in metres), each joint jittered
+    by up to 5 cm a frame."""
+    return person_motion(n_frames, seed, jitter=0.05)
 
 
 def utk_text(sdk: np.ndarray, frame_numbers: list[int] | None = None) -> str:

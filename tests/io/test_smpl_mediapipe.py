@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import person_joints
 
 from jaxproj.errors import ConfigError, InputError
 from jaxproj.human import skeletons
@@ -241,10 +242,22 @@ PLACES = {
      (127, "smplx"), (144, "smplx")],
 )  # fmt: skip
 def test_npz_joint_count_says_the_skeleton(tmp_path: Path, n_joints: int, name: str) -> None:
-    joints = np.random.default_rng(n_joints).uniform(-1, 1, size=(2, n_joints, 3))
+    own = person_joints(name, seed=n_joints)  # a person's joints in that skeleton's layout
+    rest = np.random.default_rng(n_joints).uniform(-1, 1, size=(2, n_joints - own.shape[1], 3))
+    joints = np.concatenate([own, rest], axis=1)  # the smplx package's longer arrays
     key = "joints" if n_joints % 2 else "positions"
     rec = read_skeleton(write(tmp_path / "j.npz", npz_bytes(**{key: joints})))
     assert rec.skeleton == name and rec.positions.shape == (2, 20, 3) and rec.valid.all()
+    # the guess is never silent: the recording says it, and how to say otherwise
+    assert rec.skeleton_from == "count"
+    assert f"skeleton {name} guessed from the joint count ({n_joints})" in rec.notes[0]
+    assert "--skeleton NAME" in rec.notes[0]
+    # the same array as .npy (HumanML3D's format) reads the same
+    buf = io.BytesIO()
+    np.save(buf, joints)
+    npy = read_skeleton(write(tmp_path / "j.npy", buf.getvalue()))
+    assert (npy.format, npy.skeleton, npy.notes) == ("npy", name, rec.notes)
+    np.testing.assert_array_equal(npy.positions, rec.positions)
     for kj, sj in PLACES.get(name, {}).items():
         np.testing.assert_allclose(rec.positions[:, K[kj]], joints[:, sj], atol=ATOL)
 

@@ -6,7 +6,8 @@ One module per format, each defining its ``Format`` record (``jaxproj.io.formats
 - ``utkinect``: UTKinect-Action3D text (frame number + 60 values per line);
 - ``table``: ``npz`` and ``csv``, plain tables of positions (our own formats): CSV of
   ``(T, 20, 3)`` Kinect v1 positions, NPZ of ``(T, J, 3)`` joints of any registered skeleton
-  (the ``skeleton`` key or ``J`` says which; ``up=`` for z-up data);
+  (``skeleton=``, the ``skeleton`` key or ``J`` says which; ``up=`` for z-up data);
+- ``npy``: such a joint array alone (HumanML3D's ``new_joints``), read as an NPZ of it;
 - ``bvh``: BVH motion capture (a package: parser, forward kinematics, joint maps, reader);
 - ``ntu``: NTU RGB+D ``.skeleton`` text (Kinect v2, 25 joints, several bodies per frame);
 - ``azure_kinect``: Azure Kinect Body Tracking JSON (the SDK samples' ``offline_processor``: 32
@@ -20,11 +21,14 @@ time-axis rules in ``jaxproj.io.recording``. Adding a format is one module and o
 Detection (``detect``), for a file named on its own (``read_skeleton(format="auto")``) and for
 each file of a folder (``recording_format``) alike: the first format whose ``sniff`` recognises
 the file, trying those whose suffix the file name has first (``.npz`` / ``.csv`` / ``.bvh``),
-then the others by content (a zip signature with a ``positions`` or ``joints`` member; a first
+then the others by content (a zip signature with a ``positions`` or ``joints`` member; NumPy's
+``\x93NUMPY`` signature; a first
 non-blank line of 4 (MSR Action3D) or 61 (UTKinect) whitespace-separated numbers, of 60
 comma-separated fields (or a header line of names, then such a line), or ``HIERARCHY``; a JSON
-whose first flat object has ``x``, ``y``, ``z`` keys, or a header with ``nose_x``, ``nose_y``,
-``nose_z``: MediaPipe). When none recognises it, a file named on its own is still read as the
+whose first flat object has ``x``, ``y``, ``z`` keys or that has a ``keypoints3D`` /
+``poseWorldLandmarks`` / ``worldLandmarks`` / ``pose_world_landmarks`` key, or a CSV header
+naming MediaPipe landmark columns (``nose_x,...``, ``x0,y0,z0,...``, or ``frame,landmark,x,y,z``):
+MediaPipe). When none recognises it, a file named on its own is still read as the
 format its suffix names (that reader says what is wrong); otherwise it is no recording, and the
 reason says why.
 
@@ -39,7 +43,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from jaxproj.io.formats import azure_kinect, mediapipe, msr, ntu, table, utkinect
+from jaxproj.io.formats import azure_kinect, mediapipe, msr, npy, ntu, table, utkinect
 from jaxproj.io.formats.base import Format
 from jaxproj.io.formats.bvh.reader import FORMAT as BVH
 from jaxproj.io.text import SNIFF_BYTES, Head, one_line
@@ -53,6 +57,7 @@ FORMATS: tuple[Format, ...] = (
     ntu.FORMAT,
     azure_kinect.FORMAT,
     mediapipe.FORMAT,
+    npy.FORMAT,
 )
 """Every input format, in the order listed to users (``format_names``)."""
 

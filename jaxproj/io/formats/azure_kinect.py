@@ -30,8 +30,11 @@ frame with the body is valid (the tracker gives a position for every joint). Non
 and all-zero positions make the frame invalid too.
 
 Time: ``timestamp_usec`` (the device timestamp, microseconds), from the first frame; they must
-increase strictly. A file without any timestamp is assumed ``KINECT_FPS`` (30) frames/s, the Azure
-Kinect's default rate; ``fps=`` overrides either.
+increase strictly. Every timestamp the same (some exports write 0 throughout) is no timing: an
+error that asks for ``--fps``. A rate given by the caller (``fps=``, ``--fps``) replaces the
+timestamps, which are then not read (zero or broken ones do not stop the file). A file
+without any timestamp is assumed ``KINECT_FPS`` (30) frames/s, the Azure Kinect's default rate
+(``Recording.notes`` says so).
 
 Detection (by content only: ``.json`` names other formats too): a JSON object whose start holds
 ``"frames"`` and one of ``"joint_positions"``, ``"num_bodies"``, ``"bone_list"`` or ``k4abt``
@@ -205,6 +208,12 @@ def _times(path: str | os.PathLike[str], stamps: list[Any]) -> np.ndarray | None
                 raise InputError(path, "no timestamp_usec (other frames have one)", f)
             raise InputError(path, f"timestamp_usec {json.dumps(s)[:40]} is not a number", f)
     t = np.array(stamps, dtype=np.float64)
+    if len(t) > 1 and (t == t[0]).all():  # e.g. every timestamp_usec 0 (some exports)
+        raise InputError(
+            path,
+            f"every frame's timestamp_usec is {stamps[0]}: the file gives no timing; give the "
+            "rate with --fps (read_skeleton(fps=)), which replaces the timestamps",
+        )
     steps = np.diff(t)
     if (steps <= 0).any():
         f = int(np.argmax(steps <= 0)) + 1
@@ -218,7 +227,7 @@ def _times(path: str | os.PathLike[str], stamps: list[Any]) -> np.ndarray | None
 
 
 def parse_azure(
-    path: str | os.PathLike[str], data: bytes, body: BodyChoice = "first"
+    path: str | os.PathLike[str], data: bytes, body: BodyChoice = "first", timed: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Azure Kinect JSON bytes -> one body of every frame.
 
@@ -226,6 +235,8 @@ def parse_azure(
       path: the file (named in errors).
       data: its bytes.
       body: ``"first"`` or a 0-based index into each frame's bodies.
+      timed: read ``timestamp_usec``; ``False`` (a rate given by the caller, ``fps=``): the
+        timestamps are not read, so zero or broken ones do not stop the file.
 
     Returns:
       ``(T, 32, 3)`` float64 metres in Kinect camera axes (``AZURE_TO_KINECT``), k4abt order
@@ -262,7 +273,7 @@ def parse_azure(
                 valid[f] = conf is None or bool((conf[feeding] >= MIN_CONFIDENCE).all())
     if most <= k:
         raise no_body_error(path, k, n, most)
-    times = _times(path, [fr.get("timestamp_usec") for fr in frames])
+    times = _times(path, [fr.get("timestamp_usec") for fr in frames]) if timed else None
     return (positions * MM) @ AZURE_TO_KINECT.T, valid, times
 
 
@@ -286,7 +297,7 @@ def read(
 ) -> Recording:
     """The file as a ``Recording``: the chosen body's 32 joints laid out as Kinect v1
     (``(T, 20, 3)`` metres, ``skeleton="azure_kinect"``), times from ``timestamp_usec``."""
-    positions, valid, times = parse_azure(path, data, body)
+    positions, valid, times = parse_azure(path, data, body, timed=fps is None)
     kinect = skeletons.to_kinect_v1(positions, SKELETON)
     if times is None:
         source = f"assumed {KINECT_FPS:g} fps"

@@ -28,6 +28,7 @@ of SDK-order positions in metres, as text or as a NumPy archive, with no dataset
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 import zipfile
@@ -241,15 +242,18 @@ def _check_visibility(path: str | os.PathLike[str], vis: np.ndarray, n: int) -> 
 
 
 def read_npz_arrays(
-    path: str | os.PathLike[str], data: bytes, up: str = "y"
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, str, str]:
+    path: str | os.PathLike[str], data: bytes, up: str = "y", skeleton: str | None = None
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, str, str, str]:
     """NPZ bytes -> (``(T, 20, 3)`` positions in the Kinect v1 layout, ``(T,)`` valid or None,
-    ``(T,)`` times or None, time source, the skeleton the file recorded).
+    ``(T,)`` times or None, time source, the skeleton the file recorded, how it was chosen:
+    ``"option"``, ``"file"`` or ``"count"``, ``Recording.skeleton_from``).
 
     Args:
       path: the file (named in errors).
       data: its bytes.
       up: ``"y"`` (the file is y-up: kept as it is) or ``"z"`` (turned by ``z_up_to_y_up``).
+      skeleton: a registered skeleton's name (``read_skeleton(skeleton=)``): it wins over the
+        file's ``skeleton`` key and the joint count; ``None``: the key, else the count.
 
     Raises:
       InputError: not a zip, a corrupt archive, no ``positions`` / ``joints``, wrong shapes or
@@ -299,9 +303,8 @@ def read_npz_arrays(
     if positions.ndim != 3 or shape[2] != 3:
         raise InputError(path, f"{key} has shape {shape}, expected (T, J, 3)")
     named = members["skeleton"]
-    skeleton, k = npz_layout(
-        path, key, shape, None if named is None else _skeleton_key(path, named)
-    )
+    chosen = _choose(skeleton, None if named is None else _skeleton_key(path, named))
+    layout, k = npz_layout(path, key, shape, chosen[0])
     if shape[0] == 0:
         raise InputError(path, f"{key} has no frames (shape {shape})")
     if valid is not None:
@@ -311,7 +314,7 @@ def read_npz_arrays(
             if not np.issubdtype(valid.dtype, np.integer) or not np.isin(valid, (0, 1)).all():
                 raise InputError(path, f"valid has dtype {valid.dtype}, expected bool")
             valid = valid.astype(bool)
-    positions, seen = _to_kinect_v1(path, positions[:, :k], skeleton, up, members["visibility"])
+    positions, seen = _to_kinect_v1(path, positions[:, :k], layout, up, members["visibility"])
     if seen is not None:
         valid = seen if valid is None else valid & seen
     source = f"assumed {KINECT_FPS:g} fps"
@@ -328,7 +331,31 @@ def read_npz_arrays(
             raise InputError(path, f"fps must be one frame rate in [{lo:g}, {hi:g}], got {rate!r}")
         times = np.arange(shape[0], dtype=np.float64) / float(rate)
         source = f"file ({float(rate):g} fps)"
-    return positions, valid, times, source, skeleton.name
+    return positions, valid, times, source, layout.name, chosen[1]
+
+
+def _choose(option: str | None, named: str | None) -> tuple[str | None, str]:
+    """(the skeleton's name or ``None`` for the joint count, ``Recording.skeleton_from``)."""
+    if option is not None:
+        if option not in skeletons.names():
+            raise ConfigError(
+                f"skeleton {option!r} is not a registered skeleton (registered: "
+                f"{', '.join(skeletons.names())})"
+            )
+        return option, "option"
+    if named is not None:
+        return named, "file"
+    return None, "count"
+
+
+def _guessed_note(skeleton: str, n_joints: int, how: str) -> tuple[str, ...]:
+    """The note of a skeleton guessed from the joint count (none otherwise)."""
+    if how != "count":
+        return ()
+    return (
+        f"skeleton {skeleton} guessed from the joint count ({n_joints}); --skeleton NAME "
+        "says which",
+    )
 
 
 def _to_kinect_v1(
@@ -419,8 +446,19 @@ def read_npz(
     """The archive as a ``Recording`` (``(T, 20, 3)`` in the Kinect v1 layout; its ``valid``,
     MediaPipe ``visibility`` and timing honoured; ``options["up"]``: ``read_npz_arrays``)."""
     up = options.get("up", "y")
-    positions, valid, times, source, skeleton = read_npz_arrays(path, data, up)
-    return timed_recording(path, "npz", positions, valid, times, source, fps, KINECT_FPS, skeleton)
+    positions, valid, times, source, skeleton, how = read_npz_arrays(
+        path, data, up, options.get("skeleton")
+    )
+    rec = timed_recording(path, "npz", positions, valid, times, source, fps, KINECT_FPS, skeleton)
+    n = _npz_joint_count(data)
+    return dataclasses.replace(rec, skeleton_from=how, notes=_guessed_note(skeleton, n, how))
+
+
+def _npz_joint_count(data: bytes) -> int:
+    """``J`` of an NPZ's ``positions`` / ``joints`` array (already read once: it is valid)."""
+    with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+        key = next(k for k in NPZ_KEYS if k in archive.files)
+        return int(archive[key].shape[1])
 
 
 NPZ = Format(
