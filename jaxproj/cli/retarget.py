@@ -179,6 +179,24 @@ def add_parsers(sub: Any) -> None:
     pr.set_defaults(func=run)
 
 
+HIP_BONES = frozenset(
+    ("spine_lower", "pelvis_left", "pelvis_right", "thigh_left", "thigh_right", "shin_left",
+     "shin_right", "foot_left", "foot_right")
+)  # fmt: skip
+"""The canonical bones that read the hips or the legs."""
+
+
+def hips_rule(bones: str | tuple[str, ...], root: str) -> str:
+    """``read_skeleton(hips=)`` for a retargeting: ``"shoulders"`` where the descriptor reads no
+    bone of the hips or legs and the base is fixed (a frame whose hips are hidden still drives
+    the arms and the head, ``jaxproj.human.upper_body``), else ``"required"``."""
+    from jaxproj.human.skeletons import resolve_bones
+
+    if root == "fixed" and not HIP_BONES & set(resolve_bones(bones)):
+        return "shoulders"
+    return "required"
+
+
 def run(args: argparse.Namespace) -> int:
     from jaxproj.io import motion_files
     from jaxproj.io.motion_files import Motion, save_motion
@@ -227,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
     rec = read_skeleton(
         args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale,
         rest_frame=args.bvh_rest_frame, skeleton=args.skeleton, body=args.body, up=args.up,
-        units=args.units,
+        units=args.units, hips=hips_rule(bones, args.root),
     )  # fmt: skip
     rec = output_rate(rec, args.rate)
     model = None

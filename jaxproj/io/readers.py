@@ -95,6 +95,9 @@ from jaxproj.io.recording import Recording, check_fps
 from jaxproj.io.recording import resample as resample
 from jaxproj.io.text import Head, decode, read_bytes
 
+HIPS = ("required", "shoulders")
+"""``read_skeleton(hips=)``: what a MediaPipe frame whose hips are hidden becomes."""
+
 
 def read_skeleton(
     path: str | os.PathLike[str],
@@ -108,6 +111,7 @@ def read_skeleton(
     rest_frame: str = "drop",
     skeleton: str | None = None,
     units: str = "auto",
+    hips: str = "required",
 ) -> Recording:
     """Read a skeleton file into a ``Recording`` (``(T, 20, 3)`` float32 positions, SDK order).
 
@@ -140,6 +144,10 @@ def read_skeleton(
         records one skeleton: naming another is a ``ConfigError``.
       units: NPZ / NPY / CSV: the positions' unit, ``"auto"`` (read from the bones' lengths,
         ``jaxproj.io.plausible``), ``"m"``, ``"cm"`` or ``"mm"``.
+      hips: MediaPipe JSON / CSV: ``"required"`` (a frame whose hips have a low visibility is
+        invalid) or ``"shoulders"`` (its hips are made from the shoulders and the capture's up,
+        ``jaxproj.human.upper_body``, and it stays valid: for a robot that reads no leg bone;
+        ``jaxproj retarget`` chooses so for such a robot). Other formats ignore it.
 
     Returns:
       ``Recording`` with ``positions`` ``(T, 20, 3)`` float32 metres and ``valid`` ``(T,)``
@@ -163,12 +171,14 @@ def read_skeleton(
     body_index(body)
     check_up(up)
     plausible.check_units(units)
+    if hips not in HIPS:
+        raise ConfigError(f"hips must be one of {', '.join(HIPS)}, got {hips!r}")
     data = read_bytes(path)
     if format == "auto":
         format = _detect_file(path, data)
     rec = get_format(format).read(
         path, data, fps, bvh_map=bvh_map, scale=scale, body=body, up=up, rest_frame=rest_frame,
-        skeleton=skeleton,
+        skeleton=skeleton, hips=hips,
     )  # fmt: skip
     if skeleton is not None and rec.skeleton != skeleton:
         raise ConfigError(

@@ -325,11 +325,13 @@ def test_frames_refused_for_visibility_say_whose(tmp_path: Path) -> None:
 
 
 def test_retarget_names_visibility_and_the_landmarks(tmp_path: Path, capsys) -> None:
+    """A robot that reads the legs (the G1) needs the hips: the message says whose visibility
+    (the NAO, which reads no leg bone, gets hips made from the shoulders: test_upper_body)."""
     from jaxproj.cli import main
 
     src = write(tmp_path / "desk.json", hips_hidden_dump())
     out = tmp_path / "o.npz"
-    assert main(["retarget", str(src), "--out", str(out)]) == 2
+    assert main(["retarget", str(src), "--robot", "unitree_g1", "--out", str(out)]) == 2
     _, err = capsys.readouterr()
     assert not out.exists()
     line = err.strip()

@@ -196,6 +196,16 @@ def test_the_command_line_names_the_skeleton_says_its_notes_and_takes_the_option
     assert code == 0, err
     assert "note: skeleton" not in text and "note: positions" not in text
     assert load_motion(out).meta["skeleton_from"] == "option"
+    # --body picks the NTU file's second person (valid in frames 1 and 4 only)
+    ntu = AZURE_FILE.parent / "S001C001P001R001A001.skeleton"
+    code, text, err = run_cli(capsys, "retarget", str(ntu), "--body", "1", "--out",
+                              str(tmp_path / "b.npz"))  # fmt: skip
+    assert code == 0, err
+    assert "5 frames (2 valid" in text and "; ntu, skeleton kinect_v2)" in text
+    with pytest.raises(SystemExit) as info:  # argparse's usage error
+        run_cli(capsys, "retarget", str(ntu), "--body", "second", "--out", str(tmp_path / "c"))
+    assert info.value.code == 2
+    assert "expected 'first' or a 0-based body index" in capsys.readouterr().err
     mp32 = npz(tmp_path / "mp32.npz", joints=person_joints("mediapipe_pose")[:, :32])
     code, _, err = run_cli(capsys, "retarget", str(mp32), "--out", str(tmp_path / "x.npz"))
     assert_one_line_error(code, err, "read as azure_kinect (guessed", "--skeleton NAME")

@@ -146,7 +146,7 @@ from typing import Any
 import numpy as np
 
 from jaxproj.errors import InputError
-from jaxproj.human import skeletons
+from jaxproj.human import skeletons, upper_body
 from jaxproj.human.layouts import MEDIAPIPE_POSE
 from jaxproj.io.formats.base import Format
 from jaxproj.io.recording import FPS_RANGE, KINECT_FPS, Recording, timed_recording
@@ -867,8 +867,10 @@ def sniff(head: Head) -> tuple[bool, str]:
 def read(path: str | os.PathLike[str], data: bytes, fps: float | None, **options: Any) -> Recording:
     """The file (JSON or CSV, told apart by a first ``[`` or ``{``) as a ``Recording``
     (``(T, 20, 3)`` Kinect v1 positions, skeleton ``"mediapipe_pose"``, ``invalid_reason``
-    saying why frames are invalid). ``options`` are ignored (``up`` does not apply: MediaPipe's
-    axes are fixed)."""
+    saying why frames are invalid). ``options["hips"]``: ``"required"`` (default: a checked
+    landmark's low visibility invalidates its frame, the hips' too) or ``"shoulders"`` (frames
+    whose hips alone are hidden get hips made from the shoulders, ``_hips_from_shoulders``);
+    other options are ignored (``up`` does not apply: MediaPipe's axes are fixed)."""
     times, source = None, f"assumed {KINECT_FPS:g} fps"
     if _is_json(data):
         xyz, vis, rate = parse_json(path, data)
@@ -888,10 +890,44 @@ def read(path: str | os.PathLike[str], data: bytes, fps: float | None, **options
     check_world(path, xyz)
     valid = None if checked is None else np.asarray(~_low_visibility(checked).any(axis=1))
     positions = to_kinect_v1(xyz)
+    notes: tuple[str, ...] = ()
+    if options.get("hips", "required") == "shoulders" and checked is not None:
+        positions, valid, checked, notes = _hips_from_shoulders(positions, checked)
     rec = timed_recording(
         path, "mediapipe", positions, valid, times, source, fps, KINECT_FPS, SKELETON
     )
-    return dataclasses.replace(rec, invalid_reason=invalid_reason(xyz, checked))
+    return dataclasses.replace(rec, invalid_reason=invalid_reason(xyz, checked), notes=notes)
+
+
+def _hips_from_shoulders(
+    positions: np.ndarray, checked: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]]:
+    """``read(hips="shoulders")``: frames whose only low-visibility checked landmarks are the
+    hips get hips made from the shoulders (``jaxproj.human.upper_body``) and stay valid.
+
+    Returns:
+      (positions, ``(T,)`` valid, the visibility with the made hips' scores set to 1 (so that
+      ``invalid_reason`` names only what still invalidates a frame), the notes)."""
+    low = _low_visibility(checked)
+    hip_cols = [list(CHECKED_LANDMARKS).index(n) for n in ("left_hip", "right_hip")]
+    rest = np.ones(low.shape[1], bool)
+    rest[hip_cols] = False
+    valid = np.asarray(~low[:, rest].any(axis=1), bool)
+    hidden = np.asarray(valid & low[:, hip_cols].any(axis=1), bool)
+    positions, tilt = upper_body.hips_from_shoulders(positions, hidden, valid & ~hidden)
+    checked = checked.copy()
+    hips = np.array([LANDMARKS.index("left_hip"), LANDMARKS.index("right_hip")])
+    checked[np.ix_(np.flatnonzero(hidden), hips)] = 1.0
+    notes: tuple[str, ...] = ()
+    if hidden.any():
+        seen = int((valid & ~hidden).sum())
+        notes = (
+            f"hips hidden (visibility below {VISIBILITY_THRESHOLD:g}) in "
+            f"{_frames(int(hidden.sum()))}: made from the shoulders and the capture's up, "
+            f"the trunk tilted {np.degrees(tilt):.1f} deg as on the {_frames(seen)} that "
+            "show them (a robot that reads no leg bone; docs: Input formats, MediaPipe)",
+        )
+    return positions, valid, checked, notes
 
 
 FORMAT = Format(
