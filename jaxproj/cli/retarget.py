@@ -1,7 +1,10 @@
 """``jaxproj retarget``: a skeleton recording or BVH clip -> a robot-feasible joint trajectory of
 the robot (``--robot`` or the model's) at a uniform rate (``--rate``), as NPZ, CSV or the
 robot's own document (``Robot.exports``) (``jaxproj.motion.retarget``), optionally with a
-plot."""
+plot; several recordings go to ``jaxproj.cli.batch``.
+
+Size: one subcommand's options (reading, method, output, batch), the checks made before any work,
+one recording's run with its summary lines, and the confidence lines they print."""
 
 from __future__ import annotations
 
@@ -59,13 +62,33 @@ def add_parsers(sub: Any) -> None:
     pr = options.add_parser(
         sub, "retarget", "retarget a skeleton recording to a robot's joint angles"
     )
-    pr.add_argument("input", help=f"recording, one of the formats {', '.join(format_names())}")
+    pr.add_argument(
+        "input",
+        nargs="+",
+        help=f"recording, one of the formats {', '.join(format_names())}; or several: files, "
+        "folders (their recordings, sub-folders too) and @LIST files (one path a line), "
+        "retarget one after another in this process into the folder --out (a batch: docs: "
+        "Command line)",
+    )
     pr.add_argument(
         "--out",
         required=True,
         help="output: .npz (angles, times, valid, joint_names, positions, confidence, meta), "
         f".csv (time + the robot's joints in its SDK order, rad: {_joint_counts()}; no other "
-        f"column) or the robot's own document: {_documents()}; {options.OUTPUT_FOLDER_RULE}",
+        f"column) or the robot's own document: {_documents()}; {options.OUTPUT_FOLDER_RULE}; "
+        "a batch: a folder (made if missing), one OUT/<name>.npz (--out-format) a recording",
+    )
+    pr.add_argument(
+        "--out-format",
+        default=".npz",
+        choices=(".npz", ".csv", ".json"),
+        help="a batch: the suffix of each output (the formats of --out)",
+    )
+    pr.add_argument(
+        "--resume",
+        action="store_true",
+        help="a batch: leave out a recording whose output exists (a batch stopped halfway goes "
+        "on where it stopped; outputs are written whole or not at all)",
     )
     options.add_force_option(pr, "--out or --plot")
     pr.add_argument(
@@ -179,25 +202,22 @@ def add_parsers(sub: Any) -> None:
     pr.set_defaults(func=run)
 
 
-HIP_BONES = frozenset(
-    ("spine_lower", "pelvis_left", "pelvis_right", "thigh_left", "thigh_right", "shin_left",
-     "shin_right", "foot_left", "foot_right")
-)  # fmt: skip
-"""The canonical bones that read the hips or the legs."""
-
-
-def hips_rule(bones: str | tuple[str, ...], root: str) -> str:
-    """``read_skeleton(hips=)`` for a retargeting: ``"shoulders"`` where the descriptor reads no
-    bone of the hips or legs and the base is fixed (a frame whose hips are hidden still drives
-    the arms and the head, ``jaxproj.human.upper_body``), else ``"required"``."""
-    from jaxproj.human.skeletons import resolve_bones
-
-    if root == "fixed" and not HIP_BONES & set(resolve_bones(bones)):
-        return "shoulders"
-    return "required"
-
-
 def run(args: argparse.Namespace) -> int:
+    from jaxproj.cli import batch
+
+    if batch.is_batch(args.input, args.out):
+        return batch.run(args, retarget_file)
+    args.input = args.input[0]
+    retarget_file(args)
+    return 0
+
+
+def retarget_file(args: argparse.Namespace) -> dict[str, Any]:
+    """One recording (``args.input``) to one motion file (``args.out``), with the command's
+    summary lines; returns what a batch's table shows: ``frames``, ``valid``, ``seconds`` (of
+    the motion) and ``low_confidence`` (the share of valid frames, or ``None`` for the IK)."""
+    from jaxproj.cli import batch
+    from jaxproj.human import upper_body
     from jaxproj.io import motion_files
     from jaxproj.io.motion_files import Motion, save_motion
     from jaxproj.io.readers import read_skeleton
@@ -245,12 +265,12 @@ def run(args: argparse.Namespace) -> int:
     rec = read_skeleton(
         args.input, format=args.format, fps=args.fps, bvh_map=args.bvh_map, scale=args.bvh_scale,
         rest_frame=args.bvh_rest_frame, skeleton=args.skeleton, body=args.body, up=args.up,
-        units=args.units, hips=hips_rule(bones, args.root),
+        units=args.units, hips=upper_body.hips_rule(bones, args.root),
     )  # fmt: skip
     rec = output_rate(rec, args.rate)
     model = None
     if args.method != "ik":
-        model = engine.load(args.model)
+        model = batch.load_model(args.model)
         engine.check_neighbours(model, args.L, args.M)
     try:
         result = retarget(
@@ -351,7 +371,8 @@ def run(args: argparse.Namespace) -> int:
             print(line)
     if plot is not None:
         _plot(plot, args, rec, angles, result, bones, mirror, robot)
-    return 0
+    low = None if args.method == "ik" else float(result.low_confidence_valid_share)
+    return {"frames": n, "valid": nv, "seconds": float(result.times[-1]), "low_confidence": low}
 
 
 def output_rate(rec: Any, rate: float | str) -> Any:

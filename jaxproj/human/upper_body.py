@@ -124,3 +124,19 @@ def hips_from_shoulders(
         h[:, _K[name]] = value
     out[hidden] = h.astype(np.float32)
     return out, tilt
+
+
+HIP_BONES = frozenset(
+    ("spine_lower", "pelvis_left", "pelvis_right", "thigh_left", "thigh_right", "shin_left",
+     "shin_right", "foot_left", "foot_right")
+)  # fmt: skip
+"""The canonical bones that read the hips or the legs."""
+
+
+def hips_rule(bones: str | tuple[str, ...], root: str) -> str:
+    """``read_skeleton(hips=)`` for a retargeting: ``"shoulders"`` where the descriptor reads no
+    bone of the hips or legs and the base is fixed (``root="fixed"``: a frame whose hips are
+    hidden still drives the arms and the head), else ``"required"``."""
+    if root == "fixed" and not HIP_BONES & set(skeletons.resolve_bones(bones)):
+        return "shoulders"
+    return "required"

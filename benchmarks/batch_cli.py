@@ -1,0 +1,129 @@
+"""A batch against a loop of commands (issue 61): ``jaxproj retarget FOLDER --out OUT`` (one
+process for every recording) against one ``jaxproj retarget FILE --out F`` per recording, the
+same recordings, the same machine, the same run.
+
+The recordings are the bundled data written out as files: every MSR Action3D sequence and every
+UTKinect action segment of ``jaxproj/data`` (``datasets.msr_action3d()``,
+``datasets.utkinect_action3d()``; NPZ: positions, valid, times) and the two CMU clips of
+``tests/data/cmu_bvh``. Each command runs as a user runs it: its own process, the command line's
+persistent compilation cache in a fresh folder for each way (so each pays its compiling once;
+the loop's later calls read the cache, as a user's loop does). The robot is the default one
+(``jaxproj build`` and ``retarget``'s default), ``--method ik``.
+
+* ``batch``: one call over the folder (every recording);
+* ``batch_subset`` and ``loop``: the first ``--loop`` recordings (a loop over all would take an
+  hour on two cores), one call against one call per recording.
+
+Checked first: the batch's output of each subset recording equals the loop's to the bit.
+
+Usage::
+
+    python -m benchmarks.batch_cli [--loop 12] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jaxproj import robots
+from jaxproj.io import datasets
+
+_REPO = Path(__file__).resolve().parent.parent
+CMU = _REPO / "tests" / "data" / "cmu_bvh"
+
+
+def write_bundled(folder: Path) -> list[Path]:
+    """The bundled recordings as files in ``folder`` (module doc), in a fixed order."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    seqs = [("utk", s) for s in datasets.utkinect_action3d()]
+    seqs += [("msr", s) for s in datasets.msr_action3d()]
+    for i, (tag, s) in enumerate(seqs):
+        path = folder / f"{tag}_{i:04d}.npz"
+        timing = {} if s.times is None else {"times": np.asarray(s.times, np.float64)}
+        np.savez(path, positions=s.positions, valid=s.valid, **timing)
+        out.append(path)
+    for bvh in sorted(CMU.glob("*.bvh")):
+        shutil.copy(bvh, folder / bvh.name)
+        out.append(folder / bvh.name)
+    return out
+
+
+ERRORS: list[str] = []
+"""The ``jaxproj: error:`` lines of the commands run (a recording that failed)."""
+
+
+def _run(argv: list[str], cache: Path) -> float:
+    env = {**os.environ, "JAXPROJ_CACHE_DIR": str(cache)}
+    t0 = time.perf_counter()
+    res = subprocess.run([sys.executable, "-m", "jaxproj.cli", *argv], check=False, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    wall = time.perf_counter() - t0
+    ERRORS.extend(ln for ln in res.stderr.splitlines() if ln.startswith("jaxproj: error:"))
+    return wall
+
+
+def _frames(paths: list[Path]) -> int:
+    from jaxproj.io.readers import read_skeleton
+
+    return sum(len(read_skeleton(p).valid) for p in paths)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--loop", type=int, default=12)
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        files = write_bundled(root / "all")
+        subset = root / "subset"
+        subset.mkdir()
+        picked = files[: args.loop]
+        for f in picked:
+            shutil.copy(f, subset / f.name)
+        res: dict = {"robot": robots.DEFAULT, "method": "ik", "cpus": os.cpu_count(),
+                     "platform": platform.machine(), "load_before": os.getloadavg()[0]}  # fmt: skip
+        res["recordings"], res["frames"] = len(files), _frames(files)
+        res["subset_recordings"], res["subset_frames"] = len(picked), _frames(picked)
+        wall = _run(["retarget", str(subset), "--out", str(root / "b_sub")], root / "c1")
+        res["batch_subset_s"] = wall
+        (root / "loop").mkdir()
+        wall = 0.0
+        for f in picked:
+            argv = ["retarget", str(f), "--out", str(root / "loop" / f"{f.stem}.npz")]
+            wall += _run(argv, root / "c2")
+        res["loop_s"] = wall
+        same = all(
+            np.array_equal(np.load(root / "b_sub" / f"{f.stem}.npz")["angles"],
+                           np.load(root / "loop" / f"{f.stem}.npz")["angles"])
+            for f in picked
+        )  # fmt: skip
+        res["subset_outputs_identical"] = bool(same)
+        wall = _run(["retarget", str(root / "all"), "--out", str(root / "b_all")], root / "c3")
+        res["batch_all_s"] = wall
+        res["batch_all_written"] = len(list((root / "b_all").glob("*.npz")))
+        res["errors"] = [e.replace(str(root), "DATA") for e in ERRORS]
+    for k in ("batch_subset", "loop", "batch_all"):
+        n = res["recordings"] if k == "batch_all" else res["subset_recordings"]
+        fr = res["frames"] if k == "batch_all" else res["subset_frames"]
+        res[f"{k}_recordings_per_s"] = n / res[f"{k}_s"]
+        res[f"{k}_frames_per_s"] = fr / res[f"{k}_s"]
+    print(json.dumps(res, indent=1))
+    if args.json is not None:
+        args.json.write_text(json.dumps(res, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

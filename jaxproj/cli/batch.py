@@ -1,0 +1,198 @@
+"""``jaxproj retarget`` over many recordings: a batch, one process, one output folder.
+
+``jaxproj retarget A.bvh B.csv FOLDER @LIST --out OUT/`` retargets every recording the inputs
+name, one after another, in this process: the model is read once (``retarget.load_model``) and
+every compiled program serves every recording whose length falls in the same shape bucket
+(``jaxproj._internal.buckets``), so the per-file compile that one command per file pays is paid
+once per bucket (with the persistent compilation cache across runs too, ``jaxproj.cli.cache``).
+
+* **Inputs** (``expand``): a file; a folder: every recording in it and its sub-folders (the
+  folder rules of ``jaxproj.io.readers.recording_format``: documentation, labels and models are
+  left out), sorted by path; ``@LIST``: a text file of paths, one a line (blank lines and lines
+  starting with ``#`` skipped; relative paths from the list's folder). A path named twice is
+  retargeted once.
+* **Outputs**: ``OUT/<name><--out-format>``, ``<name>`` the recording's path under its input
+  folder without its suffix (a file named directly: its file name), so the tree of a folder is
+  kept. Two recordings that would write one output are refused before any work. Each output is
+  written whole or not at all (``jaxproj._internal.atomic``); ``--resume`` leaves out a
+  recording whose output exists, so a stopped batch goes on where it stopped; without it an
+  existing output is refused unless ``--force``, before any work.
+* **A recording that fails** (an unreadable file, no valid frame, ...) is reported on stderr when
+  it fails and again at the end, and the batch goes on; the exit status is then 1 (0 when every
+  recording was written or left out by ``--resume``).
+* **Progress** on stderr, a line a recording: ``[3/40] walk.bvh: 1,102 frames in 4.1 s (269
+  frames/s)``; at the end a table on stdout: per recording its frames, valid share and (for the
+  projector) low-confidence share, and the totals with the batch's frames per second.
+
+Options that name one output (``--plot``) are refused in a batch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from jaxproj.errors import ConfigError, JaxprojError
+
+
+def is_batch(inputs: Sequence[str], out: str) -> bool:
+    """Whether ``retarget``'s inputs make a batch: several, a folder or an ``@LIST``."""
+    return len(inputs) > 1 or inputs[0].startswith("@") or Path(inputs[0]).is_dir()
+
+
+def expand(inputs: Sequence[str]) -> list[tuple[Path, str]]:
+    """``(recording, output name without suffix)`` for every recording the inputs name, in
+    order, each once (module doc).
+
+    Raises:
+      ConfigError: a missing file, folder or list; a folder or list with no recording.
+    """
+    from jaxproj.io.readers import recording_format
+
+    found: dict[Path, str] = {}
+    for item in inputs:
+        if item.startswith("@"):
+            listed = Path(item[1:])
+            if not listed.is_file():
+                raise ConfigError(f"{item}: no such list file")
+            lines = listed.read_text(encoding="utf-8", errors="replace").splitlines()
+            paths = [ln.strip() for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
+            if not paths:
+                raise ConfigError(f"{item}: the list names no recording")
+            for p in paths:
+                path = Path(p) if Path(p).is_absolute() else listed.parent / p
+                if not path.is_file():
+                    raise ConfigError(f"{item}: {p}: no such file")
+                found.setdefault(path.resolve(), path.stem)
+        elif Path(item).is_dir():
+            root = Path(item)
+            files = sorted(f for f in root.rglob("*") if f.is_file())
+            kept = [f for f in files if recording_format(f)[0] is not None]
+            if not kept:
+                raise ConfigError(f"{item}: a folder with no recording")
+            for f in kept:
+                found.setdefault(f.resolve(), str(f.relative_to(root).with_suffix("")))
+        else:
+            if not Path(item).is_file():
+                raise ConfigError(f"{item}: no such file or folder")
+            found.setdefault(Path(item).resolve(), Path(item).stem)
+    return list(found.items())
+
+
+def plan(
+    inputs: Sequence[str], out: str, suffix: str, resume: bool, force: bool
+) -> tuple[list[tuple[Path, Path]], list[Path]]:
+    """``([(recording, output)] to write, [outputs left out by --resume])``, checked before any
+    work: no two recordings write one output, no output overwritten without ``force``.
+
+    Raises:
+      ConfigError: ``--out`` is an existing file; two recordings, one output; an existing output
+        without ``--resume`` or ``--force``.
+    """
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise ConfigError(f"--out {out}: a batch writes into a folder, and this is a file")
+    todo: list[tuple[Path, Path]] = []
+    skipped: list[Path] = []
+    owner: dict[Path, Path] = {}
+    for src, name in expand(inputs):
+        dst = folder / f"{name}{suffix}"
+        if dst in owner:
+            raise ConfigError(
+                f"--out {out}: {owner[dst]} and {src} would both write {dst}; retarget them "
+                "into two folders"
+            )
+        owner[dst] = src
+        if dst.exists() and resume:
+            skipped.append(dst)
+        elif dst.exists() and not force:
+            raise ConfigError(
+                f"--out {out}: {dst} exists: --resume leaves it out, --force overwrites it"
+            )
+        else:
+            todo.append((src, dst))
+    return todo, skipped
+
+
+def run(args: argparse.Namespace, one: Callable[[argparse.Namespace], dict[str, Any]]) -> int:
+    """The batch (module doc): ``one(args)`` retargets one recording (``args.input``) to one
+    file (``args.out``) and returns its table row."""
+    if args.plot is not None:
+        raise ConfigError("--plot draws one recording: leave it out of a batch")
+    todo, skipped = plan(args.input, args.out, args.out_format, args.resume, args.force)
+    n = len(todo) + len(skipped)
+    rows: list[tuple[str, dict[str, Any]]] = []
+    failed: list[tuple[Path, str]] = []
+    start = time.perf_counter()
+    for i, (src, dst) in enumerate(todo, start=1):
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        each = copy.copy(args)
+        each.input, each.out, each.force = str(src), str(dst), True
+        t0 = time.perf_counter()
+        try:
+            row = one(each)
+        except Exception as err:  # a batch never dies halfway: each failure is reported
+            text = " ".join(str(err).split())
+            message = text if isinstance(err, JaxprojError) else f"{type(err).__name__}: {text}"
+            message = message.removeprefix(f"{src}: ")  # the file is named once
+            failed.append((src, message))
+            print(f"[{i}/{len(todo)}] {src}: failed: {message}", file=sys.stderr, flush=True)
+            continue
+        dt = time.perf_counter() - t0
+        row["wall_s"] = dt
+        rows.append((str(src), row))
+        rate = row["frames"] / max(dt, 1e-9)
+        line = f"[{i}/{len(todo)}] {src}: {row['frames']:,} frames in {dt:.1f} s"
+        line += f" ({rate:,.0f} frames/s)"
+        print(line, file=sys.stderr, flush=True)
+    wall = time.perf_counter() - start
+    print(summary(rows, failed, skipped, n, wall))
+    for src, message in failed:
+        print(f"jaxproj: error: {src}: {message}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def summary(
+    rows: list[tuple[str, dict[str, Any]]],
+    failed: list[tuple[Path, str]],
+    skipped: list[Path],
+    n: int,
+    wall: float,
+) -> str:
+    """The batch's table: a line per recording written, then the totals."""
+    lines = [f"{'recording':40s} {'frames':>8s} {'valid %':>8s} {'low-conf. %':>11s} {'s':>7s}"]
+    for src, r in rows:
+        low = "-" if r["low_confidence"] is None else f"{100 * r['low_confidence']:.1f}"
+        name = src if len(src) <= 40 else "..." + src[-37:]
+        valid = 100 * r["valid"] / max(r["frames"], 1)
+        lines.append(f"{name:40s} {r['frames']:8,d} {valid:8.1f} {low:>11s} {r['wall_s']:7.1f}")
+    frames = sum(r["frames"] for _, r in rows)
+    lines.append(
+        f"batch: {n} recordings: {len(rows)} written, {len(skipped)} left out (--resume: "
+        f"output present), {len(failed)} failed; {frames:,} frames in {wall:.1f} s "
+        f"({frames / max(wall, 1e-9):,.0f} frames/s, {len(rows) / max(wall, 1e-9):.2f} "
+        "recordings/s)"
+    )
+    return "\n".join(lines)
+
+
+_MODELS: dict[tuple[str, int, int], Any] = {}
+"""``load_model``'s models by (path, mtime, size): a batch reads its model once."""
+
+
+def load_model(path: str) -> Any:
+    """``jaxproj.projection.api.load(path)``, read once per process while the file is unchanged
+    (a batch retargets every recording with one model)."""
+    from jaxproj.projection import api as engine
+
+    st = Path(path).stat()
+    key = (str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _MODELS:
+        _MODELS.clear()
+        _MODELS[key] = engine.load(path)
+    return _MODELS[key]

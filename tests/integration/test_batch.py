@@ -1,0 +1,104 @@
+"""``jaxproj retarget`` over many recordings (``jaxproj.cli.batch``). The retargeting itself is
+replaced by the robot's standing posture (the batch's wiring is under test: nothing compiles)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fuzzing import assert_one_line_error, run_cli
+
+from jaxproj import robots
+from jaxproj.io.motion_files import load_motion
+
+SAME = Path(__file__).resolve().parents[1] / "data" / "formats" / "same_motion"
+
+
+@pytest.fixture
+def calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    from jaxproj.motion import retarget as rt
+
+    seen: list[int] = []
+
+    def standing(positions, valid, **kwargs):  # type: ignore[no-untyped-def]
+        seen.append(len(valid))
+        q = np.tile(robots.get(robots.DEFAULT).standing, (len(valid), 1)).astype(np.float32)
+        return rt.RetargetResult(q, np.asarray(valid), kwargs["times"])
+
+    monkeypatch.setattr(rt, "retarget", standing)
+    return seen
+
+
+@pytest.fixture
+def data(tmp_path: Path) -> Path:
+    """A folder of three recordings (one in a sub-folder), a README and a broken recording."""
+    root = tmp_path / "data"
+    (root / "more").mkdir(parents=True)
+    shutil.copy(SAME / "131_01.kinect_v1.csv", root / "walk.csv")
+    shutil.copy(SAME / "131_03.kinect_v1.csv", root / "more" / "hop.csv")
+    shutil.copy(SAME / "131_03.smpl.npz", root / "hop_smpl.npz")
+    (root / "README.md").write_text("# not a recording\n")
+    lines = (SAME / "131_01.kinect_v1.csv").read_text().splitlines()
+    (root / "broken.csv").write_text("\n".join(lines[:3] + ["1,2,3"]) + "\n")
+    return root
+
+
+def test_a_folder_is_retargeted_into_a_tree_and_a_bad_file_does_not_stop_it(
+    data: Path, tmp_path: Path, calls: list[int], capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    code, text, err = run_cli(capsys, "retarget", str(data), "--out", str(out))
+    assert code == 1  # one recording failed
+    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*.npz"))
+    assert written == ["hop_smpl.npz", "more/hop.npz", "walk.npz"]
+    assert len(calls) == 3
+    assert "batch: 4 recordings: 3 written, 0 left out (--resume: output present), 1 failed" in text
+    last = err.strip().splitlines()[-1]
+    assert "broken.csv: failed: " in err and last.startswith(
+        f"jaxproj: error: {data / 'broken.csv'}: "
+    )
+    assert last.count("broken.csv") == 1  # the file named once
+    for name in written:
+        m = load_motion(out / name)
+        assert m.angles.shape[0] == 30 and m.meta["source"].startswith(str(data))
+    # the same batch again: --resume leaves every written output out and retargets no more
+    before = (out / "walk.npz").stat().st_mtime_ns
+    code, text, _ = run_cli(capsys, "retarget", str(data), "--out", str(out), "--resume")
+    assert code == 1 and len(calls) == 3 + 0 and "3 left out" in text
+    assert (out / "walk.npz").stat().st_mtime_ns == before
+    # without --resume or --force an existing output is refused before any work
+    code, _, err = run_cli(capsys, "retarget", str(data), "--out", str(out))
+    assert_one_line_error(code, err, "exists: --resume leaves it out, --force overwrites it")
+    assert len(calls) == 3
+
+
+def test_files_and_lists_and_what_a_batch_refuses(
+    data: Path, tmp_path: Path, calls: list[int], capsys: pytest.CaptureFixture[str]
+) -> None:
+    listed = tmp_path / "todo.txt"
+    listed.write_text("# two recordings\nwalk.csv\n\nmore/hop.csv\nwalk.csv\n")
+    shutil.move(listed, data / "todo.txt")
+    out = tmp_path / "csv"
+    code, text, err = run_cli(capsys, "retarget", f"@{data / 'todo.txt'}", str(data / "walk.csv"),
+                              "--out", str(out), "--out-format", ".csv")  # fmt: skip
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["hop.csv", "walk.csv"]  # walk.csv once
+    assert "2 written" in text and len(calls) == 2
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(data / "walk.csv", other / "walk.csv")
+    for argv, words in (
+        ([str(data / "walk.csv"), str(other / "walk.csv"), "--out", str(tmp_path / "x")],
+         "would both write"),
+        ([str(data), "--out", str(data / "walk.csv")], "a batch writes into a folder"),
+        ([str(data), "--out", str(tmp_path / "y"), "--plot", str(tmp_path / "p.png")],
+         "--plot draws one recording"),
+        ([f"@{tmp_path / 'none.txt'}", "--out", str(tmp_path / "z")], "no such list file"),
+        ([str(tmp_path / "nothing"), str(data), "--out", str(tmp_path / "z")],
+         "no such file or folder"),
+    ):  # fmt: skip
+        code, _, err = run_cli(capsys, "retarget", *argv)
+        assert_one_line_error(code, err, words)
+    assert len(calls) == 2
