@@ -119,12 +119,49 @@ def plan(
     return todo, skipped
 
 
+def processes(text: str | None) -> tuple[str, int, int] | None:
+    """``--processes HOST:PORT,N,I`` -> ``(coordinator, N, I)`` (``None``: one process).
+
+    Raises:
+      ConfigError: not three comma-separated parts, ``N < 1`` or ``I`` not in ``0..N-1``.
+    """
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        address, count, index = parts[0], int(parts[1]), int(parts[2])
+    except (IndexError, ValueError):
+        raise ConfigError(
+            f"--processes {text}: expected HOST:PORT,N,I (the coordinator, the number of "
+            "processes, this process's number)"
+        ) from None
+    if len(parts) != 3 or ":" not in address or count < 1 or not 0 <= index < count:
+        raise ConfigError(f"--processes {text}: expected HOST:PORT,N,I with N >= 1 and 0 <= I < N")
+    return address, count, index
+
+
+def share(todo: list[tuple[Path, Path]], count: int, index: int) -> list[tuple[Path, Path]]:
+    """Process ``index`` of ``count``'s recordings: every ``count``-th from the ``index``-th of
+    the batch's order (the same in every process: ``plan`` is deterministic)."""
+    return todo[index::count]
+
+
 def run(args: argparse.Namespace, one: Callable[[argparse.Namespace], dict[str, Any]]) -> int:
     """The batch (module doc): ``one(args)`` retargets one recording (``args.input``) to one
-    file (``args.out``) and returns its table row."""
+    file (``args.out``) and returns its table row. With ``--processes`` this process joins JAX's
+    multi-process runtime (``jax.distributed.initialize``, before any JAX computation) and
+    takes its share (``share``)."""
     if args.plot is not None:
         raise ConfigError("--plot draws one recording: leave it out of a batch")
+    multi = processes(args.processes)
     todo, skipped = plan(args.input, args.out, args.out_format, args.resume, args.force)
+    if multi is not None:
+        import jax
+
+        address, count, index = multi
+        jax.distributed.initialize(address, num_processes=count, process_id=index)
+        todo = share(todo, jax.process_count(), jax.process_index())
+        skipped = skipped[index::count]
     n = len(todo) + len(skipped)
     rows: list[tuple[str, dict[str, Any]]] = []
     failed: list[tuple[Path, str]] = []
@@ -154,6 +191,10 @@ def run(args: argparse.Namespace, one: Callable[[argparse.Namespace], dict[str, 
     print(summary(rows, failed, skipped, n, wall))
     for src, message in failed:
         print(f"jaxproj: error: {src}: {message}", file=sys.stderr)
+    if multi is not None:
+        import jax
+
+        jax.distributed.shutdown()
     return 1 if failed else 0
 
 

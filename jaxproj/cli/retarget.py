@@ -85,6 +85,15 @@ def add_parsers(sub: Any) -> None:
         help="a batch: the suffix of each output (the formats of --out)",
     )
     pr.add_argument(
+        "--processes",
+        default=None,
+        metavar="HOST:PORT,N,I",
+        help="a batch over N processes (several hosts, or one): JAX's multi-process runtime "
+        "(jax.distributed) with its coordinator at HOST:PORT (process 0's host), N processes, "
+        "this one number I (0..N-1); each takes every N-th recording from the I-th (docs: "
+        "Several GPUs and hosts)",
+    )
+    pr.add_argument(
         "--resume",
         action="store_true",
         help="a batch: leave out a recording whose output exists (a batch stopped halfway goes "
@@ -207,6 +216,8 @@ def run(args: argparse.Namespace) -> int:
 
     if batch.is_batch(args.input, args.out):
         return batch.run(args, retarget_file)
+    if args.processes is not None:
+        raise ConfigError("--processes splits a batch: give several recordings or a folder")
     args.input = args.input[0]
     retarget_file(args)
     return 0

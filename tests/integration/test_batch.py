@@ -98,7 +98,80 @@ def test_files_and_lists_and_what_a_batch_refuses(
         ([f"@{tmp_path / 'none.txt'}", "--out", str(tmp_path / "z")], "no such list file"),
         ([str(tmp_path / "nothing"), str(data), "--out", str(tmp_path / "z")],
          "no such file or folder"),
+        ([str(data / "walk.csv"), "--out", str(tmp_path / "w.npz"), "--processes",
+          "localhost:1,2,0"], "--processes splits a batch"),
+        ([str(data), "--out", str(tmp_path / "z"), "--processes", "localhost:1,2,5"],
+         "with N >= 1 and 0 <= I < N"),
+        ([str(data), "--out", str(tmp_path / "z"), "--processes", "two"], "expected HOST:PORT,N,I"),
     ):  # fmt: skip
         code, _, err = run_cli(capsys, "retarget", *argv)
         assert_one_line_error(code, err, words)
     assert len(calls) == 2
+
+
+CHILD = """
+import sys
+
+import numpy as np
+
+from jaxproj import robots
+from jaxproj.cli.main import main
+from jaxproj.motion import retarget as rt
+
+
+def standing(positions, valid, **kwargs):
+    q = np.tile(robots.get(robots.DEFAULT).standing, (len(valid), 1)).astype(np.float32)
+    q = q + np.float32(1e-3) * np.arange(len(valid), dtype=np.float32)[:, None]
+    return rt.RetargetResult(q, np.asarray(valid), kwargs["times"])
+
+
+rt.retarget = standing
+sys.exit(main(sys.argv[1:]))
+"""
+"""A process of a batch: the command line with the retargeting replaced (as ``calls``)."""
+
+
+def test_two_processes_write_the_files_one_writes(data: Path, tmp_path: Path) -> None:
+    """``--processes``: two local processes on JAX's multi-process runtime (a local
+    coordinator) share the batch; together they write what one process writes, to the bit."""
+    import socket
+    import subprocess
+    import sys
+
+    (data / "broken.csv").unlink()
+    script = tmp_path / "child.py"
+    script.write_text(CHILD)
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    one = subprocess.run([sys.executable, str(script), "retarget", str(data), "--out",
+                          str(tmp_path / "one")], capture_output=True, text=True)  # fmt: skip
+    assert one.returncode == 0, one.stderr
+    procs = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                str(script),
+                "retarget",
+                str(data),
+                "--out",
+                str(tmp_path / "two"),
+                "--processes",
+                f"localhost:{port},2,{i}",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
+        for i in range(2)
+    ]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [e for _, e in outs]
+    assert "2 written" in outs[0][0] and "1 written" in outs[1][0]  # 3 recordings, shared
+    names = sorted(p.relative_to(tmp_path / "one") for p in (tmp_path / "one").rglob("*.npz"))
+    assert names == sorted(
+        p.relative_to(tmp_path / "two") for p in (tmp_path / "two").rglob("*.npz")
+    )
+    for name in names:
+        a, b = load_motion(tmp_path / "one" / name), load_motion(tmp_path / "two" / name)
+        assert np.array_equal(a.angles, b.angles) and np.array_equal(a.times, b.times)
