@@ -144,7 +144,7 @@ def read_skeleton(
         records one skeleton: naming another is a ``ConfigError``.
       units: NPZ / NPY / CSV: the positions' unit, ``"auto"`` (read from the bones' lengths,
         ``jaxproj.io.plausible``), ``"m"``, ``"cm"`` or ``"mm"``.
-      hips: MediaPipe JSON / CSV: ``"required"`` (a frame whose hips have a low visibility is
+      hips: MediaPipe (JSON, CSV, NPZ): ``"required"`` (a frame whose hips have a low visibility is
         invalid) or ``"shoulders"`` (its hips are made from the shoulders and the capture's up,
         ``jaxproj.human.upper_body``, and it stays valid: for a robot that reads no leg bone;
         ``jaxproj retarget`` chooses so for such a robot). Other formats ignore it.

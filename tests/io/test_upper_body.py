@@ -106,3 +106,25 @@ def test_retarget_makes_hips_for_the_nao_and_not_for_a_robot_with_legs(
                              "unitree_g1", "--out", str(tmp_path / "g1.npz"))  # fmt: skip
     assert code == 0, err
     assert seen["unitree_g1"][:k].all() and not seen["unitree_g1"][k:].any()
+
+
+def test_a_mediapipe_npz_reads_hidden_hips_as_its_json_does(
+    half_hidden: tuple[Path, int], tmp_path: Path
+) -> None:
+    import io
+
+    path, k = half_hidden
+    frames = json.loads(path.read_text())
+    joints = np.array([[[lm["x"], lm["y"], lm["z"]] for lm in f] for f in frames])
+    vis = np.array([[lm["visibility"] for lm in f] for f in frames])
+    buf = io.BytesIO()
+    np.savez(buf, joints=joints, visibility=vis, skeleton="mediapipe_pose", fps=10)
+    npz = tmp_path / "desk.npz"
+    npz.write_bytes(buf.getvalue())
+    strict, made = read_skeleton(npz), read_skeleton(npz, hips="shoulders")
+    from_json = read_skeleton(path, fps=10, hips="shoulders")
+    assert not strict.valid[k:].any() and "right_hip (15 frames, 0.30)" in str(
+        strict.invalid_reason
+    )
+    assert made.valid.all() and made.invalid_reason is None and made.notes == from_json.notes
+    np.testing.assert_allclose(made.positions, from_json.positions, atol=1e-6)

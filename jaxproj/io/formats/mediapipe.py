@@ -869,7 +869,7 @@ def read(path: str | os.PathLike[str], data: bytes, fps: float | None, **options
     (``(T, 20, 3)`` Kinect v1 positions, skeleton ``"mediapipe_pose"``, ``invalid_reason``
     saying why frames are invalid). ``options["hips"]``: ``"required"`` (default: a checked
     landmark's low visibility invalidates its frame, the hips' too) or ``"shoulders"`` (frames
-    whose hips alone are hidden get hips made from the shoulders, ``_hips_from_shoulders``);
+    whose hips alone are hidden get hips made from the shoulders, ``hips_from_shoulders``);
     other options are ignored (``up`` does not apply: MediaPipe's axes are fixed)."""
     times, source = None, f"assumed {KINECT_FPS:g} fps"
     if _is_json(data):
@@ -892,18 +892,19 @@ def read(path: str | os.PathLike[str], data: bytes, fps: float | None, **options
     positions = to_kinect_v1(xyz)
     notes: tuple[str, ...] = ()
     if options.get("hips", "required") == "shoulders" and checked is not None:
-        positions, valid, checked, notes = _hips_from_shoulders(positions, checked)
+        positions, valid, checked, notes = hips_from_shoulders(positions, checked)
     rec = timed_recording(
         path, "mediapipe", positions, valid, times, source, fps, KINECT_FPS, SKELETON
     )
     return dataclasses.replace(rec, invalid_reason=invalid_reason(xyz, checked), notes=notes)
 
 
-def _hips_from_shoulders(
+def hips_from_shoulders(
     positions: np.ndarray, checked: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]]:
-    """``read(hips="shoulders")``: frames whose only low-visibility checked landmarks are the
-    hips get hips made from the shoulders (``jaxproj.human.upper_body``) and stay valid.
+    """``read(hips="shoulders")`` (and an NPZ's, ``formats.table``): frames whose only
+    low-visibility checked landmarks are the hips get hips made from the shoulders
+    (``jaxproj.human.upper_body``) and stay valid.
 
     Returns:
       (positions, ``(T,)`` valid, the visibility with the made hips' scores set to 1 (so that

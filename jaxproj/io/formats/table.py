@@ -449,9 +449,35 @@ def read_npz(
     positions, valid, times, source, skeleton, how = read_npz_arrays(
         path, data, up, options.get("skeleton")
     )
+    notes, reason = _guessed_note(skeleton, _npz_joint_count(data), how), None
+    if skeleton == mediapipe.SKELETON:  # visibility: the reason, hidden hips made on request
+        made = _mediapipe_visibility(path, data, positions, valid, options)
+        positions, valid, reason = made[0], made[1], made[3]
+        notes += made[2]
     rec = timed_recording(path, "npz", positions, valid, times, source, fps, KINECT_FPS, skeleton)
-    n = _npz_joint_count(data)
-    return dataclasses.replace(rec, skeleton_from=how, notes=_guessed_note(skeleton, n, how))
+    return dataclasses.replace(rec, skeleton_from=how, notes=notes, invalid_reason=reason)
+
+
+def _mediapipe_visibility(
+    path: str | os.PathLike[str],
+    data: bytes,
+    positions: np.ndarray,
+    valid: np.ndarray | None,
+    options: dict[str, Any],
+) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...], str | None]:
+    """A MediaPipe NPZ's visibility as the JSON / CSV reader reads it: ``hips="shoulders"``
+    (``mediapipe.hips_from_shoulders``) and ``Recording.invalid_reason``."""
+    with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+        key = next(k for k in NPZ_KEYS if k in archive.files)
+        raw = np.asarray(archive[key][:, : mediapipe.N_LANDMARKS], np.float64)
+        vis = archive["visibility"] if "visibility" in archive.files else None
+        marked = archive["valid"].astype(bool) if "valid" in archive.files else None
+    checked = None if vis is None else mediapipe._visibility(path, vis, None)
+    notes: tuple[str, ...] = ()
+    if checked is not None and options.get("hips", "required") == "shoulders":
+        positions, seen, checked, notes = mediapipe.hips_from_shoulders(positions, checked)
+        valid = seen if marked is None else seen & marked
+    return positions, valid, notes, mediapipe.invalid_reason(raw, checked)
 
 
 def _npz_joint_count(data: bytes) -> int:
