@@ -97,10 +97,14 @@ def plan(
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ConfigError(f"--out {out}: a batch writes into a folder, and this is a file")
+    found = expand(inputs)
+    if not folder.exists() and folder.suffix.lower() in (".npz", ".csv", ".json"):
+        raise ConfigError(f"--out {out}: a batch writes into a folder, and this names a file "
+                          f"({len(found)} recordings): give a folder")  # fmt: skip
     todo: list[tuple[Path, Path]] = []
     skipped: list[Path] = []
     owner: dict[Path, Path] = {}
-    for src, name in expand(inputs):
+    for src, name in found:
         dst = folder / f"{name}{suffix}"
         if dst in owner:
             raise ConfigError(

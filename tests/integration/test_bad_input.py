@@ -215,7 +215,7 @@ def _truncated_npz() -> bytes:
 BAD_FILES: list[tuple[str, str, bytes | str | None, list[str]]] = [
     # (id, file name, content: None = do not create, "<dir>" = a directory, words of the message)
     ("missing", "nope.txt", None, ["not found"]),
-    ("directory", "adir.txt", "<dir>", ["directory"]),
+    ("directory", "adir.txt", "<dir>", ["a folder with no recording"]),  # a batch's input
     ("empty", "empty.txt", b"", ["empty"]),
     ("whitespace", "blank.txt", " \r\n\t\n", ["empty"]),
     ("rows-not-20", "rows.txt", "\n".join(msr_file(_GOOD).splitlines()[:25]), ["multiple of 20"]),

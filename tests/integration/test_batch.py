@@ -93,6 +93,7 @@ def test_files_and_lists_and_what_a_batch_refuses(
         ([str(data / "walk.csv"), str(other / "walk.csv"), "--out", str(tmp_path / "x")],
          "would both write"),
         ([str(data), "--out", str(data / "walk.csv")], "a batch writes into a folder"),
+        ([str(data), "--out", str(tmp_path / "all.npz")], "this names a file (4 recordings)"),
         ([str(data), "--out", str(tmp_path / "y"), "--plot", str(tmp_path / "p.png")],
          "--plot draws one recording"),
         ([f"@{tmp_path / 'none.txt'}", "--out", str(tmp_path / "z")], "no such list file"),
