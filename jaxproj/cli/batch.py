@@ -40,7 +40,7 @@ from typing import Any
 from jaxproj.errors import ConfigError, JaxprojError
 
 
-def is_batch(inputs: Sequence[str], out: str) -> bool:
+def is_batch(inputs: Sequence[str]) -> bool:
     """Whether ``retarget``'s inputs make a batch: several, a folder or an ``@LIST``."""
     return len(inputs) > 1 or inputs[0].startswith("@") or Path(inputs[0]).is_dir()
 

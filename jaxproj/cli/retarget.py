@@ -214,7 +214,7 @@ def add_parsers(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from jaxproj.cli import batch
 
-    if batch.is_batch(args.input, args.out):
+    if batch.is_batch(args.input):
         return batch.run(args, retarget_file)
     if args.processes is not None:
         raise ConfigError("--processes splits a batch: give several recordings or a folder")

@@ -4,8 +4,8 @@ The descriptor reads every bone in the person's body frame, whose up axis runs f
 centre to the spine top (``skeleton.body_frame``). A desk webcam sees the head, the shoulders
 and the arms; the hips are below the table or out of the picture, and a tracker that still
 places them (MediaPipe: visibility 0.26-0.34 on such a recording) guesses. A robot whose chains
-read no bone below the spine top (the NAO: ``skeletons.UPPER_BODY``, the neck and the arms)
-needs the hips for that one axis only, so ``hips_from_shoulders`` makes them:
+read no bone below the spine top (``skeletons.UPPER_BODY``: the neck and the arms, a robot of
+head and arms) needs the hips for that one axis only, so ``hips_from_shoulders`` makes them:
 
 * the **up axis** of a frame with hidden hips is the capture's up (+y, every reader's output)
   made orthogonal to the shoulder line, then turned about the shoulder line by the trunk's

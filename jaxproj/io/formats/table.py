@@ -32,7 +32,7 @@ import dataclasses
 import io
 import os
 import zipfile
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -241,12 +241,27 @@ def _check_visibility(path: str | os.PathLike[str], vis: np.ndarray, n: int) -> 
     return vis.astype(np.float64)
 
 
+class NpzArrays(NamedTuple):
+    """What ``read_npz_arrays`` reads from an NPZ (the fields of a ``Recording`` it decides)."""
+
+    positions: np.ndarray  # (T, 20, 3) in the Kinect v1 layout
+    valid: np.ndarray | None  # (T,) bool, or None: every frame
+    times: np.ndarray | None  # (T,) s, or None: the format's rate
+    time_source: str
+    skeleton: str  # the registered skeleton the file recorded
+    skeleton_from: str  # "option", "file" or "count" (``Recording.skeleton_from``)
+    notes: tuple[str, ...]  # ``Recording.notes``: a guessed skeleton, hips made
+    invalid_reason: str | None  # ``Recording.invalid_reason`` (MediaPipe visibility)
+
+
 def read_npz_arrays(
-    path: str | os.PathLike[str], data: bytes, up: str = "y", skeleton: str | None = None
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, str, str, str]:
-    """NPZ bytes -> (``(T, 20, 3)`` positions in the Kinect v1 layout, ``(T,)`` valid or None,
-    ``(T,)`` times or None, time source, the skeleton the file recorded, how it was chosen:
-    ``"option"``, ``"file"`` or ``"count"``, ``Recording.skeleton_from``).
+    path: str | os.PathLike[str],
+    data: bytes,
+    up: str = "y",
+    skeleton: str | None = None,
+    hips: str = "required",
+) -> NpzArrays:
+    """NPZ bytes -> ``NpzArrays``.
 
     Args:
       path: the file (named in errors).
@@ -254,6 +269,8 @@ def read_npz_arrays(
       up: ``"y"`` (the file is y-up: kept as it is) or ``"z"`` (turned by ``z_up_to_y_up``).
       skeleton: a registered skeleton's name (``read_skeleton(skeleton=)``): it wins over the
         file's ``skeleton`` key and the joint count; ``None``: the key, else the count.
+      hips: MediaPipe landmarks with ``visibility`` only: ``"shoulders"`` makes hidden hips
+        from the shoulders as the JSON / CSV reader does (``mediapipe.hips_from_shoulders``).
 
     Raises:
       InputError: not a zip, a corrupt archive, no ``positions`` / ``joints``, wrong shapes or
@@ -314,7 +331,21 @@ def read_npz_arrays(
             if not np.issubdtype(valid.dtype, np.integer) or not np.isin(valid, (0, 1)).all():
                 raise InputError(path, f"valid has dtype {valid.dtype}, expected bool")
             valid = valid.astype(bool)
-    positions, seen = _to_kinect_v1(path, positions[:, :k], layout, up, members["visibility"])
+    raw = positions[:, :k]
+    positions = _to_kinect_v1(path, raw, layout, up)
+    seen: np.ndarray | None = None
+    notes = _guessed_note(layout.name, shape[1], chosen[1])
+    reason = None
+    if layout.name == mediapipe.SKELETON and members["visibility"] is not None:
+        # as the JSON / CSV reader reads it: the checked landmarks decide, and say why
+        vis = _check_visibility(path, members["visibility"], shape[0])
+        checked = mediapipe._visibility(path, vis, None)
+        if checked is not None and hips == "shoulders":
+            positions, seen, checked, made = mediapipe.hips_from_shoulders(positions, checked)
+            notes += made
+        elif checked is not None:
+            seen = np.asarray(~mediapipe._low_visibility(checked).any(axis=1), bool)
+        reason = mediapipe.invalid_reason(raw.astype(np.float64), checked)
     if seen is not None:
         valid = seen if valid is None else valid & seen
     source = f"assumed {KINECT_FPS:g} fps"
@@ -331,7 +362,7 @@ def read_npz_arrays(
             raise InputError(path, f"fps must be one frame rate in [{lo:g}, {hi:g}], got {rate!r}")
         times = np.arange(shape[0], dtype=np.float64) / float(rate)
         source = f"file ({float(rate):g} fps)"
-    return positions, valid, times, source, layout.name, chosen[1]
+    return NpzArrays(positions, valid, times, source, layout.name, chosen[1], notes, reason)
 
 
 def _choose(option: str | None, named: str | None) -> tuple[str | None, str]:
@@ -363,26 +394,25 @@ def _to_kinect_v1(
     joints: np.ndarray,
     skeleton: skeletons.Skeleton,
     up: str,
-    visibility: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """``(T, k, 3)`` recorded joints -> (``(T, 20, 3)`` Kinect v1 layout, ``(T,)`` valid from
-    MediaPipe's ``visibility`` or None). Kinect v1 data with ``up="y"`` is returned as it is."""
+) -> np.ndarray:
+    """``(T, k, 3)`` recorded joints -> ``(T, 20, 3)`` Kinect v1 layout (MediaPipe's
+    ``visibility`` is read by ``read_npz_arrays``). Kinect v1 data with ``up="y"`` is returned as
+    it is."""
     if skeleton.name == mediapipe.SKELETON:
         if up != "y":
             raise ConfigError(
                 "up='z' does not apply to MediaPipe Pose world landmarks: their axes are "
                 "MediaPipe's (y down), turned to y up by the reader"
             )
-        vis = None if visibility is None else _check_visibility(path, visibility, len(joints))
-        return mediapipe.to_kinect_v1(joints), mediapipe.visibility_valid(path, vis, None)
+        return mediapipe.to_kinect_v1(joints)
     if up == "z":
         joints = z_up_to_y_up(joints)
     if skeleton.name == skeletons.DEFAULT:
-        return joints, None
+        return joints
     try:
         with np.errstate(over="ignore", invalid="ignore"):
             full = skeleton.complete(joints) if skeleton.derived else joints
-            return skeletons.to_kinect_v1(full, skeleton), None
+            return skeletons.to_kinect_v1(full, skeleton)
     except ConfigError as err:  # a registered skeleton that cannot be laid out as Kinect v1
         raise InputError(path, str(err)) from None
 
@@ -445,46 +475,14 @@ def read_npz(
 ) -> Recording:
     """The archive as a ``Recording`` (``(T, 20, 3)`` in the Kinect v1 layout; its ``valid``,
     MediaPipe ``visibility`` and timing honoured; ``options["up"]``: ``read_npz_arrays``)."""
-    up = options.get("up", "y")
-    positions, valid, times, source, skeleton, how = read_npz_arrays(
-        path, data, up, options.get("skeleton")
+    a = read_npz_arrays(
+        path, data, options.get("up", "y"), options.get("skeleton"), options.get("hips", "required")
     )
-    notes, reason = _guessed_note(skeleton, _npz_joint_count(data), how), None
-    if skeleton == mediapipe.SKELETON:  # visibility: the reason, hidden hips made on request
-        made = _mediapipe_visibility(path, data, positions, valid, options)
-        positions, valid, reason = made[0], made[1], made[3]
-        notes += made[2]
-    rec = timed_recording(path, "npz", positions, valid, times, source, fps, KINECT_FPS, skeleton)
-    return dataclasses.replace(rec, skeleton_from=how, notes=notes, invalid_reason=reason)
-
-
-def _mediapipe_visibility(
-    path: str | os.PathLike[str],
-    data: bytes,
-    positions: np.ndarray,
-    valid: np.ndarray | None,
-    options: dict[str, Any],
-) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...], str | None]:
-    """A MediaPipe NPZ's visibility as the JSON / CSV reader reads it: ``hips="shoulders"``
-    (``mediapipe.hips_from_shoulders``) and ``Recording.invalid_reason``."""
-    with np.load(io.BytesIO(data), allow_pickle=False) as archive:
-        key = next(k for k in NPZ_KEYS if k in archive.files)
-        raw = np.asarray(archive[key][:, : mediapipe.N_LANDMARKS], np.float64)
-        vis = archive["visibility"] if "visibility" in archive.files else None
-        marked = archive["valid"].astype(bool) if "valid" in archive.files else None
-    checked = None if vis is None else mediapipe._visibility(path, vis, None)
-    notes: tuple[str, ...] = ()
-    if checked is not None and options.get("hips", "required") == "shoulders":
-        positions, seen, checked, notes = mediapipe.hips_from_shoulders(positions, checked)
-        valid = seen if marked is None else seen & marked
-    return positions, valid, notes, mediapipe.invalid_reason(raw, checked)
-
-
-def _npz_joint_count(data: bytes) -> int:
-    """``J`` of an NPZ's ``positions`` / ``joints`` array (already read once: it is valid)."""
-    with np.load(io.BytesIO(data), allow_pickle=False) as archive:
-        key = next(k for k in NPZ_KEYS if k in archive.files)
-        return int(archive[key].shape[1])
+    rec = timed_recording(path, "npz", a.positions, a.valid, a.times, a.time_source, fps,
+                          KINECT_FPS, a.skeleton)  # fmt: skip
+    return dataclasses.replace(
+        rec, skeleton_from=a.skeleton_from, notes=a.notes, invalid_reason=a.invalid_reason
+    )
 
 
 NPZ = Format(
