@@ -248,10 +248,10 @@ def _subtree(model: mujoco.MjModel, root: int) -> np.ndarray:
     return inside
 
 
-def _can_collide(model: mujoco.MjModel, g1: int, g2: int) -> bool:
+def _can_collide(model: mujoco.MjModel, ga: int, gb: int) -> bool:
     """MuJoCo's contype / conaffinity filter (a superset of the pairs it actually tests)."""
     ct, ca = model.geom_contype, model.geom_conaffinity
-    return bool((ct[g1] & ca[g2]) or (ct[g2] & ca[g1]))
+    return bool((ct[ga] & ca[gb]) or (ct[gb] & ca[ga]))
 
 
 @functools.lru_cache(maxsize=4)
@@ -286,10 +286,10 @@ def _head_ball(robot: Robot) -> tuple[np.ndarray, float, float, frozenset[str]]:
     upper = np.zeros(whole.nbody, dtype=bool)
     for root in mjcf.split["legs"]:  # the legs part is the whole without the upper roots
         upper |= _subtree(whole, mujoco.mj_name2id(whole, mujoco.mjtObj.mjOBJ_BODY, root))
-    for g1 in range(whole.ngeom):
-        for g2 in range(whole.ngeom):
-            b1, b2 = whole.geom_bodyid[g1], whole.geom_bodyid[g2]
-            if upper[b1] and not head[b1] and legs[b2] and _can_collide(whole, g1, g2):
+    for ga in range(whole.ngeom):
+        for gb in range(whole.ngeom):
+            b1, b2 = whole.geom_bodyid[ga], whole.geom_bodyid[gb]
+            if upper[b1] and not head[b1] and legs[b2] and _can_collide(whole, ga, gb):
                 raise ConfigError("split_legs: an arm geom can collide with a leg geom")
     names = frozenset(mujoco.mj_id2name(whole, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in geoms)
     return center, reach, margin, names
