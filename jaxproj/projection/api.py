@@ -20,6 +20,7 @@ the batching and device placement) are one surface a reader checks together.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import Any, Literal
 
@@ -69,6 +70,7 @@ __all__ = [
     "Objective",
     "PerChain",
     "Projector",
+    "Spread",
     "StackedProjector",
     "build",
     "build_from_landmarks",
@@ -91,6 +93,8 @@ __all__ = [
 ]
 
 Objective = Literal["relaxed", "full"]
+Spread = Literal["per_device", "shard_map"]
+"""How ``project`` spreads a batch over several devices (see its ``spread`` argument)."""
 
 
 AnyProjector = Projector | StackedProjector
@@ -335,20 +339,24 @@ def resolve_devices(spec: int | str | Sequence[jax.Device] | None) -> list[jax.D
 
 
 DEFAULT_BATCH = {"cpu": 4096, "accelerator": 65536}
-"""``project``'s default ``batch_size`` per backend: CPU 4096 (cache-sized sub-batches inside
-anyway), GPU / TPU 65536 (enough queries per call to fill the device)."""
+"""``project``'s default ``batch_size`` per backend and device: CPU 4096 (cache-sized
+sub-batches inside anyway), GPU / TPU 65536 (enough queries per call to fill the device); over
+several devices, that many for each."""
 
 
 def default_batch_size(
     devices: Sequence[jax.Device] | None = None, n_queries: int | None = None
 ) -> int:
     """``project``'s batch when it is not given: ``DEFAULT_BATCH`` for the platform of
-    ``devices`` (``None``: the default backend); for ``n_queries`` fewer than that, the next
-    power of two ``>= n_queries`` (at least ``MIN_BATCH``, a multiple of the device count), so
-    that a short call is not padded to a whole default batch (64 queries on a CPU: 64x less
-    work than 4096)."""
+    ``devices`` (``None``: the default backend) times their number, so that each device gets
+    the batch one device would (measured on 2 x H200, NAO default model, relaxed: 65,536
+    queries split in two halves ran 1.70x one device, where each device's own 65,536 ran
+    faster; issue 61); for ``n_queries`` fewer than that, the next power of two ``>=
+    n_queries`` (at least ``MIN_BATCH``, a multiple of the device count), so that a short call
+    is not padded to a whole default batch (64 queries on a CPU: 64x less work than 4096)."""
     platform = platform_of(devices)
-    default = DEFAULT_BATCH["cpu" if platform == "cpu" else "accelerator"]
+    k = len(list(devices)) if devices else 1
+    default = DEFAULT_BATCH["cpu" if platform == "cpu" else "accelerator"] * k
     return default if n_queries is None else _fitted_batch(default, n_queries, devices)
 
 
@@ -377,6 +385,7 @@ def project(
     batch_size: int | None = None,
     devices: Sequence[jax.Device] | None = None,
     impl: ImplLike = Impl.AUTO,
+    spread: Spread = "per_device",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Project human descriptors to robot poses.
 
@@ -395,15 +404,22 @@ def project(
       objective: ``"relaxed"`` or ``"full"``.
       n_l, n_m: ``L`` human and ``M`` robot neighbours.
       full: settings of the full objective (default ``FullConfig()``).
-      batch_size: queries per jitted call (``>= 1``); ``None``: ``default_batch_size`` (4096 on
-        CPU, 65536 on accelerators), or for fewer queries than that the next power of two
-        (at least ``MIN_BATCH``): one compilation per such size.
+      batch_size: queries per jitted call (``>= 1``); ``None``: ``default_batch_size`` (4096
+        on CPU, 65536 on accelerators, per device), or for fewer queries than that the next
+        power of two (at least ``MIN_BATCH``): one compilation per such size.
       devices: where to run: ``None`` (default) the default device; one device; or several
         (``resolve_devices`` turns ``"all"`` or a count into a list): each batch is split
-        along the query axis over a 1-D mesh of them with ``shard_map``, the projector
-        replicated, and every device runs the one-device program on its shard, with no
-        collective (``batch_size`` a multiple of their number; the padding of the last batch
-        is cut off the answers).
+        along the query axis into one equal share per device (``batch_size`` a multiple of
+        their number; the padding of the last batch is cut off the answers), the projector
+        copied to each, with no collective (see ``spread``).
+      spread: how several ``devices`` share a batch. ``"per_device"`` (default): each device
+        runs the one-device program (``project_chunk``, compiled once per device) on its
+        share, dispatched by a host thread of its own, so the devices run together; the
+        answers are those of one device given the same share. ``"shard_map"``: one program
+        over a 1-D mesh (``project_sharded``); its per-device program is compiled once, but
+        XLA fuses the share otherwise (last-bit differences in the value), and with the Pallas
+        kernels the process dies with a segmentation fault in the CUDA plugin while compiling
+        it (4 x H100, issue 61; 2 x H200, jax 0.11.2, 2026-11-29).
       impl: backend of the relaxed projection's k-NN searches and back-projection:
         ``"auto"`` (default) resolved once from the platform of ``devices`` (``None``: the
         default backend): the Pallas kernels on CUDA GPUs, XLA elsewhere; ``"xla"``; or
@@ -437,6 +453,8 @@ def project(
     if batch_size < 1:
         raise ConfigError(f"batch_size={batch_size} must be >= 1")
     place = placement(devices, batch_size)
+    if spread not in ("per_device", "shard_map"):
+        raise ConfigError(f"spread must be 'per_device' or 'shard_map', got {spread!r}")
     impl = resolve_impl(impl, devices)
     n = p.layout.n if isinstance(p, StackedProjector) else p.robot.shape[1]
     if len(h) == 0:
@@ -449,6 +467,8 @@ def project(
         kw["impl"] = impl
     cut = len(h)
     filler = _padding_query(p)
+    if isinstance(place, Mesh) and spread == "per_device":
+        return _project_per_device(p, h, list(place.devices.flat), batch_size, filler, kw)
     outs = []
     for s in range(0, cut, batch_size):
         # batch by batch: each batch's transfer in is issued right before its call and its
@@ -468,6 +488,47 @@ def project(
         outs.append(out)
     r = np.concatenate([np.asarray(o[0]) for o in outs])
     v = np.concatenate([np.asarray(o[1]) for o in outs])
+    return r[:cut], v[:cut]
+
+
+def _project_per_device(
+    p: AnyProjector,
+    h: np.ndarray,
+    devices: list[jax.Device],
+    batch_size: int,
+    filler: np.ndarray,
+    kw: dict[str, Any],
+) -> tuple[np.ndarray, np.ndarray]:
+    """``project``'s loop with each batch split into one share per device, each share run by
+    the one-device program on its device (the projector copied there once).
+
+    One host thread per device dispatches that device's shares in order: a call whose program
+    holds a loop with a data-dependent end (the full objective's solver, ``lax.map``) keeps
+    its calling thread until the loop ends on XLA:GPU, so one thread for all devices ran them
+    one after another (measured on 2 x H200: the full objective 1.00x on two devices; issue
+    61); the first calls' compilations run side by side too."""
+    k, cut = len(devices), len(h)
+    share = batch_size // k
+    starts = range(0, cut, batch_size)
+
+    def run(i: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        q, d = jax.device_put(p, devices[i]), devices[i]
+        outs = []
+        for s in starts:
+            part = h[s + i * share : min(s + (i + 1) * share, cut)]
+            if len(part) < share:
+                part = np.concatenate([part, np.repeat(filler, share - len(part), axis=0)])
+            out = project_chunk(q, jax.device_put(part, d), **kw)
+            for a in out:
+                a.copy_to_host_async()
+            outs.append(out)
+        return [(np.asarray(r), np.asarray(v)) for r, v in outs]
+
+    with ThreadPoolExecutor(max_workers=k, thread_name_prefix="jaxproj-device") as pool:
+        per_device = list(pool.map(run, range(k)))
+    order = [per_device[i][b] for b in range(len(starts)) for i in range(k)]
+    r = np.concatenate([o[0] for o in order])
+    v = np.concatenate([o[1] for o in order])
     return r[:cut], v[:cut]
 
 

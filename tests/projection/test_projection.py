@@ -193,6 +193,7 @@ def test_default_batch_fits_short_calls(model, count_compiles):
     assert fitted == {1: 64, 5: 64, 64: 64, 65: 128, 300: 512, 4096: 4096, 10**6: 4096}
     three = jax.devices("cpu")[:1] * 3  # only the count matters here
     assert engine.default_batch_size(three, 100) == 129  # a multiple of the device count
+    assert engine.default_batch_size(three) == 3 * 4096  # each device its own default batch
     d = _descriptors([2], actions=[2])
     want, want_v = engine.project(model, d[:300], "relaxed", batch_size=4096)
     got, got_v = engine.project(model, d[:300], "relaxed")

@@ -1,7 +1,8 @@
 """Run by tests/projection/test_sharding.py in a fresh process with 4 forced host devices.
 
-Projects the same queries on one device and sharded over 4 (``engine.project(..., devices=)``),
-and inspects the compiled per-device programs; prints one JSON object.
+Projects the same queries on one device and over 4 (``engine.project(..., devices=)``), both
+ways of spreading a batch (``spread="per_device"``, the default, and ``"shard_map"``), and
+inspects the compiled per-device programs of the ``shard_map`` one; prints one JSON object.
 """
 
 import json
@@ -49,8 +50,14 @@ def main() -> None:
     for objective in ("relaxed", "full"):
         kw = {"n_l": 4, "n_m": 4, "full": full, "batch_size": 64}
         r1, v1 = engine.project(model, h, objective, **kw)
-        r4, v4 = engine.project(model, h, objective, devices=devices, **kw)
+        r4, v4 = engine.project(model, h, objective, devices=devices, spread="shard_map", **kw)
+        rp, vp = engine.project(model, h, objective, devices=devices, **kw)
         out[objective] = {
+            "per_device": {
+                "shape": list(rp.shape),
+                "max_abs_diff": float(np.abs(r1 - rp).max()),
+                "bit_identical": bool(np.array_equal(r1, rp) and np.array_equal(v1, vp)),
+            },
             "shape": list(r4.shape),
             "max_abs_diff": float(np.abs(r1 - r4).max()),
             "bit_identical": bool(np.array_equal(r1, r4) and np.array_equal(v1, v4)),
