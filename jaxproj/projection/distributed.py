@@ -6,8 +6,8 @@ JAX's multi-process runtime does the plumbing: every host runs the same program,
 Cloud TPU), and sees its own devices as ``jax.local_devices()`` and every device as
 ``jax.devices()``. Here each process takes a contiguous share of the corpus
 (``process_share``), projects it over its local devices (``engine.project(...,
-devices=jax.local_devices())``: sharded over them with ``shard_map``), and the shares are
-gathered, in process order, with ``jax.experimental.multihost_utils.process_allgather``
+devices=jax.local_devices())``: one share per device, ``project``'s ``spread``), and the
+shares are gathered, in process order, with ``jax.experimental.multihost_utils.process_allgather``
 (``gather_rows``); process 0 writes the result. With one process every function is the plain
 single-host call.
 
