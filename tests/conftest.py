@@ -73,6 +73,42 @@ def pytest_configure(config: pytest.Config) -> None:
     jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
+_TIMELINE: dict[str, float] = {"compile_s": 0.0}
+
+
+def _timeline_listener(event: str, duration: float, **kwargs: str | int) -> None:
+    if event == BACKEND_COMPILE_EVENT:
+        _TIMELINE["compile_s"] += duration
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    """With ``$JAXPROJ_TEST_TIMELINE`` set to a file: append one JSON line per test (worker,
+    start, end, seconds of XLA compilation in this process during it), to find where a run's
+    time goes (which worker waits at the end, which tests compile)."""
+    path = os.environ.get("JAXPROJ_TEST_TIMELINE")
+    if not path:
+        yield
+        return
+    import json
+    import time
+
+    if not _TIMELINE.get("listening"):
+        jax.monitoring.register_event_duration_secs_listener(_timeline_listener)
+        _TIMELINE["listening"] = 1.0
+    c0, t0 = _TIMELINE["compile_s"], time.time()
+    yield
+    rec = {
+        "worker": os.environ.get("PYTEST_XDIST_WORKER", "main"),
+        "test": item.nodeid,
+        "start": t0,
+        "end": time.time(),
+        "compile_s": _TIMELINE["compile_s"] - c0,
+    }
+    with open(path, "a") as f:
+        f.write(json.dumps(rec) + "\n")
+
+
 def pytest_unconfigure(config: pytest.Config) -> None:
     for folder in _TEMP_CACHE:
         shutil.rmtree(folder, ignore_errors=True)

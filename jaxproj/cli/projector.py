@@ -145,7 +145,7 @@ def _add_evaluate(sub: Any) -> None:
     options.add_neighbour_options(pe)
     options.add_smoother_option(pe, "the scored motions (unsmoothed figures are reported too)")
     options.add_devices_option(
-        pe, "to shard the queries over (shard_map, one device program per shard)"
+        pe, "to spread the queries over (one share per device, each running its own program)"
     )
     pe.add_argument(
         "--json", required=True, help=f"output report JSON; {options.OUTPUT_FOLDER_RULE}"

@@ -59,17 +59,20 @@ def test_tree_fk_matches_mujoco(robot, points, base) -> None:
     rng = np.random.default_rng(0)
     q = rng.uniform(robot.lower, robot.upper, (40, robot.n_joints)).astype(np.float32)
     want = np.stack([points_at(model, robot.joint_names, r, points, base) for r in q])
-    assert np.abs(np.asarray(fk.points(q)) - want).max() < 2e-6  # m, float32 chains of ~1 m
+    # jitted, as the IK runs them (eager, every primitive compiled apart: ~10 s of a CPU)
+    fk_points = jax.jit(fk.points)
+    assert np.abs(np.asarray(fk_points(q)) - want).max() < 2e-6  # m, float32 chains of ~1 m
     # the analytic Jacobian against forward-mode differentiation, joints moving the base too
     cols = tuple(range(robot.n_joints))
-    p, jac = fk.jacobian(q[:8], cols)
-    ref = jax.vmap(jax.jacfwd(fk.points))(jnp.asarray(q[:8]))
+    p, jac = jax.jit(fk.jacobian, static_argnums=1)(q[:8], cols)
+    ref = jax.jit(jax.vmap(jax.jacfwd(fk.points)))(jnp.asarray(q[:8]))
     assert np.abs(np.asarray(jac) - np.asarray(ref)).max() < 1e-5
-    assert np.array_equal(np.asarray(p), np.asarray(fk.points(q[:8])))
+    assert np.array_equal(np.asarray(p), np.asarray(fk_points(q[:8])))
     # the generic IK's form: some points' derivatives only, a padding column (-1) all zeros
     frame, axis, anchor, sign = fk.columns((*cols[:3], -1))
     moved = np.array([len(points) - 1, 0])
-    pm, dm = fk.jacobian_columns(q[:8], frame, axis, anchor, sign[:, moved], moved=moved)
+    columns = jax.jit(fk.jacobian_columns)
+    pm, dm = columns(q[:8], frame, axis, anchor, sign[:, moved], moved)
     assert np.array_equal(np.asarray(pm), np.asarray(p))
     assert np.abs(np.asarray(dm)[..., :3] - np.asarray(jac)[:, moved, :, :3]).max() < 1e-6
     assert not np.asarray(dm)[..., 3].any()
