@@ -308,7 +308,8 @@ def add_data_options(
     parser.add_argument(
         "--data",
         default="bundled",
-        help="'bundled'/'msr', 'utkinect' or a folder; several joined by '+' (e.g. "
+        help="'bundled'/'msr', 'utkinect', a folder, a recording or @LIST (a text file of "
+        "recordings, one a line); several joined by '+' (e.g. "
         "bundled+utkinect, bundled+FOLDER: a model should hold frames of the capture set-up it "
         "will serve, docs/results.md)",
     )
@@ -419,9 +420,11 @@ def load_data(
 ) -> tuple[list, Any]:
     """Recordings of ``--data`` and, for a folder, its ``datasets.FolderContents`` (else
     ``None``). ``--subjects`` defaults to the MSR Action3D protocol's ``split`` (train / test
-    subjects) on the bundled MSR data, to every recording elsewhere. Several sources joined by
-    ``+`` (``bundled+utkinect``, ``bundled+/my/recordings``; at most one folder) give all their
-    recordings, ``--subjects`` applied to each. For a folder, what was
+    subjects) on the bundled MSR data, to every recording elsewhere. A recording file, or
+    ``@LIST`` (a text file naming recordings, one a line: ``batch.expand``'s rules), is read as
+    a folder of those files (``datasets.load_files``). Several sources joined by ``+``
+    (``bundled+utkinect``, ``bundled+/my/recordings``; at most one folder, file or list) give
+    all their recordings, ``--subjects`` applied to each. For a folder, what was
     skipped (not a recording), left out (``--subjects``) or unreadable is noted on stderr;
     an unreadable recording stops the command only with ``--strict``."""
     from jaxproj._internal.progress import bar
@@ -437,7 +440,9 @@ def load_data(
             more, contents = load_data(part, subjects, split, strict, bvh_map)
             if contents is not None:
                 if folder is not None:
-                    raise ConfigError(f"--data {data}: at most one folder among the sources")
+                    raise ConfigError(
+                        f"--data {data}: at most one folder, file or list among the sources"
+                    )
                 folder = contents
             seqs += more
         return seqs, folder
@@ -445,6 +450,20 @@ def load_data(
         subjects = list(datasets.TRAIN_SUBJECTS if split == "train" else datasets.TEST_SUBJECTS)
     if data in ("bundled", "msr", "utkinect"):
         return datasets.load_sequences(data, subjects), None
+    if data.startswith("@") or Path(data).is_file():
+        from jaxproj.cli.batch import expand
+
+        contents = datasets.load_files(
+            [f for f, _ in expand([data])],
+            subjects,
+            where=data,
+            strict=strict,
+            progress=lambda files: bar(files, "reading recordings"),
+            bvh_map=bvh_map,
+        )
+        for line in contents.notes():
+            log(f"jaxproj: note: {line}")
+        return contents.sequences, contents
     contents = datasets.load_folder(
         data,
         subjects,

@@ -3,7 +3,8 @@
 - Loading the bundled data (``jaxproj.io.bundled``): ``msr_action3d`` (MSR Action3D, 567
   sequences), ``utkinect_action3d`` (a UTKinect-Action3D subset), ``dataset_summary``, the
   archive paths and the action / subject constants; the archive layouts are documented there.
-- Folders of recordings (``jaxproj.io.folders``): ``load_folder``, ``FolderContents``.
+- Folders of recordings (``jaxproj.io.folders``): ``load_folder``, ``load_files``,
+  ``FolderContents``.
 - ``load_sequences``: either of them by one name (``--data``).
 - ``training_sequences``: the default model's training recordings (MSR Action3D subjects
   1,3,5,7,9 and the UTKinect-Action3D people 3, 4, 6); ``utkinect_held_out``: the UTKinect
@@ -48,7 +49,7 @@ from jaxproj.io.bundled import (
     utkinect_action3d,
 )
 from jaxproj.io.bundling import bundle_msr_action3d, bundle_utkinect_action3d, main
-from jaxproj.io.folders import FolderContents, load_folder
+from jaxproj.io.folders import FolderContents, load_files, load_folder
 from jaxproj.io.sequences import MotionSequence, sequence_times
 
 __all__ = [
@@ -74,6 +75,7 @@ __all__ = [
     "bundle_msr_action3d",
     "bundle_utkinect_action3d",
     "dataset_summary",
+    "load_files",
     "load_folder",
     "load_msr_archive",
     "load_sequences",

@@ -1,4 +1,5 @@
-"""Every recording in a folder (``load_folder``), and an account of the files that were not used.
+"""Every recording in a folder (``load_folder``) or a list of files (``load_files``), and an
+account of the files that were not used.
 
 Each file is recognised by the format registry's detection (``jaxproj.io.formats``,
 ``recording_format``) and read with ``jaxproj.io.readers.read_skeleton``.
@@ -9,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -116,16 +117,38 @@ def load_folder(
     path = Path(folder)
     if not path.is_dir():
         raise InputError(
-            path, "--data must be 'bundled', 'msr', 'utkinect' or a folder of recordings"
+            path,
+            "--data must be 'bundled', 'msr', 'utkinect', a folder of recordings, a recording "
+            "or @LIST (a text file naming recordings)",
         )
-    wanted = None if subjects is None else sorted({int(s) for s in subjects})
     files = sorted(path.iterdir(), key=lambda f: f.name)
+    return load_files(
+        files, subjects, where=path, progress=progress, strict=strict, bvh_map=bvh_map
+    )
+
+
+def load_files(
+    files: Sequence[str | os.PathLike[str]],
+    subjects: Iterable[int] | None = None,
+    *,
+    where: str | os.PathLike[str] | None = None,
+    progress: Callable[[Iterable[Path]], Iterable[Path]] | None = None,
+    strict: bool = True,
+    bvh_map: str | os.PathLike[str] | Mapping[str, str] = "auto",
+) -> FolderContents:
+    """``load_folder`` over the given files, in the given order (a recording file named on the
+    command line, or the files of an ``@LIST``): each is recognised, named, left out by
+    ``subjects`` or read by the same rules; ``where`` names them in the error when none is
+    read (default: the first file)."""
+    paths = [Path(f) for f in files]
+    path = Path(where) if where is not None else (paths[0] if paths else Path("."))
+    wanted = None if subjects is None else sorted({int(s) for s in subjects})
     seqs: list[MotionSequence] = []
     skipped: list[tuple[str, str]] = []
     left_out: list[tuple[str, int]] = []
     unreadable: list[tuple[str, str]] = []
     seen_subjects: set[int] = set()
-    for f in files if progress is None else progress(files):
+    for f in paths if progress is None else progress(paths):
         fmt, why = recording_format(f)
         if fmt is None:
             skipped.append((f.name, "a folder (not searched)" if f.is_dir() else why))

@@ -176,3 +176,27 @@ def test_two_processes_write_the_files_one_writes(data: Path, tmp_path: Path) ->
     for name in names:
         a, b = load_motion(tmp_path / "one" / name), load_motion(tmp_path / "two" / name)
         assert np.array_equal(a.angles, b.angles) and np.array_equal(a.times, b.times)
+
+
+def test_build_and_evaluate_read_a_recording_or_a_list_as_data(
+    data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--data FILE`` and ``--data @LIST`` (``options.load_data``, which ``build`` and
+    ``evaluate`` share): the files named, read by the folder's rules, the unreadable noted."""
+    from jaxproj.cli import options
+    from jaxproj.errors import ConfigError
+
+    listed = tmp_path / "todo.txt"
+    listed.write_text(f"# two recordings and a broken one\n{data / 'walk.csv'}\nmore/hop.csv\n"
+                      "broken.csv\n")  # fmt: skip
+    shutil.move(listed, data / "todo.txt")  # relative paths from the list's folder
+    seqs, contents = options.load_data(f"@{data / 'todo.txt'}", None, "test")
+    assert [s.name for s in seqs] == ["walk", "hop"]
+    assert [name for name, _ in contents.unreadable] == ["broken.csv"]
+    assert "unreadable recording, not used" in capsys.readouterr().err
+    seqs, _ = options.load_data(str(data / "hop_smpl.npz"), None, "test")
+    assert [s.name for s in seqs] == ["hop_smpl"] and len(seqs[0].positions) == 30
+    with pytest.raises(ConfigError, match="no such list file"):
+        options.load_data(f"@{data / 'todo.txt'}+@{tmp_path / 'none.txt'}", None, "test")
+    with pytest.raises(ConfigError, match="at most one folder, file or list"):
+        options.load_data(f"{data / 'walk.csv'}+{data / 'hop_smpl.npz'}", None, "test")
