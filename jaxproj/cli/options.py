@@ -450,27 +450,18 @@ def load_data(
         subjects = list(datasets.TRAIN_SUBJECTS if split == "train" else datasets.TEST_SUBJECTS)
     if data in ("bundled", "msr", "utkinect"):
         return datasets.load_sequences(data, subjects), None
-    if data.startswith("@") or Path(data).is_file():
+    read = lambda files: bar(files, "reading recordings")  # noqa: E731
+    if data.startswith("@") or Path(data).is_file():  # a recording, or a list of them
         from jaxproj.cli.batch import expand
 
+        files = [f for f, _ in expand([data])]
         contents = datasets.load_files(
-            [f for f, _ in expand([data])],
-            subjects,
-            where=data,
-            strict=strict,
-            progress=lambda files: bar(files, "reading recordings"),
-            bvh_map=bvh_map,
+            files, subjects, where=data, strict=strict, progress=read, bvh_map=bvh_map
         )
-        for line in contents.notes():
-            log(f"jaxproj: note: {line}")
-        return contents.sequences, contents
-    contents = datasets.load_folder(
-        data,
-        subjects,
-        strict=strict,
-        progress=lambda files: bar(files, "reading recordings"),
-        bvh_map=bvh_map,
-    )
+    else:
+        contents = datasets.load_folder(
+            data, subjects, strict=strict, progress=read, bvh_map=bvh_map
+        )
     for line in contents.notes():
         log(f"jaxproj: note: {line}")
     return contents.sequences, contents

@@ -349,9 +349,9 @@ def default_batch_size(
 ) -> int:
     """``project``'s batch when it is not given: ``DEFAULT_BATCH`` for the platform of
     ``devices`` (``None``: the default backend) times their number, so that each device gets
-    the batch one device would (measured on 2 x H200, NAO default model, relaxed: 65,536
-    queries split in two halves ran 1.70x one device, where each device's own 65,536 ran
-    faster; issue 61); for ``n_queries`` fewer than that, the next power of two ``>=
+    the batch one device would (measured on 2 x H200 with the default model, relaxed: 1.63x
+    one device so, 1.70x with 65,536 queries split in two halves, in another run: no gain
+    shown either way; issue 61); for ``n_queries`` fewer than that, the next power of two ``>=
     n_queries`` (at least ``MIN_BATCH``, a multiple of the device count), so that a short call
     is not padded to a whole default batch (64 queries on a CPU: 64x less work than 4096)."""
     platform = platform_of(devices)
@@ -475,9 +475,7 @@ def project(
         # transfer out right after it, so both overlap the device's work on the batches around
         # them (one transfer of the whole array each way waited for all of it first); only the
         # last batch is padded, on its own
-        part = h[s : s + batch_size]
-        if len(part) < batch_size:
-            part = np.concatenate([part, np.repeat(filler, batch_size - len(part), axis=0)])
+        part = _padded(h[s : s + batch_size], batch_size, filler)
         if isinstance(place, Mesh):
             x = jax.device_put(part, NamedSharding(place, PartitionSpec("batch")))
             out = project_sharded(p, x, mesh=place, **kw)
@@ -515,9 +513,7 @@ def _project_per_device(
         q, d = jax.device_put(p, devices[i]), devices[i]
         outs = []
         for s in starts:
-            part = h[s + i * share : min(s + (i + 1) * share, cut)]
-            if len(part) < share:
-                part = np.concatenate([part, np.repeat(filler, share - len(part), axis=0)])
+            part = _padded(h[s + i * share : min(s + (i + 1) * share, cut)], share, filler)
             out = project_chunk(q, jax.device_put(part, d), **kw)
             for a in out:
                 a.copy_to_host_async()
@@ -552,6 +548,13 @@ def calibrated(model: Model, descriptors: np.ndarray) -> Model:
     _, v = project(model, d[rows], "relaxed", n_l=k, n_m=k, batch_size=CALIBRATION_FRAMES)
     return replace(model, deviation_scale=max(float(np.percentile(np.asarray(v), 90)), 1e-6)
                    * HELD_OUT_RATIO)  # fmt: skip
+
+
+def _padded(part: np.ndarray, size: int, filler: np.ndarray) -> np.ndarray:
+    """``part`` (``(k, m)``, ``k <= size``) with ``filler`` rows appended up to ``size``."""
+    if len(part) == size:
+        return part
+    return np.concatenate([part, np.repeat(filler, size - len(part), axis=0)])
 
 
 def _padding_query(p: AnyProjector) -> np.ndarray:
