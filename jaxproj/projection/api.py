@@ -19,6 +19,7 @@ the batching and device placement) are one surface a reader checks together.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
@@ -468,8 +469,9 @@ def project(
     cut = len(h)
     filler = _padding_query(p)
     if isinstance(place, Mesh) and spread == "per_device":
-        return _project_per_device(p, h, list(place.devices.flat), batch_size, filler, kw)
-    outs = []
+        return _project_per_device(p, h, list(place.devices.flat), batch_size, filler, kw, n)
+    answers = _Answers(cut, n)
+    pending: list[tuple[int, tuple[jax.Array, jax.Array]]] = []
     for s in range(0, cut, batch_size):
         # batch by batch: each batch's transfer in is issued right before its call and its
         # transfer out right after it, so both overlap the device's work on the batches around
@@ -483,10 +485,26 @@ def project(
             out = project_chunk(p, jax.device_put(part, place), **kw)
         for a in out:
             a.copy_to_host_async()
-        outs.append(out)
-    r = np.concatenate([np.asarray(o[0]) for o in outs])
-    v = np.concatenate([np.asarray(o[1]) for o in outs])
-    return r[:cut], v[:cut]
+        pending.append((s, out))
+    for s, out in pending:
+        answers.put(s, out)
+    return answers.angles, answers.value
+
+
+class _Answers:
+    """``project``'s answers, written batch by batch into arrays made once (no concatenation
+    of the whole answer at the end: on 2 x H200 that serial copy of 4 M rows was a fixed cost
+    that more devices do not share, issue 61); the padding rows past ``cut`` are dropped."""
+
+    def __init__(self, cut: int, n: int) -> None:
+        self.angles = np.empty((cut, n), np.float32)
+        self.value = np.empty((cut,), np.float32)
+
+    def put(self, start: int, out: tuple[jax.Array, jax.Array]) -> None:
+        """Write one call's ``(angles, value)`` from row ``start`` on (cut at the end)."""
+        k = max(0, min(len(self.value) - start, int(out[1].shape[0])))
+        self.angles[start : start + k] = np.asarray(out[0])[:k]
+        self.value[start : start + k] = np.asarray(out[1])[:k]
 
 
 def _project_per_device(
@@ -496,6 +514,7 @@ def _project_per_device(
     batch_size: int,
     filler: np.ndarray,
     kw: dict[str, Any],
+    n: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``project``'s loop with each batch split into one share per device, each share run by
     the one-device program on its device (the projector copied there once).
@@ -508,24 +527,38 @@ def _project_per_device(
     k, cut = len(devices), len(h)
     share = batch_size // k
     starts = range(0, cut, batch_size)
+    answers = _Answers(cut, n)
 
-    def run(i: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        q, d = jax.device_put(p, devices[i]), devices[i]
-        outs = []
+    def run(i: int) -> None:
+        q, d = _on_device(p, devices[i]), devices[i]
+        pending = []
         for s in starts:
             part = _padded(h[s + i * share : min(s + (i + 1) * share, cut)], share, filler)
             out = project_chunk(q, jax.device_put(part, d), **kw)
             for a in out:
                 a.copy_to_host_async()
-            outs.append(out)
-        return [(np.asarray(r), np.asarray(v)) for r, v in outs]
+            pending.append((s + i * share, out))
+        for s, out in pending:  # each device's thread writes its own rows, as they arrive
+            answers.put(s, out)
 
     with ThreadPoolExecutor(max_workers=k, thread_name_prefix="jaxproj-device") as pool:
-        per_device = list(pool.map(run, range(k)))
-    order = [per_device[i][b] for b in range(len(starts)) for i in range(k)]
-    r = np.concatenate([o[0] for o in order])
-    v = np.concatenate([o[1] for o in order])
-    return r[:cut], v[:cut]
+        list(pool.map(run, range(k)))
+    return answers.angles, answers.value
+
+
+_COPIES: dict[tuple[int, int], AnyProjector] = {}
+
+
+def _on_device(p: AnyProjector, device: jax.Device) -> AnyProjector:
+    """``p`` copied to ``device``, once per projector and device: the copy is kept while ``p``
+    lives (copying the default NAO model to the second of 2 H200s on every ``project`` call
+    cost more than a tenth of the call, issue 61)."""
+    key = (id(p), device.id)
+    hit = _COPIES.get(key)
+    if hit is None:
+        hit = _COPIES[key] = jax.device_put(p, device)
+        weakref.finalize(p, _COPIES.pop, key, None)
+    return hit
 
 
 def build(

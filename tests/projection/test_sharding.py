@@ -49,6 +49,8 @@ def test_per_device_programs_equal_one_device(sharded: dict) -> None:
     assert sharded["relaxed"]["per_device"]["bit_identical"]
     # full (3 fixed Adam steps): a quarter batch vmapped may fuse otherwise (float32 ulps)
     assert sharded["full"]["per_device"]["max_abs_diff"] < 1e-4
+    # the projector is copied to each device once, and the copies go with the projector
+    assert sharded["copies"] == {"after_calls": 4, "reused": True, "after_del": 0}
 
 
 def test_sharded_projection_equals_one_device(sharded: dict) -> None:

@@ -5,6 +5,7 @@ ways of spreading a batch (``spread="per_device"``, the default, and ``"shard_ma
 inspects the compiled per-device programs of the ``shard_map`` one; prints one JSON object.
 """
 
+import gc
 import json
 import os
 import sys
@@ -85,6 +86,16 @@ def main() -> None:
                 if op in text
             ],
         )
+    # the projector's copies on the devices are made once and dropped with the projector
+    copies = dict(engine._COPIES)
+    engine.project(model, h, "relaxed", n_l=4, n_m=4, batch_size=64, devices=devices)
+    out["copies"] = {
+        "after_calls": len(copies),
+        "reused": all(engine._COPIES[k] is v for k, v in copies.items()),
+    }
+    del model, p
+    gc.collect()
+    out["copies"]["after_del"] = len(engine._COPIES)
     json.dump(out, sys.stdout)
 
 
