@@ -280,6 +280,10 @@ class TrackConfig:
         direction fit, the limb 30-40 deg off for seconds (measured, UTKinect s07: the arms'
         p90 27 deg, 7 deg per frame). The pull walks it back, at most the step bound a frame.
         0 turns it off.
+      both_ways: run the pass forward and backward in time and keep, per chain and frame, the
+        one of the two outputs that follows the person's directions better over the motion,
+        switching only where a step from one to the other is within the step bound (a Viterbi
+        path over the two; ``GenericIK.track``). Offline only (streaming is causal).
       follow_error: ``e``, rad: the pull's full weight applies where the last output's worst
         row is ``e`` or more off the answer's directions, none below ``e / 2``, linear
         between: a loose joint whose answers flip while the directions stay (a straight arm's
@@ -292,6 +296,7 @@ class TrackConfig:
     step_gain: float = 1.8
     follow: float = 0.05
     follow_error: float = math.radians(10.0)
+    both_ways: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.continuity) and self.continuity > 0):
@@ -940,8 +945,112 @@ class GenericIK:
 
         standing = jnp.asarray(self.robot.standing_driven, jnp.float32)
         init = (standing, standing, h[0], jnp.asarray(False))
-        _, out = jax.lax.scan(body, init, (q, h, valid))
-        return out
+        if not cfg.both_ways:
+            _, out = jax.lax.scan(body, init, (q, h, valid))
+            return out
+        # one scan over the motion and then the motion reversed, the state reset between
+        n_t = len(q)
+        reset = jnp.arange(2 * n_t) == n_t
+
+        def body2(
+            carry: Carry, xs: tuple[jax.Array, jax.Array, jax.Array, jax.Array]
+        ) -> tuple[Carry, jax.Array]:
+            *xs3, r = xs
+            y, q_prev, h_prev, started = carry
+            return body((y, q_prev, h_prev, started & ~r), tuple(xs3))  # type: ignore[arg-type]
+
+        both = (jnp.concatenate([q, q[::-1]]), jnp.concatenate([h, h[::-1]]),
+                jnp.concatenate([valid, valid[::-1]]), reset)  # fmt: skip
+        _, out2 = jax.lax.scan(body2, init, both)
+        return self._join_ways(out2[:n_t], out2[n_t:][::-1], q, valid, h, names, cfg)
+
+    def _join_ways(
+        self,
+        fwd: jax.Array,
+        bwd: jax.Array,
+        q: jax.Array,
+        valid: jax.Array,
+        h: jax.Array,
+        names: tuple[str, ...],
+        cfg: TrackConfig,
+    ) -> jax.Array:
+        """``track``'s two outputs ``(T, n_driven)`` joined: each chain takes one of them at
+        each frame (``2^C`` combinations), by a Viterbi path that minimises the sum over valid
+        frames of the combined pose's own IK objective without its regulariser (the rows'
+        squared direction residual against the person's directions ``h``, or the answers'
+        without them, plus the collision term over every pair: two chains taken from
+        different passes may touch) and changes a chain's source between consecutive valid
+        frames only where that chain's step is within the pass's bound on each of its
+        joints."""
+        n_t = len(q)
+        standing = jnp.asarray(self.robot.standing)
+        didx = self.robot.driven_index
+        data = jax.tree.map(jnp.asarray, self.problems.data)
+        n_c = int(self.problems.data.row_mask.shape[0])
+        member_np = (np.asarray(self.problems.data.joints)[:, :, None]
+                     == np.asarray(didx)[None, None, :]).any(1)  # fmt: skip  # (C, n)
+        # each driven joint follows its first chain (a joint of no chain: the forward pass)
+        owner = np.where(member_np.any(0), member_np.argmax(0), -1)
+        bits = (np.arange(2**n_c)[:, None] >> np.arange(n_c)[None]) & 1  # (S, C)
+        src = jnp.asarray(np.where(owner[None] >= 0, bits[:, np.maximum(owner, 0)], 0) == 1)
+        # switch[s, s', j]: joint j changes pass between combination s' and s
+        switch = src[:, None, :] != src[None, :, :]  # (S, S, n)
+        mask = jnp.asarray(self.problems.data.row_mask)
+        collide = self.config.collision > 0 and bool(self.problems.has_pairs.any())
+
+        def cost(y: jax.Array, tgt: jax.Array, wt: jax.Array) -> jax.Array:  # one pose -> ()
+            p = self.problems.fk.points(standing.at[didx].set(y))
+            du = _row_directions(p, data) - tgt
+            c = jnp.sum(wt * jnp.sum(du * du, axis=-1))
+            if collide:
+                pen = jax.vmap(lambda ch: self._collision_terms(p, None, ch)[0])(data)
+                c = c + jnp.sum(pen * pen)
+            return c
+
+        if h.shape[-1] == 0:
+            dirs = jax.vmap(lambda y: _row_directions(
+                self.problems.fk.points(standing.at[didx].set(y)), data))(q)  # fmt: skip
+            tgt, wt = dirs, jnp.broadcast_to(jnp.where(mask, data.weights, 0.0), dirs.shape[:-1])
+        else:
+            tgt, wt = jax.vmap(lambda x: self._targets(x, names))(h)
+
+        def frame_costs(t: jax.Array) -> tuple[jax.Array, jax.Array]:  # (S,), (S, n)
+            poses = jnp.where(src, bwd[t][None], fwd[t][None])
+            return jax.vmap(cost, in_axes=(0, None, None))(poses, tgt[t], wt[t]), poses
+
+        member = jnp.asarray(member_np)
+        inf = jnp.float32(jnp.inf)
+        tol = np.float32(1e-4)
+        Carry = tuple[jax.Array, jax.Array, jax.Array, jax.Array, jax.Array]
+
+        def forward(carry: Carry, xs: tuple[jax.Array, ...]) -> tuple[Carry, jax.Array]:
+            v, y_last, d_last, w_last, started = carry  # (S,), (S, n), (C, R, 3), (C, R)
+            t, d_t, w_t, ok = xs
+            c_t, y_t = frame_costs(t)
+            cos = jnp.where((w_last > 0) & (w_t > 0), jnp.sum(d_last * d_t, axis=-1), 1.0)
+            turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (C,)
+            radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
+            bound = jnp.min(jnp.where(member, radius[:, None], inf), axis=0)  # (n,)
+            step = jnp.abs(y_t[:, None, :] - y_last[None, :, :])  # (S, S', n)
+            allowed = ~jnp.any(switch & (step > bound + tol), axis=-1)  # (S, S')
+            cand = jnp.where(allowed, v[None, :], inf)
+            stay = jnp.arange(len(v))
+            best = jnp.where(started, jnp.argmin(cand, axis=-1), stay)
+            v_new = c_t + jnp.where(started, jnp.min(cand, axis=-1), 0.0)
+            nxt = (jnp.where(ok, v_new, v), jnp.where(ok, y_t, y_last), jnp.where(ok, d_t, d_last),
+                   jnp.where(ok, w_t, w_last), started | ok)  # fmt: skip
+            return nxt, jnp.where(ok, best, stay)
+
+        n_s = len(bits)
+        init = (jnp.zeros((n_s,), jnp.float32), jnp.zeros((n_s, fwd.shape[-1]), jnp.float32),
+                tgt[0], wt[0], jnp.asarray(False))  # fmt: skip
+        (v_end, *_), back = jax.lax.scan(forward, init, (jnp.arange(n_t), tgt, wt, valid))
+
+        def backward(s: jax.Array, b_t: jax.Array) -> tuple[jax.Array, jax.Array]:
+            return b_t[s], s
+
+        _, path = jax.lax.scan(backward, jnp.argmin(v_end), back, reverse=True)  # (T,)
+        return jnp.where(src[path], bwd, fwd)
 
     @full_precision
     def step_bounds(
