@@ -40,7 +40,7 @@ def host_shards() -> int:
     return 1 << (n.bit_length() - 1)
 
 
-def over_rows(fn: Callable[[jax.Array], Any], shards: int) -> Callable[[jax.Array], Any]:
+def over_rows(fn: Callable[..., Any], shards: int) -> Callable[..., Any]:
     """``fn``, a function of ``(rows, ...)`` arrays whose rows do not mix, split over the first
     ``shards`` CPU devices by rows (``shard_map``; traceable, inside a ``jit`` too). The rows
     must be a multiple of ``shards`` (the buckets of ``jaxproj._internal.buckets`` are);

@@ -303,6 +303,7 @@ def finish(
     smoother: str = "paper",
     d: jax.Array | None = None,
     bones: str | tuple[str, ...] = "full",
+    shards: int = 1,
 ) -> tuple[jax.Array, jax.Array]:
     """The stages after the mapping for one motion: the robot's continuity pass
     (``Robot.continuous``) -> fill -> smooth (and ``Robot.bound_steps``) -> clip, and the
@@ -321,12 +322,13 @@ def finish(
       smoother: the ``kind`` of the settings ``gains`` came from: ``"paper"`` or ``"offline"``.
       d, bones: the person's ``(T, m)`` descriptors (of ``bones``) for the continuity pass (how
         far each limb turned), or ``None`` (the answers' own directions).
+      shards: CPU devices the continuity pass may spread over (the same answers).
 
     Returns:
       ``(filled, out)``, each ``(T, n)``: the filled motion (standing posture included with
       ``"first"``) and the playable one (filled when ``gains`` is ``None``).
     """
-    q = robot.continuous(q, valid, d, bones)
+    q = robot.continuous(q, valid, d, bones, shards)
     q = fill_invalid(q, valid)
     if standing == "first":
         q = stand_if_lost(q, valid, robot)
@@ -390,7 +392,7 @@ def motion(
     q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
                          robot=robot, shards=shards)  # fmt: skip
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,
-                  smoother=smoother or "paper", d=d, bones=bones)  # fmt: skip
+                  smoother=smoother or "paper", d=d, bones=bones, shards=shards)  # fmt: skip
     return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)
 
 

@@ -735,11 +735,18 @@ class Robot:
         valid: jax.Array,
         d: jax.Array | None = None,
         bones: str | tuple[str, ...] = "full",
+        shards: int = 1,
     ) -> jax.Array:
         """One motion's ``(T, n_driven)`` per-frame answers made continuous by ``track`` (with
         ``(T,)`` bool ``valid`` and, if given, the person's ``(T, m)`` descriptors of ``bones``:
-        how far each limb turned), or returned as they are when the robot has no such pass."""
-        return q if self.track is None else self.track(q, valid, d, bones)
+        how far each limb turned), or returned as they are when the robot has no such pass.
+        ``shards``: CPU devices the pass may spread over (passed on as ``shards=`` only when
+        more than 1; the same answers)."""
+        if self.track is None:
+            return q
+        if shards > 1:
+            return self.track(q, valid, d, bones, shards=shards)
+        return self.track(q, valid, d, bones)
 
     def bound_steps(
         self,

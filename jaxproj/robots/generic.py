@@ -80,13 +80,19 @@ class GenericSolver:
         return self.build().solve(d, bones)
 
     def track(
-        self, q: jax.Array, valid: jax.Array, d: jax.Array | None = None, bones: Bones = "full"
+        self,
+        q: jax.Array,
+        valid: jax.Array,
+        d: jax.Array | None = None,
+        bones: Bones = "full",
+        shards: int = 1,
     ) -> jax.Array:
         """``Robot.track``: ``(T, n_driven)`` per-frame answers, ``(T,)`` valid and the person's
         ``(T, m)`` descriptors (or ``None``) -> ``(T, n_driven)``, each frame re-chosen near the
         previous output among the poses with the same bone directions
-        (``GenericIK.track``). Traceable."""
-        return self.build().track(q, valid, d, bones)
+        (``GenericIK.track``; ``shards``: CPU devices it may use, the same answers).
+        Traceable."""
+        return self.build().track(q, valid, d, bones, shards=shards)
 
     def track_step(
         self,

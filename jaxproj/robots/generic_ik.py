@@ -80,6 +80,7 @@ import mujoco
 import numpy as np
 
 from jaxproj._internal.jit import full_precision
+from jaxproj._internal.shards import over_rows
 from jaxproj.errors import ConfigError
 from jaxproj.human.skeleton import BONE_NAMES, resolve_bones
 from jaxproj.robots.base import Chain, Robot
@@ -284,6 +285,8 @@ class TrackConfig:
         one of the two outputs that follows the person's directions better over the motion,
         switching only where a step from one to the other is within the step bound (a Viterbi
         path over the two; ``GenericIK.track``). Offline only (streaming is causal).
+      switch_slack: rad: a joint changes pass only with a step no larger than either pass's
+        own step into that frame plus this (and within the step bound).
       follow_error: ``e``, rad: the pull's full weight applies where the last output's worst
         row is ``e`` or more off the answer's directions, none below ``e / 2``, linear
         between: a loose joint whose answers flip while the directions stay (a straight arm's
@@ -296,7 +299,8 @@ class TrackConfig:
     step_gain: float = 1.8
     follow: float = 0.05
     follow_error: float = math.radians(10.0)
-    both_ways: bool = False
+    both_ways: bool = True
+    switch_slack: float = math.radians(3.0)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.continuity) and self.continuity > 0):
@@ -879,6 +883,7 @@ class GenericIK:
         d: jax.typing.ArrayLike | None = None,
         bones: str | tuple[str, ...] = "full",
         config: TrackConfig | None = None,
+        shards: int = 1,
     ) -> jax.Array:
         """One motion's per-frame answers made continuous: each frame's pose re-chosen, among
         the poses with (nearly) the same bone directions, near the previous output.
@@ -948,21 +953,31 @@ class GenericIK:
         if not cfg.both_ways:
             _, out = jax.lax.scan(body, init, (q, h, valid))
             return out
-        # one scan over the motion and then the motion reversed, the state reset between
         n_t = len(q)
-        reset = jnp.arange(2 * n_t) == n_t
+        if shards >= 2:  # the two ways on two CPU devices at once (the same answers)
 
-        def body2(
-            carry: Carry, xs: tuple[jax.Array, jax.Array, jax.Array, jax.Array]
-        ) -> tuple[Carry, jax.Array]:
-            *xs3, r = xs
-            y, q_prev, h_prev, started = carry
-            return body((y, q_prev, h_prev, started & ~r), tuple(xs3))  # type: ignore[arg-type]
+            def one_way(qs: jax.Array, hs: jax.Array, vs: jax.Array) -> jax.Array:
+                start = (standing, standing, hs[0, 0], jnp.asarray(False))
+                return jax.lax.scan(body, start, (qs[0], hs[0], vs[0]))[1][None]
 
-        both = (jnp.concatenate([q, q[::-1]]), jnp.concatenate([h, h[::-1]]),
-                jnp.concatenate([valid, valid[::-1]]), reset)  # fmt: skip
-        _, out2 = jax.lax.scan(body2, init, both)
-        return self._join_ways(out2[:n_t], out2[n_t:][::-1], q, valid, h, names, cfg)
+            ways = over_rows(one_way, 2)(jnp.stack([q, q[::-1]]), jnp.stack([h, h[::-1]]),
+                                         jnp.stack([valid, valid[::-1]]))  # fmt: skip
+            fwd, bwd = ways[0], ways[1][::-1]
+        else:  # one scan over the motion and then the motion reversed, the state reset between
+            reset = jnp.arange(2 * n_t) == n_t
+
+            def body2(
+                carry: Carry, xs: tuple[jax.Array, jax.Array, jax.Array, jax.Array]
+            ) -> tuple[Carry, jax.Array]:
+                *xs3, r = xs
+                y, q_prev, h_prev, started = carry
+                return body((y, q_prev, h_prev, started & ~r), tuple(xs3))  # type: ignore[arg-type]
+
+            both = (jnp.concatenate([q, q[::-1]]), jnp.concatenate([h, h[::-1]]),
+                    jnp.concatenate([valid, valid[::-1]]), reset)  # fmt: skip
+            _, out2 = jax.lax.scan(body2, init, both)
+            fwd, bwd = out2[:n_t], out2[n_t:][::-1]
+        return self._join_ways(fwd, bwd, q, valid, h, names, cfg)
 
     def _join_ways(
         self,
@@ -1027,12 +1042,18 @@ class GenericIK:
             v, y_last, d_last, w_last, started = carry  # (S,), (S, n), (C, R, 3), (C, R)
             t, d_t, w_t, ok = xs
             c_t, y_t = frame_costs(t)
+            f_t, b_t = y_t[0], y_t[-1]  # all forward, all backward
+            f_last, b_last = y_last[0], y_last[-1]
             cos = jnp.where((w_last > 0) & (w_t > 0), jnp.sum(d_last * d_t, axis=-1), 1.0)
             turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (C,)
             radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
             bound = jnp.min(jnp.where(member, radius[:, None], inf), axis=0)  # (n,)
             step = jnp.abs(y_t[:, None, :] - y_last[None, :, :])  # (S, S', n)
-            allowed = ~jnp.any(switch & (step > bound + tol), axis=-1)  # (S, S')
+            # a change of pass no larger than either pass's own step there (plus the slack):
+            # where the two outputs have (nearly) met, not halfway across a branch change
+            own = jnp.maximum(jnp.abs(f_t - f_last), jnp.abs(b_t - b_last))  # (n,)
+            cap = jnp.minimum(bound, own + np.float32(cfg.switch_slack))
+            allowed = ~jnp.any(switch & (step > cap + tol), axis=-1)  # (S, S')
             cand = jnp.where(allowed, v[None, :], inf)
             stay = jnp.arange(len(v))
             best = jnp.where(started, jnp.argmin(cand, axis=-1), stay)
