@@ -1053,7 +1053,7 @@ class GenericIK:
             # where the two outputs have (nearly) met, not halfway across a branch change
             own = jnp.maximum(jnp.abs(f_t - f_last), jnp.abs(b_t - b_last))  # (n,)
             cap = jnp.minimum(bound, own + np.float32(cfg.switch_slack))
-            allowed = ~jnp.any(switch & (step > cap + tol), axis=-1)  # (S, S')
+            allowed = ~jnp.any(switch & (step > (cap + tol)[None, None]), axis=-1)  # (S, S')
             cand = jnp.where(allowed, v[None, :], inf)
             stay = jnp.arange(len(v))
             best = jnp.where(started, jnp.argmin(cand, axis=-1), stay)

@@ -15,6 +15,7 @@ from jaxproj.io import datasets
 from jaxproj.motion import pipeline, streaming
 from jaxproj.motion.smoothing import PAPER_SMOOTHING, SmoothingParams, smooth
 from jaxproj.projection import api as engine
+from jaxproj.robots.generic_ik import TrackConfig
 from jaxproj.robots.nao_h25 import robot
 
 STANDING = robot.STANDING_POSTURE[robot.DRIVEN_INDEX]
@@ -227,9 +228,11 @@ def test_init_state(projector):
 
 def test_a_robot_with_a_continuity_pass_streams_it_as_retarget_runs_it(recordings):
     """The G1 (``Robot.track_step``): streamed frame by frame, each frame's projection goes
-    through the same continuity pass that ``retarget`` runs over the whole motion
-    (``Robot.continuous``), carried in the state. A projector whose landmarks hold random G1
-    poses makes the raw answers jump as the person moves: the pass must hold them."""
+    through the forward half of the continuity pass that ``retarget`` runs over the whole
+    motion (``GenericIK.track`` one way: ``TrackConfig(both_ways=False)``; offline, ``retarget``
+    also runs it backwards and joins the two), carried in the state. A projector whose
+    landmarks hold random G1 poses makes the raw answers jump as the person moves: the pass
+    must hold them."""
     from jaxproj import robots
 
     g1 = robots.get("unitree_g1")
@@ -252,8 +255,10 @@ def test_a_robot_with_a_continuity_pass_streams_it_as_retarget_runs_it(recording
         answers.append(np.asarray(state.answer))
     tracked, answers = np.stack(tracked), np.stack(answers)
     d = np.asarray(descriptor(pos, cfg.bones)[0])
-    whole = np.asarray(jax.jit(lambda q, d: g1.continuous(q, np.ones(len(q), bool), d, cfg.bones))(
-        answers, d))  # fmt: skip
+    one_way = TrackConfig(both_ways=False)
+    ik = g1.track.__self__.build()  # type: ignore[union-attr]  # the GenericSolver behind it
+    whole = np.asarray(jax.jit(lambda q, d: ik.track(q, np.ones(len(q), bool), d, cfg.bones,
+                                                     one_way))(answers, d))  # fmt: skip
     np.testing.assert_allclose(tracked, whole, atol=2e-4)
     # the raw answers jump between random poses; the pass moves a joint at most
     # TrackConfig.min_step (15 deg) or 1.8 times the limb's turn a frame

@@ -511,6 +511,46 @@ def test_track_holds_a_loose_joint_the_limb_does_not_justify(nao_case) -> None:
     assert max(off(out[t], smooth[t]) for t in range(10)) < 1.0
 
 
+def test_track_both_ways_joins_the_passes_per_chain_and_only_where_a_step_allows(
+    nao_case,
+) -> None:
+    """``GenericIK._join_ways`` (``TrackConfig.both_ways``, the default) on made-up passes of a
+    still person (every frame the answer ``a``; frame 2 invalid). Left arm: the forward pass
+    is on ``a`` until frame 6 and stuck 0.5 rad off in shoulder pitch after; the backward pass
+    the reverse, off until 5 and on ``a`` from 6: the two meet at ``a`` around frame 6, so the
+    join follows ``a`` on every frame. Right arm: the forward pass on ``a`` until 4 and off
+    from 5, the backward off until 5 and on ``a`` from 6: they never meet on ``a``, and a change
+    of pass would be a 0.5 rad step (over the 15 deg bound), so the whole backward pass is
+    kept (6 frames off against the forward pass's 7). Without a compile of the pass."""
+    d, _, q, _, ik, _ = nao_case
+    cfg = TrackConfig()
+    names = NAO_H25.driven_joints
+    left = [names.index(j) for j in NAO_H25.chain("left_arm").joints]
+    right = [names.index(j) for j in NAO_H25.chain("right_arm").joints]
+    lp, rp = names.index("LShoulderPitch"), names.index("RShoulderPitch")
+    n_t = 12
+    a = np.repeat(q[7][None], n_t, axis=0)
+    fwd, bwd = a.copy(), a.copy()
+    fwd[7:, lp] += 0.5
+    bwd[:6, lp] += 0.5
+    fwd[5:, rp] += 0.5
+    bwd[:6, rp] += 0.5
+    valid = np.ones(n_t, bool)
+    valid[2] = False
+    h = np.repeat(d[7][None], n_t, axis=0)
+    join = jax.jit(lambda f, b, v: ik._join_ways(f, b, jnp.asarray(a), v, jnp.asarray(h),
+                                                 skeleton.resolve_bones("upper"), cfg))  # fmt: skip
+    out = np.asarray(join(fwd, bwd, valid))
+    ok = valid
+    np.testing.assert_allclose(out[ok][:, left], a[ok][:, left], atol=1e-6)
+    np.testing.assert_array_equal(out[ok][:, right], bwd[ok][:, right])
+    # the same passes the other way round: the right arm now keeps the (new) backward pass,
+    # which is the old forward one read backwards
+    out_r = np.asarray(join(bwd[::-1], fwd[::-1], valid[::-1]))[::-1]
+    np.testing.assert_allclose(out_r[ok][:, left], a[ok][:, left], atol=1e-6)
+    np.testing.assert_array_equal(out_r[ok][:, right], bwd[ok][:, right])
+
+
 def test_mjcf_collision_pairs_are_what_mujoco_collides() -> None:
     """``mjcf_collision_pairs`` of the G1: every self-contact MuJoCo's own pipeline reports
     between two capsules or spheres, over random poses, is one of its pairs; none of its pairs
