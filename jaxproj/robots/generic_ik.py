@@ -93,6 +93,10 @@ COLLISION_ROWS = 8
 """The collision pairs of a chain whose derivatives one solver step takes: the deepest (see
 ``GenericIK._collision_terms``)."""
 
+JOIN_CHAINS = 6
+"""``track`` both ways joins chain by chain (``2^C`` combinations) for up to this many chains;
+a robot with more joins whole poses (the forward or the backward output, all chains at once)."""
+
 
 @dataclass(frozen=True)
 class BonePair:
@@ -990,7 +994,8 @@ class GenericIK:
         cfg: TrackConfig,
     ) -> jax.Array:
         """``track``'s two outputs ``(T, n_driven)`` joined: each chain takes one of them at
-        each frame (``2^C`` combinations), by a Viterbi path that minimises the sum over valid
+        each frame (``2^C`` combinations; for more than ``JOIN_CHAINS`` chains, all chains the
+        same one), by a Viterbi path that minimises the sum over valid
         frames of the combined pose's own IK objective without its regulariser (the rows'
         squared direction residual against the person's directions ``h``, or the answers'
         without them, plus the collision term over every pair: two chains taken from
@@ -1006,7 +1011,10 @@ class GenericIK:
                      == np.asarray(didx)[None, None, :]).any(1)  # fmt: skip  # (C, n)
         # each driven joint follows its first chain (a joint of no chain: the forward pass)
         owner = np.where(member_np.any(0), member_np.argmax(0), -1)
-        bits = (np.arange(2**n_c)[:, None] >> np.arange(n_c)[None]) & 1  # (S, C)
+        if n_c <= JOIN_CHAINS:
+            bits = (np.arange(2**n_c)[:, None] >> np.arange(n_c)[None]) & 1  # (S, C)
+        else:  # whole poses only: 2^C combinations would cost too much a frame
+            bits = np.repeat(np.arange(2)[:, None], n_c, axis=1)
         src = jnp.asarray(np.where(owner[None] >= 0, bits[:, np.maximum(owner, 0)], 0) == 1)
         # switch[s, s', j]: joint j changes pass between combination s' and s
         switch = src[:, None, :] != src[None, :, :]  # (S, S, n)

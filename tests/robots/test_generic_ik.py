@@ -21,7 +21,7 @@ from jaxproj.errors import ConfigError
 from jaxproj.human import skeleton
 from jaxproj.human.skeleton import UPPER_BODY
 from jaxproj.io import datasets
-from jaxproj.robots import NAO_H25, UNITREE_G1
+from jaxproj.robots import NAO_H25, UNITREE_G1, generic_ik
 from jaxproj.robots.generic_ik import (
     BonePair,
     Correspondence,
@@ -512,7 +512,7 @@ def test_track_holds_a_loose_joint_the_limb_does_not_justify(nao_case) -> None:
 
 
 def test_track_both_ways_joins_the_passes_per_chain_and_only_where_a_step_allows(
-    nao_case,
+    nao_case, monkeypatch
 ) -> None:
     """``GenericIK._join_ways`` (``TrackConfig.both_ways``, the default) on made-up passes of a
     still person (every frame the answer ``a``; frame 2 invalid). Left arm: the forward pass
@@ -538,8 +538,13 @@ def test_track_both_ways_joins_the_passes_per_chain_and_only_where_a_step_allows
     valid = np.ones(n_t, bool)
     valid[2] = False
     h = np.repeat(d[7][None], n_t, axis=0)
-    join = jax.jit(lambda f, b, v: ik._join_ways(f, b, jnp.asarray(a), v, jnp.asarray(h),
-                                                 skeleton.resolve_bones("upper"), cfg))  # fmt: skip
+    upper = skeleton.resolve_bones("upper")
+
+    def joined() -> jax.stages.Wrapped:
+        return jax.jit(lambda f, b, v: ik._join_ways(f, b, jnp.asarray(a), v, jnp.asarray(h),
+                                                     upper, cfg))  # fmt: skip
+
+    join = joined()
     out = np.asarray(join(fwd, bwd, valid))
     ok = valid
     np.testing.assert_allclose(out[ok][:, left], a[ok][:, left], atol=1e-6)
@@ -549,6 +554,11 @@ def test_track_both_ways_joins_the_passes_per_chain_and_only_where_a_step_allows
     out_r = np.asarray(join(bwd[::-1], fwd[::-1], valid[::-1]))[::-1]
     np.testing.assert_allclose(out_r[ok][:, left], a[ok][:, left], atol=1e-6)
     np.testing.assert_array_equal(out_r[ok][:, right], bwd[ok][:, right])
+    # a robot of more chains than JOIN_CHAINS joins whole poses: the right arm cannot change
+    # pass, so neither can the left, and the backward pass (10 chain-frames off, against the
+    # forward's 12) is kept whole
+    monkeypatch.setattr(generic_ik, "JOIN_CHAINS", 1)
+    np.testing.assert_array_equal(np.asarray(joined()(fwd, bwd, valid))[ok], bwd[ok])
 
 
 def test_mjcf_collision_pairs_are_what_mujoco_collides() -> None:
