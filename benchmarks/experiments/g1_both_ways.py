@@ -1,0 +1,70 @@
+"""The continuity pass both ways against one way, on the training people (issue 57).
+
+``benchmarks.g1_playable``'s measures of the default G1 output (``jaxproj retarget --robot
+unitree_g1``, the IK method) on the UTKinect-Action3D people the default model trains on (3, 4,
+6: their six recordings; ``benchmarks.experiments.g1_min_step.TRAINING``), with
+``TrackConfig.both_ways`` on (the default) and off, each in a process of its own and without the
+command line's caches (a traced program keeps the value it was traced with). The join's rules
+were chosen looking at the held-out files; these recordings were not looked at before.
+
+    python -m benchmarks.experiments.g1_both_ways [--data FOLDER] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks import g1_playable as gp
+from benchmarks.experiments.g1_min_step import KEYS, TRAINING
+from jaxproj.robots import generic_ik
+
+
+def measure(both: bool, data: Path) -> dict:
+    """The six recordings' measures with ``both_ways`` = ``both`` (in this process: call it in
+    a fresh one per value, as ``main`` does)."""
+    default = generic_ik.TrackConfig
+    # the pass reads TrackConfig() when the robot gives none: this value instead
+    generic_ik.TrackConfig = lambda: default(both_ways=both)  # type: ignore[misc]
+    with tempfile.TemporaryDirectory() as tmp:
+        # --no-cache: a kept executable is keyed by the code's bytes, not by this patch
+        rows = [gp.measure(data / f, ["--no-cache"], Path(tmp), gp.ROBOT) for f in TRAINING]
+    return {
+        "both_ways": both,
+        **{k: [r[k] for r in rows] for k in KEYS},
+        "flip_examples": [r["examples"] for r in rows],
+        "flip_sum": sum(r["flip_steps"] for r in rows),
+        "arm_p90_mean": round(float(np.mean([r["arm_p90"] for r in rows])), 2),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--data", type=Path, default=gp._SHARED / "utkinect_action3d")
+    p.add_argument("--json", default=None)
+    p.add_argument("--one", choices=("0", "1"), default=None, help=argparse.SUPPRESS)
+    a = p.parse_args(argv)
+    if a.one is not None:
+        print(json.dumps(measure(a.one == "1", a.data)))
+        return 0
+    out = []
+    for one in ("1", "0"):
+        cmd = [sys.executable, "-m", "benchmarks.experiments.g1_both_ways", "--data", str(a.data),
+               "--one", one]  # fmt: skip
+        run = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        res = json.loads(run.stdout.strip().splitlines()[-1])
+        out.append(res)
+        print(json.dumps(res), flush=True)
+    if a.json:
+        Path(a.json).write_text(json.dumps({"files": TRAINING, "rows": out}, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
