@@ -1007,8 +1007,7 @@ class GenericIK:
         didx = self.robot.driven_index
         data = jax.tree.map(jnp.asarray, self.problems.data)
         n_c = int(self.problems.data.row_mask.shape[0])
-        member_np = (np.asarray(self.problems.data.joints)[:, :, None]
-                     == np.asarray(didx)[None, None, :]).any(1)  # fmt: skip  # (C, n)
+        member_np = self._members()  # (C, n)
         # each driven joint follows its first chain (a joint of no chain: the forward pass)
         owner = np.where(member_np.any(0), member_np.argmax(0), -1)
         if n_c <= JOIN_CHAINS:
@@ -1041,7 +1040,6 @@ class GenericIK:
             poses = jnp.where(src, bwd[t][None], fwd[t][None])
             return jax.vmap(cost, in_axes=(0, None, None))(poses, tgt[t], wt[t]), poses
 
-        member = jnp.asarray(member_np)
         inf = jnp.float32(jnp.inf)
         tol = np.float32(1e-4)
         Carry = tuple[jax.Array, jax.Array, jax.Array, jax.Array, jax.Array]
@@ -1052,10 +1050,8 @@ class GenericIK:
             c_t, y_t = frame_costs(t)
             f_t, b_t = y_t[0], y_t[-1]  # all forward, all backward
             f_last, b_last = y_last[0], y_last[-1]
-            cos = jnp.where((w_last > 0) & (w_t > 0), jnp.sum(d_last * d_t, axis=-1), 1.0)
-            turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (C,)
-            radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
-            bound = jnp.min(jnp.where(member, radius[:, None], inf), axis=0)  # (n,)
+            turn = _worst_angle(jnp.sum(d_last * d_t, axis=-1), (w_last > 0) & (w_t > 0))
+            bound = self._joint_bounds(_step_radius(turn, cfg))  # (n,)
             step = jnp.abs(y_t[:, None, :] - y_last[None, :, :])  # (S, S', n)
             # a change of pass no larger than either pass's own step there (plus the slack):
             # where the two outputs have (nearly) met, not halfway across a branch change
@@ -1111,17 +1107,24 @@ class GenericIK:
         targets = jax.vmap(lambda x: self._targets(x, names))
         a, wa = targets(d[:-1])
         b, wb = targets(d[1:])
-        cos = jnp.where((wa > 0) & (wb > 0), jnp.sum(a * b, axis=-1), 1.0)
-        turn = jnp.max(jnp.arccos(jnp.clip(cos, -1.0, 1.0)), axis=-1)  # (T - 1, C)
-        radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
-        didx = np.asarray(self.robot.driven_index)
-        member = (np.asarray(self.problems.data.joints)[:, :, None] == didx[None, None, :]).any(1)
-        per_joint = jnp.min(jnp.where(jnp.asarray(member)[None], radius[..., None], jnp.inf),
-                            axis=1)  # fmt: skip
+        turn = _worst_angle(jnp.sum(a * b, axis=-1), (wa > 0) & (wb > 0))  # (T - 1, C)
+        per_joint = self._joint_bounds(_step_radius(turn, cfg))
         both = valid[1:] & valid[:-1]
         per_joint = jnp.where(both[:, None], per_joint, jnp.inf)
-        first = jnp.full((1, len(didx)), jnp.inf, jnp.float32)
+        first = jnp.full((1, self.robot.n_driven), jnp.inf, jnp.float32)
         return jnp.concatenate([first, per_joint.astype(jnp.float32)])
+
+    def _members(self) -> np.ndarray:
+        """``(C, n_driven)`` bool: which driven joints each chain moves."""
+        didx = np.asarray(self.robot.driven_index)
+        return (np.asarray(self.problems.data.joints)[:, :, None] == didx[None, None, :]).any(1)
+
+    def _joint_bounds(self, radius: jax.Array) -> jax.Array:
+        """``(..., C)`` chains' step radii -> ``(..., n_driven)``: each driven joint's, the
+        smallest of the chains that move it (``inf`` for a joint of no chain)."""
+        members = self._members()
+        member = jnp.broadcast_to(jnp.asarray(members), radius.shape[:-1] + members.shape)
+        return jnp.min(jnp.where(member, radius[..., :, None], jnp.inf), axis=-2)
 
     def _directions(self, q_full: jax.Array) -> jax.Array:
         """``(C, R, 3)`` unit row directions of every chain at ``(n_joints,)`` ``q_full``
@@ -1157,11 +1160,8 @@ class GenericIK:
         t = self._directions(q_full)  # (C, R, 3): every chain's targets at once
         mask = jnp.asarray(self.problems.data.row_mask)
 
-        def worst_row(cos: jax.Array, use: jax.Array) -> jax.Array:  # (C,) rad
-            return jnp.max(jnp.arccos(jnp.clip(jnp.where(use, cos, 1.0), -1.0, 1.0)), axis=-1)
-
         def off_targets(q: jax.Array) -> jax.Array:  # (C,) rad: q's rows against t's
-            return worst_row(jnp.sum(self._directions(q) * t, axis=-1), mask)
+            return _worst_angle(jnp.sum(self._directions(q) * t, axis=-1), mask)
 
         if human is None:
             turn = off_targets(standing.at[didx].set(q_prev))
@@ -1169,8 +1169,8 @@ class GenericIK:
             h_prev, h_t, names = human
             a, wa = self._targets(h_prev, names)
             b, wb = self._targets(h_t, names)
-            turn = worst_row(jnp.sum(a * b, axis=-1), (wa > 0) & (wb > 0))
-        radius = jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
+            turn = _worst_angle(jnp.sum(a * b, axis=-1), (wa > 0) & (wb > 0))
+        radius = _step_radius(turn, cfg)
         sc = np.float32(math.sqrt(cfg.continuity))
         # the pull toward the answer, per chain: by how far the last output is off its rows
         half = np.float32(cfg.follow_error / 2)
@@ -1213,6 +1213,18 @@ class GenericIK:
         """``(..., 3 * n_bones)`` descriptors -> ``(..., n_driven)`` float32 angles, rad, within
         limits, finite (``solve_info`` without the diagnostics). Traceable."""
         return self.solve_info(d, bones)[0]
+
+
+def _worst_angle(cos: jax.Array, use: jax.Array) -> jax.Array:
+    """``(..., C, R)`` cosines between two sets of row directions -> ``(..., C)`` rad: each
+    chain's largest angle over the rows ``use`` keeps (0 for a chain with none)."""
+    return jnp.max(jnp.arccos(jnp.clip(jnp.where(use, cos, 1.0), -1.0, 1.0)), axis=-1)
+
+
+def _step_radius(turn: jax.Array, cfg: TrackConfig) -> jax.Array:
+    """How far a chain's joints may move in one frame (``track``'s trust region): ``max(r_0,
+    g * turn)`` of the ``(..., C)`` limb turns, rad."""
+    return jnp.maximum(np.float32(cfg.min_step), np.float32(cfg.step_gain) * turn)
 
 
 def _row_directions(p: jax.Array, c: _ChainData[Any]) -> jax.Array:
