@@ -14,34 +14,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from benchmarks import g1_playable as gp
-from benchmarks.experiments.g1_min_step import KEYS, TRAINING
-from jaxproj.robots import generic_ik
+from benchmarks.experiments.g1_min_step import TRAINING, in_children, summary, training_rows
 
 
 def measure(both: bool, data: Path) -> dict:
-    """The six recordings' measures with ``both_ways`` = ``both`` (in this process: call it in
-    a fresh one per value, as ``main`` does)."""
-    default = generic_ik.TrackConfig
-    # the pass reads TrackConfig() when the robot gives none: this value instead
-    generic_ik.TrackConfig = lambda: default(both_ways=both)  # type: ignore[misc]
-    with tempfile.TemporaryDirectory() as tmp:
-        # --no-cache: a kept executable is keyed by the code's bytes, not by this patch
-        rows = [gp.measure(data / f, ["--no-cache"], Path(tmp), gp.ROBOT) for f in TRAINING]
-    return {
-        "both_ways": both,
-        **{k: [r[k] for r in rows] for k in KEYS},
-        "flip_examples": [r["examples"] for r in rows],
-        "flip_sum": sum(r["flip_steps"] for r in rows),
-        "arm_p90_mean": round(float(np.mean([r["arm_p90"] for r in rows])), 2),
-    }
+    """The six recordings' measures with ``both_ways`` = ``both`` (``training_rows``)."""
+    rows = training_rows(data, both_ways=both)
+    return {"both_ways": both, **summary(rows), "flip_examples": [r["examples"] for r in rows]}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -53,14 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.one is not None:
         print(json.dumps(measure(a.one == "1", a.data)))
         return 0
-    out = []
-    for one in ("1", "0"):
-        cmd = [sys.executable, "-m", "benchmarks.experiments.g1_both_ways", "--data", str(a.data),
-               "--one", one]  # fmt: skip
-        run = subprocess.run(cmd, capture_output=True, text=True, check=True)
-        res = json.loads(run.stdout.strip().splitlines()[-1])
-        out.append(res)
-        print(json.dumps(res), flush=True)
+    out = in_children("benchmarks.experiments.g1_both_ways", a.data, ["1", "0"])
     if a.json:
         Path(a.json).write_text(json.dumps({"files": TRAINING, "rows": out}, indent=1) + "\n")
     return 0

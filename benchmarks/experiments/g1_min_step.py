@@ -33,17 +33,42 @@ KEYS = ("flip_steps", "catch_up_steps", "steps_over_20", "steps_over_90", "conta
         "arm_median", "arm_p90")  # fmt: skip
 
 
-def measure(deg: float, data: Path) -> dict:
-    """The six recordings' measures with ``min_step`` = ``deg`` (in this process: call it in a
-    fresh one per value, as ``main`` does; a traced program keeps the value it was traced with)."""
+def training_rows(data: Path, **track: object) -> list[dict]:
+    """``g1_playable.measure`` of the six training recordings with ``TrackConfig`` fields
+    ``track`` set (in this process: call it in a fresh one per setting, as ``in_children``
+    does; a traced program keeps the value it was traced with)."""
     default = generic_ik.TrackConfig
-    # the pass reads TrackConfig() when the robot gives none: this value instead
-    generic_ik.TrackConfig = lambda: default(min_step=math.radians(deg))  # type: ignore[misc]
-    with tempfile.TemporaryDirectory() as tmp:
-        # --no-cache: a kept executable is keyed by the code's bytes, not by this patch
-        rows = [gp.measure(data / f, ["--no-cache"], Path(tmp), gp.ROBOT) for f in TRAINING]
+    # the pass reads TrackConfig() when the robot gives none: this setting instead
+    generic_ik.TrackConfig = lambda: default(**track)  # type: ignore[misc,arg-type]
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            # --no-cache: a kept executable is keyed by the code's bytes, not by this patch
+            return [gp.measure(data / f, ["--no-cache"], Path(tmp), gp.ROBOT) for f in TRAINING]
+    finally:
+        generic_ik.TrackConfig = default  # type: ignore[misc]
+
+
+def in_children(module: str, data: Path, values: list[str]) -> list[dict]:
+    """``python -m module --data data --one v`` for each of ``values``, each in a process of
+    its own; the JSON line each prints last, printed as it comes and returned in order."""
+    out = []
+    for v in values:
+        cmd = [sys.executable, "-m", module, "--data", str(data), "--one", v]
+        run = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        res = json.loads(run.stdout.strip().splitlines()[-1])
+        out.append(res)
+        print(json.dumps(res), flush=True)
+    return out
+
+
+def measure(deg: float, data: Path) -> dict:
+    """The six recordings' measures with ``min_step`` = ``deg`` (``training_rows``)."""
+    return {"min_step_deg": deg, **summary(training_rows(data, min_step=math.radians(deg)))}
+
+
+def summary(rows: list[dict]) -> dict:
+    """``KEYS`` per recording, and the flips' sum and the arms' p90 mean over them."""
     return {
-        "min_step_deg": deg,
         **{k: [r[k] for r in rows] for k in KEYS},
         "flip_sum": sum(r["flip_steps"] for r in rows),
         "arm_p90_mean": round(float(np.mean([r["arm_p90"] for r in rows])), 2),
@@ -60,14 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.one is not None:
         print(json.dumps(measure(a.one, a.data)))
         return 0
-    out = []
-    for deg in (float(s) for s in a.steps.split(",")):
-        cmd = [sys.executable, "-m", "benchmarks.experiments.g1_min_step", "--data", str(a.data),
-               "--one", str(deg)]  # fmt: skip
-        run = subprocess.run(cmd, capture_output=True, text=True, check=True)
-        res = json.loads(run.stdout.strip().splitlines()[-1])
-        out.append(res)
-        print(json.dumps(res), flush=True)
+    steps = [str(float(s)) for s in a.steps.split(",")]
+    out = in_children("benchmarks.experiments.g1_min_step", a.data, steps)
     if a.json:
         Path(a.json).write_text(json.dumps({"files": TRAINING, "rows": out}, indent=1) + "\n")
     return 0
