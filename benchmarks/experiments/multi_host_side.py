@@ -1,10 +1,10 @@
 """Where the time of the relaxed projection on several GPUs goes (issue 61): ``project`` on one
 device and on N, against the same work with the host left out step by step.
 
-    python -m benchmarks.experiments.multi_host_side [--robot nao_h25] [--queries 4194304]
-        [--json OUT]
+    python -m benchmarks.experiments.multi_host_side [--robot nao_h25] [--model M.npz]
+        [--queries 4194304] [--json OUT]
 
-The robot's default model, held-out MSR queries tiled to ``--queries`` (as
+The robot's default model (or ``--model``), held-out MSR queries tiled to ``--queries`` (as
 ``benchmarks.bench_multi_device``), relaxed L = M = 10, the default batch of one device
 (``B``) per device. Timed (median of 3 after a first call):
 
@@ -49,15 +49,19 @@ def _median(fn, repeats: int = 3) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default=robots.DEFAULT, choices=robots.names())
+    ap.add_argument("--model", help="the robot's model (else built as jaxproj build builds it)")
     ap.add_argument("--queries", type=int, default=1 << 22)
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     devs = jax.devices()
     k = len(devs)
-    cfg = engine.BuildConfig(robot=args.robot)
     t0 = time.perf_counter()
-    train = datasets.training_sequences(cfg.utkinect_people)
-    model = engine.build(datasets.valid_descriptors(train, bones=cfg.bones), cfg)
+    if args.model:
+        model = engine.load(args.model)
+    else:
+        cfg = engine.BuildConfig(robot=args.robot)
+        train = datasets.training_sequences(cfg.utkinect_people)
+        model = engine.build(datasets.valid_descriptors(train, bones=cfg.bones), cfg)
     out: dict = {"header": header(devs[0]), "robot": args.robot, "devices": k,
                  "model_s": time.perf_counter() - t0, "queries": args.queries}  # fmt: skip
     test_seqs = datasets.msr_action3d(subjects=list(TEST_SUBJECTS))
