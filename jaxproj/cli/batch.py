@@ -1,11 +1,16 @@
 """``jaxproj retarget`` over many recordings: a batch, one process, one output folder.
 
 ``jaxproj retarget A.bvh B.csv FOLDER @LIST --out OUT/`` retargets every recording the inputs
-name, one after another, in this process: the model is read once (``retarget.load_model``) and
+name in this process: the model is read once (``retarget.load_model``) and
 every compiled program serves every recording whose length falls in the same shape bucket
 (``jaxproj._internal.buckets``), so the per-file compile that one command per file pays is paid
 once per bucket (with the persistent compilation cache across runs too, ``jaxproj.cli.cache``).
 
+* **Packed** (``run``'s ``many``: ``retarget.retarget_files``): up to ``PACK_RECORDINGS``
+  recordings are read, then retargeted together (``jaxproj.motion.retarget.retarget_many``:
+  the recordings of one length bucket in one compiled call, their feasibility filters in one
+  batch), then written; each recording's output is its own command's up to float rounding.
+  A round that fails as a whole is done again one recording at a time.
 * **Inputs** (``expand``): a file; a folder: every recording in it and its sub-folders (the
   folder rules of ``jaxproj.io.readers.recording_format``: documentation, labels and models are
   left out), sorted by path; ``@LIST``: a text file of paths, one a line (blank lines and lines
@@ -150,11 +155,21 @@ def share(todo: list[tuple[Path, Path]], count: int, index: int) -> list[tuple[P
     return todo[index::count]
 
 
-def run(args: argparse.Namespace, one: Callable[[argparse.Namespace], dict[str, Any]]) -> int:
+PACK_RECORDINGS = 1024
+"""Recordings read, retargeted together (``many``) and written per round of a batch."""
+
+
+def run(
+    args: argparse.Namespace,
+    one: Callable[[argparse.Namespace], dict[str, Any]],
+    many: Callable[[list[argparse.Namespace]], list[dict[str, Any] | Exception]] | None = None,
+) -> int:
     """The batch (module doc): ``one(args)`` retargets one recording (``args.input``) to one
-    file (``args.out``) and returns its table row. With ``--processes`` this process joins JAX's
-    multi-process runtime (``jax.distributed.initialize``, before any JAX computation) and
-    takes its share (``share``)."""
+    file (``args.out``) and returns its table row; ``many`` (where given) does so for up to
+    ``PACK_RECORDINGS`` at once, returning each one's row or exception (a round that fails as
+    a whole is done again with ``one``, recording by recording). With ``--processes`` this
+    process joins JAX's multi-process runtime (``jax.distributed.initialize``, before any JAX
+    computation) and takes its share (``share``)."""
     if args.plot is not None:
         raise ConfigError("--plot draws one recording: leave it out of a batch")
     multi = processes(args.processes)
@@ -170,27 +185,59 @@ def run(args: argparse.Namespace, one: Callable[[argparse.Namespace], dict[str, 
     rows: list[tuple[str, dict[str, Any]]] = []
     failed: list[tuple[Path, str]] = []
     start = time.perf_counter()
-    for i, (src, dst) in enumerate(todo, start=1):
+
+    def each_args(src: Path, dst: Path) -> argparse.Namespace:
         dst.parent.mkdir(parents=True, exist_ok=True)
         each = copy.copy(args)
         each.input, each.out, each.force = str(src), str(dst), True
-        t0 = time.perf_counter()
-        try:
-            row = one(each)
-        except Exception as err:  # a batch never dies halfway: each failure is reported
-            text = " ".join(str(err).split())
-            message = text if isinstance(err, JaxprojError) else f"{type(err).__name__}: {text}"
+        return each
+
+    def report(i: int, src: Path, got: dict[str, Any] | Exception, dt: float) -> None:
+        if isinstance(got, Exception):
+            text = " ".join(str(got).split())
+            message = text if isinstance(got, JaxprojError) else f"{type(got).__name__}: {text}"
             message = message.removeprefix(f"{src}: ")  # the file is named once
             failed.append((src, message))
             print(f"[{i}/{len(todo)}] {src}: failed: {message}", file=sys.stderr, flush=True)
-            continue
-        dt = time.perf_counter() - t0
-        row["wall_s"] = dt
-        rows.append((str(src), row))
-        rate = row["frames"] / max(dt, 1e-9)
-        line = f"[{i}/{len(todo)}] {src}: {row['frames']:,} frames in {dt:.1f} s"
+            return
+        got["wall_s"] = dt
+        rows.append((str(src), got))
+        rate = got["frames"] / max(dt, 1e-9)
+        line = f"[{i}/{len(todo)}] {src}: {got['frames']:,} frames in {dt:.1f} s"
         line += f" ({rate:,.0f} frames/s)"
         print(line, file=sys.stderr, flush=True)
+
+    def alone(each: argparse.Namespace) -> tuple[dict[str, Any] | Exception, float]:
+        t0 = time.perf_counter()
+        try:
+            return one(each), time.perf_counter() - t0
+        except Exception as err:  # a batch never dies halfway: each failure is reported
+            return err, time.perf_counter() - t0
+
+    step = PACK_RECORDINGS if many is not None else 1
+    for r in range(0, len(todo), step):
+        chunk = todo[r : r + step]
+        argss = [each_args(src, dst) for src, dst in chunk]
+        t0 = time.perf_counter()
+        got: list[dict[str, Any] | Exception] | None = None
+        if many is not None:
+            print(f"[{r + 1}-{r + len(chunk)}/{len(todo)}] reading and retargeting "
+                  f"{len(chunk)} recordings together", file=sys.stderr, flush=True)  # fmt: skip
+            try:
+                got = many(argss)
+            except Exception:  # noqa: BLE001 (the round again, one recording at a time)
+                got = None
+        if got is None:
+            for k, each in enumerate(argss):
+                res, dt = alone(each)
+                report(r + k + 1, chunk[k][0], res, dt)
+            continue
+        # a round's time, shared by its recordings in proportion to their frames
+        wall_round = time.perf_counter() - t0
+        frames = [g["frames"] if isinstance(g, dict) else 0 for g in got]
+        total = max(sum(frames), 1)
+        for k, res in enumerate(got):
+            report(r + k + 1, chunk[k][0], res, wall_round * frames[k] / total)
     wall = time.perf_counter() - start
     print(summary(rows, failed, skipped, n, wall))
     for src, message in failed:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -67,8 +68,8 @@ def add_parsers(sub: Any) -> None:
         nargs="+",
         help=f"recording, one of the formats {', '.join(format_names())}; or several: files, "
         "folders (their recordings, sub-folders too) and @LIST files (one path a line), "
-        "retarget one after another in this process into the folder --out (a batch: docs: "
-        "Command line)",
+        "retargeted in this process, recordings of one length packed into one compiled "
+        "call, into the folder --out (a batch: docs: Command line)",
     )
     pr.add_argument(
         "--out",
@@ -92,6 +93,13 @@ def add_parsers(sub: Any) -> None:
         "(jax.distributed) with its coordinator at HOST:PORT (process 0's host), N processes, "
         "this one number I (0..N-1); each takes every N-th recording from the I-th (docs: "
         "Several GPUs and hosts)",
+    )
+    pr.add_argument(
+        "--no-pack",
+        action="store_true",
+        help="a batch: retarget its recordings one at a time (each output then equals its own "
+        "command's to the bit; packed, recordings of one length share a compiled call, and "
+        "rounding can differ: docs: Command line)",
     )
     pr.add_argument(
         "--resume",
@@ -215,9 +223,11 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.cli import batch
 
     if batch.is_batch(args.input):
-        return batch.run(args, retarget_file)
+        return batch.run(args, retarget_file, None if args.no_pack else retarget_files)
     if args.processes is not None:
         raise ConfigError("--processes splits a batch: give several recordings or a folder")
+    if args.no_pack:
+        raise ConfigError("--no-pack is a batch's: give several recordings or a folder")
     args.input = args.input[0]
     retarget_file(args)
     return 0
@@ -227,17 +237,74 @@ def retarget_file(args: argparse.Namespace) -> dict[str, Any]:
     """One recording (``args.input``) to one motion file (``args.out``), with the command's
     summary lines; returns what a batch's table shows: ``frames``, ``valid``, ``seconds`` (of
     the motion) and ``low_confidence`` (the share of valid frames, or ``None`` for the IK)."""
+    from jaxproj.motion.retarget import retarget
+
+    prep = _prepare(args)
+    try:
+        result = retarget(prep.rec.positions, prep.rec.valid, times=prep.rec.times,
+                          skeleton=prep.rec.skeleton, **_retarget_options(args, prep))  # fmt: skip
+    except NoValidFrameError as e:
+        raise _no_valid_frame(args, prep, e) from None
+    return _write(args, prep, result)
+
+
+def retarget_files(each: list[argparse.Namespace]) -> list[dict[str, Any] | Exception]:
+    """``retarget_file`` of several recordings with one setting (a batch's: the arguments
+    differ in ``input`` and ``out`` alone), their retargeting packed into few compiled calls
+    (``jaxproj.motion.retarget.retarget_many``). One entry per recording, in order: its table
+    row, or the exception ``retarget_file`` would have raised for it."""
+    from jaxproj.motion.retarget import retarget_many
+
+    out: list[Any] = [None] * len(each)
+    ready: list[tuple[int, _Prepared]] = []
+    for i, args in enumerate(each):
+        try:
+            ready.append((i, _prepare(args)))
+        except Exception as err:  # noqa: BLE001 (the batch reports it with the file)
+            out[i] = err
+    if not ready:
+        return out
+    first_args, first = each[ready[0][0]], ready[0][1]
+    recs = [prep.rec for _, prep in ready]
+    results = retarget_many([r.positions for r in recs], [r.valid for r in recs],
+                            [r.times for r in recs], [r.skeleton for r in recs],
+                            **_retarget_options(first_args, first))  # fmt: skip
+    for (i, prep), result in zip(ready, results, strict=True):
+        try:
+            if isinstance(result, NoValidFrameError):
+                raise _no_valid_frame(each[i], prep, result)
+            if isinstance(result, Exception):
+                raise result
+            out[i] = _write(each[i], prep, result)
+        except Exception as err:  # noqa: BLE001 (the batch reports it with the file)
+            out[i] = err
+    return out
+
+
+@dataclass
+class _Prepared:
+    """A recording read and its output checked (``retarget_file``'s first half)."""
+
+    robot: robots.Robot
+    bones: Any
+    mirror: bool
+    out: Path
+    ext: str
+    joints: str
+    plot: Path | None
+    rec: Any
+    model: Any
+
+
+def _prepare(args: argparse.Namespace) -> _Prepared:
+    """Every check that needs no computation first (the options, the model's metadata, not
+    its arrays, and the output paths), then the recording and the model's arrays."""
     from jaxproj.cli import batch
     from jaxproj.human import upper_body
     from jaxproj.io import motion_files
-    from jaxproj.io.motion_files import Motion, save_motion
     from jaxproj.io.readers import read_skeleton
-    from jaxproj.motion import feasible
-    from jaxproj.motion.retarget import MIN_VALID_SHARE, no_valid_frame_problem, retarget
     from jaxproj.projection import api as engine
 
-    # every check that needs no computation first: the options, the model's metadata (not its
-    # arrays) and the output paths; then the recording, the model's arrays, the retargeting
     robot, bones, mirror = _settings(args, engine)
     inputs = {"the recording": args.input, "--model": args.model}
     out = options.output_path(
@@ -283,34 +350,55 @@ def retarget_file(args: argparse.Namespace) -> dict[str, Any]:
     if args.method != "ik":
         model = batch.load_model(args.model)
         engine.check_neighbours(model, args.L, args.M)
-    try:
-        result = retarget(
-            rec.positions,
-            rec.valid,
-            model=model,
-            method=args.method,
-            n_l=args.L,
-            n_m=args.M,
-            bones=bones,
-            mirror=mirror,
-            smoothing=options.smoothing(args.smoother),
-            times=rec.times,
-            feasible=feasible.FeasibleConfig(speeds=args.speeds) if args.feasible else None,
-            full=FULL_READINGS[args.full_reading],
-            robot=None if model is not None else robot,
-            skeleton=rec.skeleton,
-            level_legs=args.root == "fixed",
-        )
-    except NoValidFrameError as e:  # name the file (and the option that most often causes it)
-        hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""
-        problem = e.problem
-        if rec.invalid_reason:  # the reader says why it marked frames (MediaPipe: visibility)
-            import numpy as np
+    return _Prepared(robot, bones, mirror, out, ext, joints, plot, rec, model)
 
-            finite = np.isfinite(rec.positions).all(axis=(1, 2))
-            problem = no_valid_frame_problem(rec.valid, finite, rec.invalid_reason)
-        problem = f"{problem}{hint}; nothing written"
-        raise NoValidFrameError(args.input, problem, e.n_frames) from None
+
+def _retarget_options(args: argparse.Namespace, prep: _Prepared) -> dict[str, Any]:
+    """``retarget``'s keyword arguments for the command's options (all but the recording's)."""
+    from jaxproj.motion import feasible
+
+    return dict(
+        model=prep.model,
+        method=args.method,
+        n_l=args.L,
+        n_m=args.M,
+        bones=prep.bones,
+        mirror=prep.mirror,
+        smoothing=options.smoothing(args.smoother),
+        feasible=feasible.FeasibleConfig(speeds=args.speeds) if args.feasible else None,
+        full=FULL_READINGS[args.full_reading],
+        robot=None if prep.model is not None else prep.robot,
+        level_legs=args.root == "fixed",
+    )
+
+
+def _no_valid_frame(
+    args: argparse.Namespace, prep: _Prepared, e: NoValidFrameError
+) -> NoValidFrameError:
+    """``retarget``'s "no valid frame" naming the file (and the option that most often causes
+    it, and what the reader says)."""
+    from jaxproj.motion.retarget import no_valid_frame_problem
+
+    rec = prep.rec
+    hint = "; check --bvh-scale (metres per file unit)" if rec.format == "bvh" else ""
+    problem = e.problem
+    if rec.invalid_reason:  # the reader says why it marked frames (MediaPipe: visibility)
+        import numpy as np
+
+        finite = np.isfinite(rec.positions).all(axis=(1, 2))
+        problem = no_valid_frame_problem(rec.valid, finite, rec.invalid_reason)
+    return NoValidFrameError(args.input, f"{problem}{hint}; nothing written", e.n_frames)
+
+
+def _write(args: argparse.Namespace, prep: _Prepared, result: Any) -> dict[str, Any]:
+    """``retarget_file``'s second half: the motion file, the summary lines, the table row."""
+    from jaxproj.io.motion_files import Motion, save_motion
+    from jaxproj.motion import feasible
+    from jaxproj.motion.retarget import MIN_VALID_SHARE
+
+    robot, rec, model, out, joints, plot = (prep.robot, prep.rec, prep.model, prep.out,
+                                            prep.joints, prep.plot)  # fmt: skip
+    bones, mirror = prep.bones, prep.mirror
     angles = result.angles
     unfiltered = angles if result.unfiltered is None else result.unfiltered
     before = feasible.feasibility_report(unfiltered, result.times, robot=robot)

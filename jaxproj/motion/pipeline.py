@@ -386,14 +386,94 @@ def motion(
       the rest of the body at the standing posture; validity after the descriptor's own check;
       ``projection.confidence`` of each frame (0 where invalid, 1 for the IK).
     """
+    d, ok = _before_mapping(positions, valid, bones, mirror, robot, neck, neck_neutral,
+                            level_legs)  # fmt: skip
+    q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
+                         robot=robot, shards=shards)  # fmt: skip
+    q = _after_mapping(q, ok, length, gains, d, bones, smoother, robot, shards)
+    return q, ok, jnp.where(ok, conf, 0.0)
+
+
+def _before_mapping(
+    positions: jax.Array,
+    valid: jax.Array,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+    robot: Robot,
+    neck: NeckLevel,
+    neck_neutral: jax.typing.ArrayLike,
+    level_legs: bool,
+) -> tuple[jax.Array, jax.Array]:
+    """``motion``'s stages before the mapping: ``(T, m)`` levelled descriptors, ``(T,)`` valid."""
     d, ok = frame_descriptors(positions, valid, bones=bones, mirror=mirror)
     ok = ok & ~glitch_frames(d, ok, bones=bones, read=robot.ik_bones)
     d = level(d, ok, neck, neck_neutral, bones=bones, up=world_up(positions), legs=level_legs)
-    q, conf = map_frames(p, d, method=method, n_l=n_l, n_m=n_m, full=full, bones=bones,
-                         robot=robot, shards=shards)  # fmt: skip
+    return d, ok
+
+
+def _after_mapping(
+    q: jax.Array,
+    ok: jax.Array,
+    length: jax.Array,
+    gains: jax.Array,
+    d: jax.Array,
+    bones: str | tuple[str, ...],
+    smoother: str | None,
+    robot: Robot,
+    shards: int,
+) -> jax.Array:
+    """``motion``'s stages after the mapping: ``(T, n_joints)`` playable angles."""
     _, q = finish(q, ok, length, gains if smoother else None, standing="last", robot=robot,
                   smoother=smoother or "paper", d=d, bones=bones, shards=shards)  # fmt: skip
-    return robot.driven_to_full(q), ok, jnp.where(ok, conf, 0.0)
+    return robot.driven_to_full(q)
+
+
+def motions(
+    p: AnyProjector | None,
+    positions: jax.Array,
+    valid: jax.Array,
+    length: jax.Array,
+    gains: jax.Array,
+    *,
+    method: str,
+    n_l: int,
+    n_m: int,
+    full: FullConfig,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+    smoother: str | None,
+    robot: Robot,
+    neck: NeckLevel = "off",
+    neck_neutral: jax.typing.ArrayLike = NECK_TILT_REFERENCE,
+    shards: int = 1,
+    level_legs: bool = True,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """``motion`` for ``B`` motions padded to one length, in one program: the stages before
+    and after the mapping per motion (``jax.vmap``), the per-frame mapping once over all ``B *
+    T`` frames (the projection's kernels or the robot's IK see one batch, as for one long
+    motion). Each motion's answer is the one ``motion`` gives it alone, up to the float
+    rounding of a differently shaped batch (``retarget.retarget_many``).
+
+    Args:
+      positions: ``(B, T, 20, 3)``; valid: ``(B, T)``; length: ``(B,)`` int; gains: ``(B, 3)``
+        or ``(B, T, 3)``; the rest as ``motion`` (one value for every motion). ``shards``
+        splits the mapping's frames over CPU devices (``map_frames``); the per-motion stages
+        run on one.
+
+    Returns:
+      ``((B, T, n_joints) angles, (B, T) valid, (B, T) confidence)``.
+    """
+    b, t = valid.shape
+    d, ok = jax.vmap(
+        lambda x, v: _before_mapping(x, v, bones, mirror, robot, neck, neck_neutral, level_legs)
+    )(positions, valid)
+    q, conf = map_frames(p, d.reshape(b * t, -1), method=method, n_l=n_l, n_m=n_m, full=full,
+                         bones=bones, robot=robot, shards=shards)  # fmt: skip
+    q = q.reshape(b, t, -1)
+    angles = jax.vmap(
+        lambda qi, oi, li, gi, di: _after_mapping(qi, oi, li, gi, di, bones, smoother, robot, 1)
+    )(q, ok, length, gains, d)
+    return angles, ok, jnp.where(ok, conf.reshape(b, t), 0.0)
 
 
 Carried = tuple[jax.Array, jax.Array, jax.Array]

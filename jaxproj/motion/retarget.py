@@ -53,16 +53,18 @@ feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apa
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import jax.numpy as jnp
 import numpy as np
 
 from jaxproj._internal import executables
 from jaxproj._internal.buckets import call_bucketed, fine_bucket
 from jaxproj._internal.jit import jit
 from jaxproj._internal.shards import host_shards
-from jaxproj.errors import ConfigError, NoValidFrameError
+from jaxproj.errors import ConfigError, JaxprojError, NoValidFrameError
 from jaxproj.human import skeletons
 from jaxproj.human.skeleton import MIN_BONE_LENGTH, NECK_TILT_REFERENCE
 from jaxproj.human.skeletons import SkeletonLike
@@ -243,6 +245,58 @@ def retarget(
         degenerate skeleton in every frame; ``no_valid_frame_problem`` words it). Checked
         before anything is traced where ``valid`` or the values alone rule every frame out.
     """
+    plan = _plan(positions, valid, model=model, method=method, n_l=n_l, n_m=n_m, full=full,
+                 bones=bones, mirror=mirror, smoothing=smoothing, times=times, robot=robot,
+                 neck_neutral=neck_neutral, level_legs=level_legs, skeleton=skeleton)  # fmt: skip
+    angles, ok_out, conf = executables.call(
+        _motion_jit,
+        (plan.p, plan.pos, plan.ok, np.int32(plan.t), plan.gains),
+        {"neck_neutral": np.float32(plan.neutral)},
+        plan.static,
+        name="retarget",
+        # a projector's arrays are arguments, its layout (static) in the tree's words
+        identity=identity(plan.spec),
+    )
+    return _result(plan, np.asarray(angles), np.asarray(ok_out), np.asarray(conf), feasible)
+
+
+@dataclass
+class _Plan:
+    """One motion checked and padded for the compiled pipeline (``retarget``'s first half)."""
+
+    p: Any  # the projector, or None for the IK
+    pos: np.ndarray  # (size, 20, 3) padded positions
+    ok: np.ndarray  # (size,) bool, padding false
+    t: int  # the true length
+    ok_in: np.ndarray  # (t,) the given validity
+    finite: np.ndarray  # (t,) every coordinate finite
+    stamps: np.ndarray  # (t,) s
+    gains: np.ndarray  # (3,) or (size, 3)
+    neutral: float
+    static: dict[str, Any]
+    spec: Robot
+    model: Model | None
+
+
+def _plan(
+    positions: np.ndarray,
+    valid: np.ndarray | None,
+    *,
+    model: Model | None,
+    method: Method | None,
+    n_l: int,
+    n_m: int,
+    full: FullConfig | None,
+    bones: str | tuple[str, ...],
+    mirror: bool,
+    smoothing: Smoothing | None,
+    times: np.ndarray | None,
+    robot: Robot | str | None,
+    neck_neutral: float | Literal["recording"] | None,
+    level_legs: bool,
+    skeleton: SkeletonLike,
+) -> _Plan:
+    """``retarget``'s checks, in its words, and the padded arrays of its compiled call."""
     positions = np.asarray(positions, dtype=np.float32)
     if positions.ndim != 3 or positions.shape[1:] != (20, 3) or positions.shape[0] < 1:
         raise ConfigError(f"positions must be (T >= 1, 20, 3), got {positions.shape}")
@@ -321,31 +375,172 @@ def retarget(
         shards=host_shards() if method == "ik" else 1,
         level_legs=bool(level_legs),
     )
-    angles, ok_out, conf = executables.call(
-        _motion_jit,
-        (p, pos, ok, np.int32(t), gains),
-        {"neck_neutral": np.float32(neutral)},
-        static,
-        name="retarget",
-        # a projector's arrays are arguments, its layout (static) in the tree's words
-        identity=identity(spec),
-    )
+    return _Plan(p, pos, ok, t, ok_in, finite, stamps, np.asarray(gains), neutral, static, spec,
+                 model)  # fmt: skip
+
+
+def _result(
+    plan: _Plan,
+    angles_padded: np.ndarray,
+    ok_out: np.ndarray,
+    conf: np.ndarray,
+    feasible: FeasibleConfig | None,
+    filtered: np.ndarray | None = None,
+) -> RetargetResult:
+    """``retarget``'s second half: the compiled call's padded answers cut to the motion, the
+    feasibility filter (``filtered``: its answer for the cut angles, already computed) and the
+    last separation."""
+    t, spec, model, stamps = plan.t, plan.spec, plan.model, plan.stamps
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check
-        raise NoValidFrameError("positions", no_valid_frame_problem(ok_in, finite), t)
-    angles = np.asarray(angles)[:t]
+        raise NoValidFrameError("positions", no_valid_frame_problem(plan.ok_in, plan.finite), t)
+    angles = np.asarray(angles_padded)[:t]
     unfiltered = None
     if feasible is not None:
         unfiltered = angles
-        angles = make_feasible(angles, stamps, config=feasible, robot=spec)
+        if filtered is None:
+            filtered = make_feasible(angles, stamps, config=feasible, robot=spec)
+        angles = filtered
         if spec.separate is not None:
             # the filter moves joints, and a contact can come back: pushed apart again, last,
             # frame by frame in time order (the rows padded at the end: a causal pass)
             angles = separate_motion(angles, spec)
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
-        conf = rescale(conf, spec.deviation_scale or DEVIATION_SCALE, model.confidence_scale)
+        scale = spec.deviation_scale or DEVIATION_SCALE
+        conf = np.asarray(rescale(jnp.asarray(conf), scale, model.confidence_scale))
     conf_t = np.asarray(conf, np.float32)[:t]
     return RetargetResult(angles, ok_t, stamps, unfiltered, conf_t)
+
+
+PACK_FRAMES = 32768
+"""``retarget_many``: padded frames in one compiled call at most (the motions of one length
+bucket packed together; a longer motion alone)."""
+
+_motions_jit = jit(
+    pipeline.motions,
+    static_argnames=("method", "n_l", "n_m", "full", "bones", "mirror", "smoother", "robot",
+                     "neck", "shards", "level_legs"),
+)  # fmt: skip
+
+
+def retarget_many(
+    positions: Sequence[np.ndarray],
+    valid: Sequence[np.ndarray | None] | None = None,
+    times: Sequence[np.ndarray | None] | None = None,
+    skeleton: Sequence[SkeletonLike] | None = None,
+    *,
+    model: Model | None = None,
+    method: Method | None = None,
+    n_l: int = 10,
+    n_m: int = 10,
+    full: FullConfig | None = None,
+    bones: str | tuple[str, ...] = "upper",
+    mirror: bool = False,
+    smoothing: Smoothing | None = OFFLINE_SMOOTHING,
+    feasible: FeasibleConfig | None = None,
+    robot: Robot | str | None = None,
+    neck_neutral: float | Literal["recording"] | None = "recording",
+    level_legs: bool = True,
+    pack_frames: int = PACK_FRAMES,
+) -> list[RetargetResult | JaxprojError]:
+    """``retarget`` of many motions with one setting, packed: the motions whose padded
+    lengths are equal (``retarget``'s length buckets) run together, up to ``pack_frames``
+    padded frames a call (``pipeline.motions``: one device program maps all their frames at
+    once), the number of motions in a call rounded up to a power of two (the last one
+    repeated) so that a few programs serve any batch. A dataset of thousands of short clips
+    then costs a few compiled calls instead of one per clip.
+
+    Each motion's result is ``retarget``'s for it alone (its checks, its errors, its feasibility
+    filter and last separation), except for float rounding: a differently shaped batch can
+    round the mapping's sums differently (measured: ``tests/motion/test_retarget_many.py``).
+
+    Args:
+      positions: the motions' ``(T_i, 20, 3)`` joint positions.
+      valid, times, skeleton: per motion (``None``: ``retarget``'s default for each), the same
+        length as ``positions``.
+      pack_frames: padded frames per compiled call at most (>= 1).
+      the rest: ``retarget``'s, one value for every motion.
+
+    Returns:
+      One entry per motion, in order: its ``RetargetResult``, or the ``JaxprojError`` that
+      ``retarget`` raises for it (a bad shape, no valid frame, ...); the others go on.
+
+    Raises:
+      ConfigError: per-motion sequences of another length than ``positions``; ``pack_frames``
+        < 1. (A setting that ``retarget`` refuses is each motion's error.)
+    """
+    n = len(positions)
+    for name, seq in (("valid", valid), ("times", times), ("skeleton", skeleton)):
+        if seq is not None and len(seq) != n:
+            raise ConfigError(f"retarget_many: {name} has {len(seq)} entries for {n} motions")
+    if pack_frames < 1:
+        raise ConfigError(f"retarget_many: pack_frames must be >= 1, got {pack_frames}")
+    out: list[Any] = [None] * n
+    groups: dict[tuple, list[tuple[int, _Plan]]] = {}
+    for i in range(n):
+        try:
+            plan = _plan(
+                positions[i], None if valid is None else valid[i], model=model, method=method,
+                n_l=n_l, n_m=n_m, full=full, bones=bones, mirror=mirror, smoothing=smoothing,
+                times=None if times is None else times[i], robot=robot,
+                neck_neutral=neck_neutral, level_legs=level_legs,
+                skeleton=skeletons.DEFAULT if skeleton is None else skeleton[i],
+            )  # fmt: skip
+        except JaxprojError as e:
+            out[i] = e
+            continue
+        groups.setdefault((plan.pos.shape[0], plan.gains.shape), []).append((i, plan))
+    for members in groups.values():
+        size = members[0][1].pos.shape[0]
+        per_call = max(1, pack_frames // size)
+        for start in range(0, len(members), per_call):
+            chunk = members[start : start + per_call]
+            plans = [pl for _, pl in chunk]
+            rows = 1 << (len(plans) - 1).bit_length()  # a power of two: few programs
+            plans += [plans[-1]] * (rows - len(plans))
+            first = plans[0]
+            angles, ok_out, conf = executables.call(
+                _motions_jit,
+                (
+                    first.p,
+                    np.stack([pl.pos for pl in plans]),
+                    np.stack([pl.ok for pl in plans]),
+                    np.array([pl.t for pl in plans], np.int32),
+                    np.stack([pl.gains for pl in plans]),
+                ),
+                {"neck_neutral": np.float32(first.neutral)},
+                first.static,
+                name="retarget_many",
+                identity=identity(first.spec),
+            )
+            angles, ok_out, conf = np.asarray(angles), np.asarray(ok_out), np.asarray(conf)
+            filtered = _feasible_rows(plans, angles, feasible)
+            for j, (i, plan) in enumerate(chunk):
+                try:
+                    out[i] = _result(plan, angles[j], ok_out[j], conf[j], feasible, filtered[j])
+                except JaxprojError as e:
+                    out[i] = e
+    return out
+
+
+def _feasible_rows(
+    plans: list[_Plan], angles: np.ndarray, feasible: FeasibleConfig | None
+) -> list[np.ndarray | None]:
+    """The feasibility filter of a packed call's motions, in one batch (``make_feasible``'s):
+    ``(rows, size, n_joints)`` padded answers -> each motion's filtered ``(t, n_joints)``
+    angles, or ``None`` each where there is no filter or the batch is refused (each motion is
+    then filtered alone, and refused in its own words)."""
+    if feasible is None:
+        return [None] * len(plans)
+    size = angles.shape[1]
+    times = np.stack([np.concatenate([pl.stamps, pl.stamps[-1] + np.arange(1, size - pl.t + 1)])
+                      for pl in plans])  # fmt: skip
+    lengths = np.array([pl.t for pl in plans])
+    try:
+        out = make_feasible(angles, times, lengths, config=feasible, robot=plans[0].spec)
+    except ConfigError:
+        return [None] * len(plans)
+    return [out[j, : pl.t] for j, pl in enumerate(plans)]
 
 
 def check_skeleton(skeleton: SkeletonLike, robot: Robot) -> None:

@@ -27,7 +27,11 @@ def calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
         q = np.tile(robots.get(robots.DEFAULT).standing, (len(valid), 1)).astype(np.float32)
         return rt.RetargetResult(q, np.asarray(valid), kwargs["times"])
 
+    def packed(positions, valid, times, skeleton, **kwargs):  # type: ignore[no-untyped-def]
+        return [standing(p, v, times=t) for p, v, t in zip(positions, valid, times, strict=True)]
+
     monkeypatch.setattr(rt, "retarget", standing)
+    monkeypatch.setattr(rt, "retarget_many", packed)
     return seen
 
 
@@ -74,6 +78,30 @@ def test_a_folder_is_retargeted_into_a_tree_and_a_bad_file_does_not_stop_it(
     assert len(calls) == 3
 
 
+def test_a_round_that_fails_as_a_whole_is_done_again_one_recording_at_a_time(
+    data: Path, tmp_path: Path, calls: list[int], capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """The packed retargeting (``retarget_files``) raising for a whole round: the batch does
+    that round again recording by recording (``retarget_file``) and writes what it writes."""
+    from jaxproj.motion import retarget as rt
+
+    def broken(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise RuntimeError("the packed call failed")
+
+    monkeypatch.setattr(rt, "retarget_many", broken)
+    out = tmp_path / "out"
+    code, text, _ = run_cli(capsys, "retarget", str(data), "--out", str(out))
+    assert code == 1 and len(calls) == 3  # each good recording retargeted alone
+    assert "3 written" in text and "1 failed" in text
+    assert sorted(p.name for p in out.rglob("*.npz")) == ["hop.npz", "hop_smpl.npz", "walk.npz"]
+    # --no-pack: one recording at a time from the start (the packed call is never made)
+    code, text, err = run_cli(capsys, "retarget", str(data), "--out", str(tmp_path / "one"),
+                              "--no-pack")  # fmt: skip
+    assert code == 1 and len(calls) == 6 and "3 written" in text
+    assert "together" not in err
+
+
 def test_files_and_lists_and_what_a_batch_refuses(
     data: Path, tmp_path: Path, calls: list[int], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -104,6 +132,8 @@ def test_files_and_lists_and_what_a_batch_refuses(
         ([str(data), "--out", str(tmp_path / "z"), "--processes", "localhost:1,2,5"],
          "with N >= 1 and 0 <= I < N"),
         ([str(data), "--out", str(tmp_path / "z"), "--processes", "two"], "expected HOST:PORT,N,I"),
+        ([str(data / "walk.csv"), "--out", str(tmp_path / "w.npz"), "--no-pack"],
+         "--no-pack is a batch's"),
     ):  # fmt: skip
         code, _, err = run_cli(capsys, "retarget", *argv)
         assert_one_line_error(code, err, words)
@@ -126,7 +156,12 @@ def standing(positions, valid, **kwargs):
     return rt.RetargetResult(q, np.asarray(valid), kwargs["times"])
 
 
+def packed(positions, valid, times, skeleton, **kwargs):
+    return [standing(p, v, times=t) for p, v, t in zip(positions, valid, times)]
+
+
 rt.retarget = standing
+rt.retarget_many = packed
 sys.exit(main(sys.argv[1:]))
 """
 """A process of a batch: the command line with the retargeting replaced (as ``calls``)."""
