@@ -15,8 +15,8 @@ the loop's later calls read the cache, as a user's loop does). The robot is the 
 * ``batch_subset`` and ``loop``: the first ``--loop`` recordings (a loop over all would take an
   hour on two cores), one call against one call per recording.
 
-Checked first: the batch's output of each subset recording equals the loop's up to float
-rounding (``ROUNDING``: the batch packs recordings of one length bucket into one compiled call,
+Checked: the batch's output of each subset recording equals the loop's, and the packed batch's
+the unpacked one's, up to float rounding (``ROUNDING``: the batch packs recordings of one length bucket into one compiled call,
 ``jaxproj.motion.retarget.retarget_many``, whose differently shaped sums may round apart).
 
 Usage::
@@ -63,10 +63,11 @@ def write_bundled(folder: Path) -> list[Path]:
     return out
 
 
-ROUNDING = 2e-6
+ROUNDING = 1e-5
 """rad: the largest difference between a recording's angles from the batch and from its own
-command that the check accepts for the default robot, whose IK is closed-form
-(``tests/motion/test_retarget_many.py``'s bound)."""
+command (and between the packed and the unpacked batch) that the check accepts for the default
+robot, whose IK is closed-form (measured on the 2-core VM: 2.4e-7 on the subset, 9.1e-6 over
+the 668 bundled recordings)."""
 ROUNDING_ITERATIVE = 2e-3
 """rad: the same for a robot of the generic IK, whose iterations and continuity pass carry a
 rounding difference further (measured: up to 8.2e-4 rad on four MSR Action3D motions)."""
@@ -124,8 +125,7 @@ def main() -> None:
             for f in picked
         )  # fmt: skip
         res["subset_max_diff_rad"] = diff
-        if not diff <= (ROUNDING if args.robot == robots.DEFAULT else ROUNDING_ITERATIVE):
-            raise SystemExit(f"batch_cli: the batch's angles differ from the loop's by {diff} rad")
+        bound = ROUNDING if args.robot == robots.DEFAULT else ROUNDING_ITERATIVE
         argv = ["retarget", str(root / "all"), "--out", str(root / "b_all"), *robot]
         wall = _run(argv, root / "c3")
         res["batch_all_s"] = wall
@@ -144,9 +144,13 @@ def main() -> None:
         fr = res["frames"] if k.endswith("_all") else res["subset_frames"]
         res[f"{k}_recordings_per_s"] = n / res[f"{k}_s"]
         res[f"{k}_frames_per_s"] = fr / res[f"{k}_s"]
+    worst = max(res["subset_max_diff_rad"], res["packed_vs_unpacked_max_diff_rad"])
+    res["check"] = "passed" if worst <= bound else f"failed: angles {worst:g} rad apart"
     print(json.dumps(res, indent=1))
     if args.json is not None:
         args.json.write_text(json.dumps(res, indent=1) + "\n")
+    if worst > bound:  # written first, so that the failed run can be read
+        raise SystemExit(f"batch_cli: the batch's angles differ from the loop's by {worst} rad")
 
 
 if __name__ == "__main__":
