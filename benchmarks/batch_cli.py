@@ -16,8 +16,9 @@ the loop's later calls read the cache, as a user's loop does). The robot is the 
   hour on two cores), one call against one call per recording.
 
 Checked: the batch's output of each subset recording equals the loop's, and the packed batch's
-the unpacked one's, up to float rounding (``ROUNDING``: the batch packs recordings of one length bucket into one compiled call,
-``jaxproj.motion.retarget.retarget_many``, whose differently shaped sums may round apart).
+the unpacked one's, up to float rounding (``ROUNDING``: the batch packs recordings of one
+length bucket into one compiled call, ``jaxproj.motion.retarget.retarget_many``, whose
+differently shaped sums may round apart).
 
 Usage::
 
