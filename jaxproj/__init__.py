@@ -26,7 +26,7 @@ from jaxproj.io.readers import Recording
 from jaxproj.io.readers import read_skeleton as read
 from jaxproj.motion import streaming
 from jaxproj.motion.offline import OfflineSmoothing
-from jaxproj.motion.retarget import RetargetResult, retarget
+from jaxproj.motion.retarget import RetargetResult, retarget, retarget_many
 from jaxproj.motion.smoothing import SmoothingParams, smooth, smooth_batch
 from jaxproj.projection.api import BuildConfig, Model, build, load, project, save
 from jaxproj.projection.config import FullConfig
@@ -48,6 +48,7 @@ __all__ = [
     "project",
     "read",
     "retarget",
+    "retarget_many",
     "robots",
     "save",
     "save_motion",
