@@ -64,6 +64,10 @@ The callers, and the options that keep each one's answers as they were measured:
   smoother, whose trend goes on), and before the first valid frame the output is the standing
   posture (``retarget`` back-fills the first valid frame). The smoother is always on and the
   output always clipped; no feasibility filter (it needs the whole motion).
+
+Size: over 500 lines: the stages and the three ways they are put together (``motion``, one
+motion; ``motions``, many packed into one program; ``frame``, streaming), which share the
+stages' code and must stay in step.
 """
 
 from __future__ import annotations

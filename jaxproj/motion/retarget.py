@@ -48,6 +48,13 @@ envelope), as every path through the pipeline's clip does.
 
 Time: ``times`` (seconds per frame, e.g. ``Recording.times``) drive the smoother's gains and the
 feasibility filter; without them, frames are ``1 / smoothing.rate`` (15 fps) apart.
+
+Many motions: ``retarget_many`` runs ``retarget``'s checks and last stages per motion around
+packed compiled calls (``pipeline.motions``), one per length bucket and batch size.
+
+Size: over 500 lines: ``retarget`` and ``retarget_many`` share their halves (``_plan``, the
+checks and the padded arrays; ``_result``, the filter and the last separation), which belong
+with the two functions that call them.
 """
 
 from __future__ import annotations
