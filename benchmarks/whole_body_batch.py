@@ -1,0 +1,97 @@
+"""Whole-body throughput (issue 59): the bundled data retargeted to the G1 in one batch, with
+the root in the world (``--root world``) against the fixed base, the same recordings, the same
+machine, the same run.
+
+The recordings are ``benchmarks.batch_cli``'s: every MSR Action3D sequence and UTKinect action
+segment of ``jaxproj/data`` and the two CMU clips, as files (``--every N``: every N-th of
+them). Each way is one ``jaxproj retarget FOLDER --robot unitree_g1 --out OUT`` (packed, the
+default) in its own process, run twice with one fresh compilation cache: the first run compiles
+(``*_cold_s``), the second loads the compiled programs from the cache (``*_warm_s``: compiling
+apart). Checked first: both ways write the same recordings, and every whole-body file loads back
+with a finite root and contacts of its length.
+
+Usage::
+
+    python -m benchmarks.whole_body_batch [--robot unitree_g1] [--every 1] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.batch_cli import write_bundled
+from jaxproj.io.motion_files import load_motion
+
+
+def _run(argv: list[str], cache: Path) -> tuple[float, list[str]]:
+    env = {**os.environ, "JAXPROJ_CACHE_DIR": str(cache)}
+    t0 = time.perf_counter()
+    res = subprocess.run([sys.executable, "-m", "jaxproj.cli", *argv], check=False, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    wall = time.perf_counter() - t0
+    return wall, [ln for ln in res.stderr.splitlines() if ln.startswith("jaxproj: error:")]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--robot", default="unitree_g1")
+    ap.add_argument("--every", type=int, default=1, help="keep every N-th recording (1: all)")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    res: dict = {"robot": args.robot, "cpus": os.cpu_count(), "platform": platform.machine(),
+                 "load_before": os.getloadavg()[0]}  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        files = write_bundled(root / "all")
+        for i, f in enumerate(files):
+            if i % args.every:
+                f.unlink()
+        res["every"] = args.every
+        res["recordings"] = len(files[:: args.every])
+        for way, extra in (("fixed", []), ("world", ["--root", "world"])):
+            out, cache = root / way, root / f"cache_{way}"
+            cmd = ["retarget", str(root / "all"), "--robot", args.robot, "--out", str(out), *extra]
+            res[f"{way}_cold_s"], errors = _run(cmd, cache)
+            res[f"{way}_warm_s"], _ = _run([*cmd, "--force"], cache)
+            written = sorted(p.name for p in out.glob("*.npz"))
+            res[f"{way}_written"] = len(written)
+            res[f"{way}_errors"] = [e.replace(str(root), "DATA") for e in errors]
+            res[f"{way}_files"] = written
+        if res["fixed_files"] != res["world_files"]:
+            raise SystemExit("whole_body_batch: the two ways wrote different recordings")
+        frames = 0
+        for name in res["world_files"]:
+            m = load_motion(root / "world" / name)
+            n = len(m.times)
+            frames += n
+            assert m.root_pos is not None and m.contacts is not None, name
+            if m.root_pos.shape != (n, 3) or not np.isfinite(m.root_pos).all():
+                raise SystemExit(f"whole_body_batch: {name}: root {m.root_pos.shape}, not finite")
+            if m.contacts.shape[0] != n:
+                raise SystemExit(f"whole_body_batch: {name}: contacts {m.contacts.shape}")
+        res["frames_written"] = frames
+    for way in ("fixed", "world"):
+        del res[f"{way}_files"]
+        for run in ("cold", "warm"):
+            s = res[f"{way}_{run}_s"]
+            res[f"{way}_{run}_recordings_per_s"] = res[f"{way}_written"] / s
+            res[f"{way}_{run}_frames_per_s"] = res["frames_written"] / s
+    text = json.dumps(res, indent=1)
+    print(text)
+    if args.json is not None:
+        args.json.write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
