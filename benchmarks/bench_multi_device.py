@@ -29,7 +29,7 @@ import jax
 import numpy as np
 
 from benchmarks import bench_rollout
-from benchmarks.bench_projection import TEST_SUBJECTS, queries, shuffled
+from benchmarks.bench_projection import TEST_SUBJECTS, default_model, queries, shuffled
 from benchmarks.harness import header
 from jaxproj import robots
 from jaxproj.io import datasets
@@ -125,12 +125,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _projection(args, many, out, log, save, skip: set[str]) -> None:
     t0 = time.perf_counter()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        cfg = engine.BuildConfig(robot=args.robot)
-        train = datasets.training_sequences(cfg.utkinect_people)
-        model = engine.build(datasets.valid_descriptors(train, bones=cfg.bones), cfg)
+    model = default_model(args.robot, args.model)
     out["landmarks"] = model.landmarks
     out["model_s"] = time.perf_counter() - t0
     log(f"model: {model.landmarks} landmarks in {out['model_s']:.0f} s")

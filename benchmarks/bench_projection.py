@@ -131,6 +131,16 @@ def shuffled(d: np.ndarray, seed: int = 0) -> np.ndarray:
     return d[np.random.default_rng(seed).permutation(len(d))]
 
 
+def default_model(robot: str, path: str | None = None) -> engine.Model:
+    """The model at ``path``, else ``robot``'s default model built as ``jaxproj build`` builds
+    it (``BuildConfig(robot=robot)`` on ``datasets.training_sequences``)."""
+    if path:
+        return engine.load(path)
+    cfg = engine.BuildConfig(robot=robot)
+    train = datasets.training_sequences(cfg.utkinect_people)
+    return engine.build(datasets.valid_descriptors(train, bones=cfg.bones), cfg)
+
+
 def subsample_model(train: np.ndarray, n: int, config: engine.BuildConfig) -> engine.Model:
     """A model on ``n`` distinct training descriptors (seed 0) and their IK poses (each chain
     of a per-chain model keeps the distinct rows of its own columns)."""

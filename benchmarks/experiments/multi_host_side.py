@@ -29,7 +29,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from benchmarks.bench_projection import TEST_SUBJECTS, queries, shuffled
+from benchmarks.bench_projection import TEST_SUBJECTS, default_model, queries, shuffled
 from benchmarks.harness import header
 from jaxproj import robots
 from jaxproj.io import datasets
@@ -56,12 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     devs = jax.devices()
     k = len(devs)
     t0 = time.perf_counter()
-    if args.model:
-        model = engine.load(args.model)
-    else:
-        cfg = engine.BuildConfig(robot=args.robot)
-        train = datasets.training_sequences(cfg.utkinect_people)
-        model = engine.build(datasets.valid_descriptors(train, bones=cfg.bones), cfg)
+    model = default_model(args.robot, args.model)
     out: dict = {"header": header(devs[0]), "robot": args.robot, "devices": k,
                  "model_s": time.perf_counter() - t0, "queries": args.queries}  # fmt: skip
     test_seqs = datasets.msr_action3d(subjects=list(TEST_SUBJECTS))
