@@ -5,7 +5,8 @@ the robot's own MJCF with its free base:
 * ``slide_cm_s``: stance-foot sliding, the horizontal speed (cm/s) of each foot's sole (the mean
   of its geoms' lowest points) over the steps where the file says that foot is in contact in
   both frames: median and p95 over both feet;
-* ``stance_height_mm``: the stance feet's lowest point above the floor: median and max;
+* ``stance_height_mm``: the stance feet's lowest point above the floor: median, p95 and max
+  (the root's step bound can leave a stance foot above the floor: ``whole_body.LIFT_SLACK``);
 * ``sole_tilt_deg``: the stance feet's tilt (the foot body's z axis against the vertical; the
   G1's sole box is square to it): median and p90;
 * ``penetration_mm``: how far the lowest point of any robot geom goes below the floor (max over
@@ -146,6 +147,9 @@ def measure_motion(motion: Motion) -> dict:
         "slide_cm_s_median": round(float(np.median(slide)), 2) if slide.size else None,
         "slide_cm_s_p95": round(float(np.percentile(slide, 95)), 2) if slide.size else None,
         "stance_height_mm_median": round(float(np.median(stance)), 2) if stance.size else None,
+        "stance_height_mm_p95": (
+            round(float(np.percentile(stance, 95)), 2) if stance.size else None
+        ),
         "stance_height_mm_max": round(float(stance.max()), 2) if stance.size else None,
         "sole_tilt_deg_median": round(float(np.median(tilt)), 2) if tilt.size else None,
         "sole_tilt_deg_p90": round(float(np.percentile(tilt, 90)), 2) if tilt.size else None,

@@ -79,6 +79,12 @@ PLANT_PULL = 0.01
 PLANT_ROOT_PULL = 0.5
 """The pull of the root's position toward where the height and stance rules put it (m per m):
 the stance IK moves the root rather than slide a foot."""
+ROOT_SLACK = 0.015
+"""m: the root's step in one frame is at most the person's scaled pelvis step plus this
+(``_plant_feet``). Where the stance rule or the IK would move it further (a body frame that
+turns 30-50 deg in one Kinect frame while the feet are planted swings the root around them; a
+lost leg drops it), the root stops at the bound and the stance legs are solved again from
+there."""
 PLANT_REACH = 0.03
 """m: a stance foot the IK leaves farther than this from its target is anchored anew at the
 next frame, where it is then (a slide, not a leg stretched after an unreachable point)."""
@@ -202,6 +208,7 @@ def _plant_feet(
     stance: np.ndarray,
     ramp: int,
     feet_trees: list[list[int]],
+    budget: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each stance foot held where it touched down, level: per run of contact frames of a foot,
     its sole's reference point (the mean of its geoms' lowest points) and heading at the run's
@@ -212,8 +219,11 @@ def _plant_feet(
     rows fade in
     over ``ramp`` frames of swing before touchdown and out over as many after lift-off (the
     nearer run's target; never inside a stance, where it would slide the foot). A target the
-    IK misses by more than ``PLANT_REACH`` is moved to where the foot is on the next frame. A
-    swing foot below the floor is then lifted onto it (``_lift``). Returns ``((T, n_joints)
+    IK misses by more than ``PLANT_REACH`` is moved to where the foot is on the next frame.
+    With ``budget`` (``(T,)`` m), the root's step into frame ``t`` is at most ``budget[t]``:
+    a longer one is cut to that length (``_bounded``) and the stance legs solved again
+    with the root held there. A swing foot below the floor is then lifted onto it
+    (``_lift``). Returns ``((T, n_joints)
     angles, (T, 3) root positions)``, float64."""
     model = robot.load_model("free")
     data = mujoco.MjData(model)
@@ -264,6 +274,8 @@ def _plant_feet(
     for t in range(len(q)):
         if t > 0:  # the root's horizontal steps as given, from where the IK left it
             pos[t, :2] = pos[t - 1, :2] + root_pos[t, :2] - root_pos[t - 1, :2]
+            if budget is not None:
+                pos[t] = _bounded(pos[t - 1], pos[t], budget[t])
         active = [k for k in range(len(legs)) if which[t, k] >= 0]
         if not active:
             continue
@@ -274,10 +286,14 @@ def _plant_feet(
                 at = pos[t] + root_pos[t0] - root_pos[t] if t0 > t else pos[t]
                 targets[k][i] = anchor(max(t0, t), legs[k], at)
         pose(t, out[t], pos[t])
-        qpos, miss = _stance_ik(model, data, [legs[k] for k in active],
-                                [float(weight[t, k]) for k in active],
-                                [targets[k][int(which[t, k])] for k in active], free,
-                                all(weight[t, k] >= 1 for k in active))  # fmt: skip
+        solve = ([legs[k] for k in active], [float(weight[t, k]) for k in active],
+                 [targets[k][int(which[t, k])] for k in active], free)  # fmt: skip
+        qpos, miss = _stance_ik(model, data, *solve, all(weight[t, k] >= 1 for k in active))
+        if budget is not None and t > 0:
+            held = _bounded(pos[t - 1], qpos[free : free + 3], budget[t])
+            if not np.array_equal(held, qpos[free : free + 3]):  # solved again, the root held
+                pose(t, out[t], held)
+                qpos, miss = _stance_ik(model, data, *solve, False)
         out[t] = qpos[adr]
         pos[t] = qpos[free : free + 3]
         for k, m in zip(active, miss, strict=True):
@@ -290,6 +306,19 @@ def _plant_feet(
             pose(t, out[t], pos[t])
             out[t, leg.cols] = _lift(model, data, leg, out[t, leg.cols].copy())
     return out, pos
+
+
+def _bounded(last: np.ndarray, here: np.ndarray, step: float) -> np.ndarray:
+    """``(3,)`` ``here`` moved toward ``last`` until it is at most ``step`` from it: the
+    vertical part of the move is cut first (the horizontal steps follow the person's pelvis;
+    the height rules' steps are the robot's own), then the horizontal one."""
+    d = here - last
+    if float(np.linalg.norm(d)) <= step:
+        return here
+    flat = float(np.linalg.norm(d[:2]))
+    if flat >= step:
+        return last + np.array([d[0] * step / flat, d[1] * step / flat, 0.0])
+    return last + np.array([d[0], d[1], np.copysign(np.sqrt(step * step - flat * flat), d[2])])
 
 
 def _runs(x: np.ndarray) -> list[tuple[int, int]]:

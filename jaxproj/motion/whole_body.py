@@ -56,7 +56,15 @@ frame over the root's position and the stance legs' joints (the root moves rathe
 slides; only the legs' joints change) and lifts a swing foot that went below the floor;
 ``retarget``'s last stage then runs once more on the planted angles (``separate``: a leg the IK
 moved into a hand hanging at the hip; the arms yield first), and the root is raised by whatever
-of the robot is still below the floor: no geom of the output is below it. The angles returned
+of the robot is still below the floor: no geom of the output is below it.
+
+**No jump in the root.** Each frame's root step is at most the person's scaled pelvis step plus
+``feet.ROOT_SLACK`` (1.5 cm) in the stance IK (a longer step is cut to that length and the
+stance legs solved again with the root held: a body frame that turns 30-50 deg in one Kinect
+frame would otherwise swing the root around the planted feet), and the final lift rises and
+falls over neighbouring frames (``LIFT_SLACK``), so that no step exceeds the pelvis's by 1.9
+cm. What it costs: where a tracker's lost leg leaves a foot out of reach, that foot slides or
+stands above the floor for a while instead of the root jumping. The angles returned
 (``RootMotion.angles``) are the given ones with the legs so moved (and the arms where they
 touched): after ``retarget``'s feasibility filter, so a joint's speed can exceed its bound there
 (``benchmarks.whole_body`` counts it).
@@ -80,6 +88,7 @@ from jaxproj.human import skeletons
 from jaxproj.human.skeleton import body_frame
 from jaxproj.motion.feet import (
     PLANT_RAMP_S,
+    ROOT_SLACK,
     _below_floor,
     _foot_points,
     _plant_feet,
@@ -97,6 +106,14 @@ __all__ = ["HEADING_FRAMES", "ContactConfig", "RootMotion", "WorldFrame", "check
 
 HEADING_FRAMES = 15
 """Valid frames at the start of a recording whose median forward direction is the world's +x."""
+
+LIFT_SLACK = 0.004
+"""m: what the root's step may gain from the final lift beyond ``feet.ROOT_SLACK``. The lift
+(whatever of the robot is still below the floor after planting: a leg the tracker lost, its
+foot out of reach with the root held by its step bound) rises and falls over as many frames as
+it takes to keep each step within the person's scaled pelvis step plus ``ROOT_SLACK +
+LIFT_SLACK`` (1.9 cm; issue 59 asks for 2): the frames around it are raised too, their feet
+above the floor rather than below it."""
 
 FLOOR_PERCENTILE = 5.0
 """Percentile of a foot joint's height over the valid frames taken as its height on the floor."""
@@ -426,12 +443,15 @@ def root_trajectory(
         else:
             xy[t] = xy[t - 1] + hip[t, :2] - hip[t - 1, :2]
     root_pos = np.concatenate([xy, z[:, None]], axis=1)
-    q_out, root_pos = _plant_feet(robot, q, root_pos, rot_root, stance, ramp, trees)
+    budget = np.concatenate([[0.0], np.linalg.norm(np.diff(hip, axis=0), axis=1)]) + ROOT_SLACK
+    q_out, root_pos = _plant_feet(robot, q, root_pos, rot_root, stance, ramp, trees, budget)
     if separate:
         from jaxproj.motion.retarget import separate_motion  # the fixed base's compiled pass
 
         q_out = separate_motion(q_out.astype(np.float32), robot).astype(np.float64)
-    root_pos[:, 2] += _below_floor(robot, q_out, root_pos, rot_root)
+    planted = np.concatenate([[0.0], np.linalg.norm(np.diff(root_pos, axis=0), axis=1)])
+    lift = _below_floor(robot, q_out, root_pos, rot_root)
+    root_pos[:, 2] += _spread(lift, np.maximum(budget + LIFT_SLACK - planted, 0.0))
     quat = np.zeros((n, 4))
     for t in range(n):
         wxyz = np.zeros(4)
@@ -440,6 +460,18 @@ def root_trajectory(
     quat *= np.where(quat[:, 3:] < 0, -1.0, 1.0)  # w >= 0: one of the two
     return RootMotion(root_pos.astype(np.float32), quat.astype(np.float32), contacts, world,
                       q_out.astype(np.float32))  # fmt: skip
+
+
+def _spread(lift: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """The least ``(T,)`` profile at or above ``lift`` whose step into frame ``t`` is at most
+    ``rate[t]`` either way: ``lift`` dilated by a cone, one pass each way (a distance
+    transform on a line)."""
+    out = np.array(lift, np.float64)
+    for t in range(1, len(out)):
+        out[t] = max(out[t], out[t - 1] - rate[t])
+    for t in range(len(out) - 2, -1, -1):
+        out[t] = max(out[t], out[t + 1] - rate[t + 1])
+    return out
 
 
 def _flat(u: np.ndarray) -> np.ndarray:
