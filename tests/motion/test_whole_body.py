@@ -108,6 +108,17 @@ def test_the_root_walks_with_the_person_over_the_floor(walk) -> None:
     assert np.array_equal(root.angles[:, rest], angles[:, rest])
 
 
+def test_a_hip_centred_recording_moves_its_root_by_the_feet(walk) -> None:
+    """The walk centred on its pelvis in every frame (as MediaPipe writes world landmarks):
+    its pelvis steps are all 0, so the root's steps are not bounded by them (``CENTRED``); the
+    stance feet move the root, more than the slack in a frame."""
+    rec, angles, _ = walk
+    centred = rec.positions - rec.positions[:, J["HipCenter"]][:, None]
+    root = wb.root_trajectory(centred, rec.valid, rec.times, angles, G1)
+    steps = np.linalg.norm(np.diff(root.root_pos.astype(np.float64), axis=0), axis=1)
+    assert steps.max() > feet_mod.ROOT_SLACK + wb.LIFT_SLACK
+
+
 def test_a_lift_rises_and_falls_within_its_rate() -> None:
     """``_spread``: the least profile at or above the lift whose steps stay within the rate:
     a peak keeps its height and slopes down on both sides; where the rate allows, it is the
