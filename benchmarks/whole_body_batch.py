@@ -7,8 +7,9 @@ segment of ``jaxproj/data`` and the two CMU clips, as files (``--every N``: ever
 them). Each way is one ``jaxproj retarget FOLDER --robot unitree_g1 --out OUT`` (packed, the
 default) in its own process, run twice with one fresh compilation cache: the first run compiles
 (``*_cold_s``), the second loads the compiled programs from the cache (``*_warm_s``: compiling
-apart). Checked first: both ways write the same recordings, and every whole-body file loads back
-with a finite root and contacts of its length.
+apart; each run's time is also printed on stderr as it ends). Checked first: both ways write
+the same recordings, and every whole-body file loads back with a finite root and contacts of
+its length.
 
 Usage::
 
@@ -62,7 +63,11 @@ def main(argv: list[str] | None = None) -> int:
             out, cache = root / way, root / f"cache_{way}"
             cmd = ["retarget", str(root / "all"), "--robot", args.robot, "--out", str(out), *extra]
             res[f"{way}_cold_s"], errors = _run(cmd, cache)
+            print(f"whole_body_batch: {way} cold {res[f'{way}_cold_s']:.1f} s", file=sys.stderr,
+                  flush=True)  # fmt: skip
             res[f"{way}_warm_s"], _ = _run([*cmd, "--force"], cache)
+            print(f"whole_body_batch: {way} warm {res[f'{way}_warm_s']:.1f} s", file=sys.stderr,
+                  flush=True)  # fmt: skip
             written = sorted(p.name for p in out.glob("*.npz"))
             res[f"{way}_written"] = len(written)
             res[f"{way}_errors"] = [e.replace(str(root), "DATA") for e in errors]

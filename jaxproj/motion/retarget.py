@@ -11,8 +11,9 @@ in Python, before tracing.
 
 Invalid frames (lost tracking, non-finite values, degenerate bones, and glitches of one or two
 frames: a bone the robot reads that turns more than 60 deg into them and back out,
-``pipeline.glitch_frames``) are kept and filled by a documented rule, so a motion never dies
-halfway and never contains NaN:
+``pipeline.glitch_frames``; a limb the tracker lost: a bone the robot reads at under half or
+over twice its median length, ``pipeline.lost_frames``) are kept and filled by a documented
+rule, so a motion never dies halfway and never contains NaN:
 
 * an invalid frame holds the last valid frame's angles (unsmoothed output, and the paper's
   smoother's input); the default offline smoother instead skips its value and bridges the gap

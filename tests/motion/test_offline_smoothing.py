@@ -115,6 +115,25 @@ def test_gap_is_bridged_not_held():
     np.testing.assert_allclose(out[15:25, 0], 0.5 * times[15:25], atol=2e-3)
 
 
+def test_a_long_gap_is_a_straight_line_between_its_ends():
+    """A joint moving fast into a 3 s gap (more than ``BRIDGE_S``) and still after it: the
+    model's cubic would carry the speed into the gap and overshoot; the bridge is the straight
+    line between the smoothed values around it, within their range."""
+    times = np.arange(60) / 10.0
+    y = np.where(times < 2.0, 1.5 * times, 3.0)[:, None].astype(np.float32)
+    valid = np.ones(60, bool)
+    valid[20:50] = False  # frames 19 and 50 around it, 3.1 s apart
+    y[~valid] = y[19]
+    out = np.asarray(smooth(y, OFFLINE_SMOOTHING, times=times, valid=valid))[:, 0]
+    w = (times[20:50] - times[19]) / (times[50] - times[19])
+    np.testing.assert_allclose(out[20:50], out[19] * (1 - w) + out[50] * w, atol=1e-5)
+    assert out[20:50].min() >= min(out[19], out[50]) - 1e-6
+    assert out[20:50].max() <= max(out[19], out[50]) + 1e-6
+    # the model alone (the float64 reference above) leaves that range by far: what it replaced
+    cubic = _reference(y, valid, times, OFFLINE_SMOOTHING.accel_std, OFFLINE_SMOOTHING.noise_std)
+    assert cubic[20:50, 0].max() > max(out[19], out[50]) + 0.2
+
+
 def test_padded_batch_equals_one_by_one_and_keeps_padding():
     rng = np.random.default_rng(2)
     lengths = [5, 40, 1, 23]

@@ -11,7 +11,7 @@ import pytest
 from helpers import clip_driven_np, small_projector
 
 from jaxproj.eval import evaluate
-from jaxproj.human.skeleton import descriptor
+from jaxproj.human.skeleton import J, descriptor
 from jaxproj.io import datasets
 from jaxproj.motion import feasible, pipeline, streaming
 from jaxproj.motion.retarget import retarget
@@ -342,3 +342,33 @@ def test_glitch_frames_marks_a_bone_that_jumps_out_and_back_in_one_or_two_frames
     three = np.tile(np.concatenate([base, base]), (8, 1))
     three[3:6, 3:] = _turned(base, 130.0)
     assert glitches(three) == []
+
+
+def test_lost_frames_marks_a_limb_at_under_half_or_over_twice_its_length():
+    """A thigh shrunk to 0.3 of its length on frames 4-5 and one stretched to 2.5 on frame 7
+    are lost frames; 0.6 and 1.8 are not; an invalid frame is never one and does not count
+    toward the median; a bone the robot does not read is not judged; with ``mirror`` the
+    other side's bone is; a motion of fewer than ``LOST_MIN_FRAMES`` valid frames is not
+    judged."""
+    n = pipeline.LOST_MIN_FRAMES + 1
+    base = np.asarray(datasets.msr_action3d()[0].positions[0], np.float32)
+    p = np.tile(base, (n, 1, 1))
+    hip, knee = J["HipLeft"], J["KneeLeft"]
+    scale = np.ones(n, np.float32)
+    scale[[4, 5]], scale[7], scale[2], scale[8] = 0.3, 2.5, 0.6, 1.8
+    p[:, knee] = p[:, hip] + (p[:, knee] - p[:, hip]) * scale[:, None]
+    ok = np.ones(n, bool)
+
+    def lost(valid=ok, read=("thigh_left",), mirror=False) -> list:
+        got = pipeline.lost_frames(jnp.asarray(p), jnp.asarray(valid), read=read, mirror=mirror)
+        return np.flatnonzero(np.asarray(got)).tolist()
+
+    assert lost() == [4, 5, 7]
+    invalid = ok.copy()
+    invalid[3] = False
+    assert lost(invalid) == [4, 5, 7]
+    invalid[4] = False  # now one frame short of LOST_MIN_FRAMES valid ones
+    assert lost(invalid) == []
+    assert lost(read=("thigh_right", "forearm_left")) == []
+    assert lost(read=("thigh_right",), mirror=True) == [4, 5, 7]
+    assert lost(np.zeros(n, bool)) == []
