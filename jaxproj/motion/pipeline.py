@@ -222,12 +222,11 @@ def lost_frames(
       ``(T,)`` bool, true at a lost frame (never where ``ok`` is false).
     """
     s = skeletons.get(skeletons.DEFAULT)
-    names = [MIRROR_BONE[b] if mirror else b for b in read if b in s.bones]
+    names = tuple(MIRROR_BONE[b] if mirror else b for b in read if b in s.bones)
     if not names:
         return jnp.zeros(ok.shape, bool)
-    a = np.array([s.index[s.bones[b][0]] for b in names])
-    b = np.array([s.index[s.bones[b][1]] for b in names])
-    length = jnp.linalg.norm(positions[:, b] - positions[:, a], axis=-1)  # (T, k)
+    start, end = np.array(s.bone_joints(names)).T
+    length = jnp.linalg.norm(positions[:, end] - positions[:, start], axis=-1)  # (T, k)
     median = jnp.nanmedian(jnp.where(ok[:, None], length, jnp.nan), axis=0)
     ratio = length / jnp.maximum(median, 1e-9)[None]
     lost = (ratio < 1.0 / LOST_RATIO) | (ratio > LOST_RATIO)
