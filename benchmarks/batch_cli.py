@@ -25,6 +25,8 @@ Options:
   bundled recordings.
 * ``--skip-unpacked``: no ``--no-pack`` batch (one recording at a time over the whole folder
   takes long at thousands of G1 files); the check is then the subset's alone.
+* ``--warm``: the batch over the folder once more, from the first one's compilation cache
+  (``batch_all_warm``: compiling apart), its output checked against the first's.
 * ``--json OUT``: the result also written to ``OUT`` (always printed on stdout); progress, a
   line a step with its wall time, goes to stderr.
 
@@ -33,11 +35,13 @@ Output (one JSON object): ``robot``, ``method``; the machine: ``cpus``, ``platfo
 <device_kind>"`` of ``jax.devices()``, asked after the runs, in this process), ``jax_version``;
 ``tile``; ``recordings``, ``frames``: the batch's folder (tiled or not); ``subset_recordings``,
 ``subset_frames``; ``<way>_s``: the wall time of ``batch_subset``, ``loop`` (summed over its
-commands), ``batch_all``, ``unpacked_all`` (left out with ``--skip-unpacked``), each with its
+commands), ``batch_all``, ``batch_all_warm`` (with ``--warm``), ``unpacked_all`` (left out with
+``--skip-unpacked``), each with its
 ``<way>_recordings_per_s`` and ``<way>_frames_per_s``; ``batch_all_written``,
 ``unpacked_all_written``: outputs written (a recording with no valid frame writes none);
 ``batch_all_speedup_per_recording``: ``batch_all``'s recordings per second over ``loop``'s;
-``subset_max_diff_rad``, ``packed_vs_unpacked_max_diff_rad`` (not with ``--skip-unpacked``):
+``subset_max_diff_rad``, ``packed_vs_unpacked_max_diff_rad`` (not with ``--skip-unpacked``),
+``warm_vs_cold_max_diff_rad`` (with ``--warm``):
 the checks' largest differences; ``errors``: the commands' ``jaxproj: error:`` lines (the data
 folder as ``DATA``); ``check``: ``passed`` or why not.
 
@@ -49,7 +53,7 @@ differently shaped sums may round apart).
 Usage::
 
     python -m benchmarks.batch_cli [--loop 12] [--robot NAME] [--tile N] [--skip-unpacked]
-        [--json OUT]
+        [--warm] [--json OUT]
 """
 
 from __future__ import annotations
@@ -143,6 +147,7 @@ def main() -> None:
     ap.add_argument("--robot", default=robots.DEFAULT, help="a registered robot (its IK)")
     ap.add_argument("--tile", type=int, default=0, help="the batch's folder holds N files")
     ap.add_argument("--skip-unpacked", action="store_true", help="no --no-pack batch")
+    ap.add_argument("--warm", action="store_true", help="the batch again, from its cache")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     if args.tile < 0:
@@ -188,6 +193,17 @@ def main() -> None:
         res["batch_all_s"] = wall
         res["batch_all_written"] = len(list((root / "b_all").glob("*.npz")))
         _progress(f"batch_all ({len(files)} recordings)", wall)
+        if args.warm:
+            argv = ["retarget", str(root / "all"), "--out", str(root / "w_all"), *robot]
+            wall = _run(argv, root / "c3")
+            res["batch_all_warm_s"] = wall
+            _progress(f"batch_all_warm ({len(files)} recordings)", wall)
+            res["warm_vs_cold_max_diff_rad"] = max(
+                float(
+                    np.abs(np.load(f)["angles"] - np.load(root / "w_all" / f.name)["angles"]).max()
+                )
+                for f in (root / "b_all").glob("*.npz")
+            )
         if not args.skip_unpacked:
             wall = _run(["retarget", str(root / "all"), "--out", str(root / "u_all"), "--no-pack",
                          *robot], root / "c4")  # fmt: skip
@@ -205,17 +221,19 @@ def main() -> None:
     devices = jax.devices()
     res["device"] = f"{len(devices)} x {devices[0].device_kind}"
     res["jax_version"] = jax.__version__
-    for k in ("batch_subset", "loop", "batch_all", "unpacked_all"):
+    for k in ("batch_subset", "loop", "batch_all", "batch_all_warm", "unpacked_all"):
         if f"{k}_s" not in res:  # --skip-unpacked
             continue
-        n = res["recordings"] if k.endswith("_all") else res["subset_recordings"]
-        fr = res["frames"] if k.endswith("_all") else res["subset_frames"]
+        every = "_all" in k
+        n = res["recordings"] if every else res["subset_recordings"]
+        fr = res["frames"] if every else res["subset_frames"]
         res[f"{k}_recordings_per_s"] = n / res[f"{k}_s"]
         res[f"{k}_frames_per_s"] = fr / res[f"{k}_s"]
     res["batch_all_speedup_per_recording"] = (
         res["batch_all_recordings_per_s"] / res["loop_recordings_per_s"]
     )
-    worst = max(res.get(k, 0.0) for k in ("subset_max_diff_rad", "packed_vs_unpacked_max_diff_rad"))
+    checks = ("subset_max_diff_rad", "packed_vs_unpacked_max_diff_rad", "warm_vs_cold_max_diff_rad")
+    worst = max(res.get(k, 0.0) for k in checks)
     res["check"] = "passed" if worst <= bound else f"failed: angles {worst:g} rad apart"
     print(json.dumps(res, indent=1))
     if args.json is not None:

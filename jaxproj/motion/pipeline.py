@@ -614,6 +614,12 @@ def playable_full(angles: jax.Array, robot: Robot) -> jax.Array:
     return q.at[:, idx].set(robot.playable_motion(q[:, idx]))
 
 
+def playable_many(angles: jax.Array, robot: Robot) -> jax.Array:
+    """``playable_full`` of each of ``(B, T, n_joints)`` motions (each in its own time order), in
+    one program: ``retarget_many``'s last stage for a packed call's motions at once."""
+    return jax.vmap(lambda q: playable_full(q, robot))(angles)
+
+
 def standing_driven(robot: Robot) -> np.ndarray:
     """``(n_driven,)`` float32: the standing posture's driven joints (the output before any
     valid frame, and of a motion without one)."""

@@ -65,11 +65,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxproj._internal import executables
-from jaxproj._internal.buckets import call_bucketed, fine_bucket
+from jaxproj._internal.buckets import bucket, call_bucketed, fine_bucket
 from jaxproj._internal.jit import jit
 from jaxproj._internal.shards import host_shards
 from jaxproj.errors import ConfigError, JaxprojError, NoValidFrameError
@@ -143,21 +144,24 @@ class RetargetResult:
         return float(np.mean(self.valid)) if len(self.valid) else 0.0
 
 
-def _bucket(t: int) -> int:
+def _bucket(t: int, coarse: bool = False) -> int:
     """Padded length of a ``t``-frame motion: the least of ``2^k``, ``1.25 * 2^k``, ``1.5 *
     2^k``, ``1.75 * 2^k`` frames that holds it, at least 64 (``buckets.fine_bucket``: every
     padded frame is mapped, and a frame of a bundled robot's generic IK costs ~15 ms on
-    a 2-core CPU)."""
-    return fine_bucket(t, 64)
+    a 2-core CPU); ``coarse``: the next power of two, at least 64 (``retarget_many``'s
+    packing on an accelerator, where a program costs more than its padded frames)."""
+    return bucket(t, 64) if coarse else fine_bucket(t, 64)
 
 
 _playable_jit = jit(pipeline.playable_full, static_argnames=("robot",))
+_playable_many_jit = jit(pipeline.playable_many, static_argnames=("robot",))
 
 
-def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
+def separate_motion(angles: np.ndarray, robot: Robot, coarse: bool = False) -> np.ndarray:
     """``retarget``'s last stage on the host: one motion's ``(T, n_joints)`` angles made
     playable in time order (``pipeline.playable_full``), compiled once per row bucket (the
-    padding rows come after the motion's: the pass is causal, they change nothing)."""
+    padding rows come after the motion's: the pass is causal, they change nothing; ``coarse``:
+    power-of-two buckets, ``_bucket``'s)."""
     key = identity(robot)
 
     def fn(x: np.ndarray) -> Any:
@@ -165,7 +169,7 @@ def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
             _playable_jit, (x,), static={"robot": robot}, name="playable", identity=key
         )
 
-    return np.asarray(call_bucketed(fn, angles, 1, sizes=fine_bucket))
+    return np.asarray(call_bucketed(fn, angles, 1, sizes=bucket if coarse else fine_bucket))
 
 
 _motion_jit = jit(
@@ -284,6 +288,7 @@ class _Plan:
     static: dict[str, Any]
     spec: Robot
     model: Model | None
+    coarse: bool = False  # power-of-two buckets (``_bucket``)
 
 
 def _plan(
@@ -303,6 +308,7 @@ def _plan(
     neck_neutral: float | Literal["recording"] | None,
     level_legs: bool,
     skeleton: SkeletonLike,
+    coarse: bool = False,
 ) -> _Plan:
     """``retarget``'s checks, in its words, and the padded arrays of its compiled call."""
     positions = np.asarray(positions, dtype=np.float32)
@@ -365,7 +371,7 @@ def _plan(
     finite = np.isfinite(positions).all(axis=(1, 2))
     if not (ok_in & finite).any():  # nothing to map: refuse before tracing
         raise NoValidFrameError("positions", no_valid_frame_problem(ok_in, finite), t)
-    size = _bucket(t)
+    size = _bucket(t, coarse)
     pos = np.concatenate([positions, np.repeat(positions[-1:], size - t, axis=0)])
     ok = np.concatenate([ok_in, np.zeros(size - t, bool)])
     padded = np.concatenate([stamps, np.repeat(stamps[-1:], size - t)])
@@ -384,7 +390,7 @@ def _plan(
         level_legs=bool(level_legs),
     )
     return _Plan(p, pos, ok, t, ok_in, finite, stamps, np.asarray(gains), neutral, static, spec,
-                 model)  # fmt: skip
+                 model, coarse)  # fmt: skip
 
 
 def _result(
@@ -394,10 +400,11 @@ def _result(
     conf: np.ndarray,
     feasible: FeasibleConfig | None,
     filtered: np.ndarray | None = None,
+    separated: np.ndarray | None = None,
 ) -> RetargetResult:
     """``retarget``'s second half: the compiled call's padded answers cut to the motion, the
     feasibility filter (``filtered``: its answer for the cut angles, already computed) and the
-    last separation."""
+    last separation (``separated``: its answer for ``filtered``, already computed)."""
     t, spec, model, stamps = plan.t, plan.spec, plan.model, plan.stamps
     ok_t = np.asarray(ok_out)[:t]
     if not ok_t.any():  # every usable frame failed the descriptor's own check
@@ -409,16 +416,22 @@ def _result(
         if filtered is None:
             filtered = make_feasible(angles, stamps, config=feasible, robot=spec)
         angles = filtered
-        if spec.separate is not None:
+        if separated is not None:
+            angles = separated
+        elif spec.separate is not None:
             # the filter moves joints, and a contact can come back: pushed apart again, last,
             # frame by frame in time order (the rows padded at the end: a causal pass)
-            angles = separate_motion(angles, spec)
+            angles = separate_motion(angles, spec, plan.coarse)
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
         scale = spec.deviation_scale or DEVIATION_SCALE
         conf = np.asarray(rescale(jnp.asarray(conf), scale, model.confidence_scale))
     conf_t = np.asarray(conf, np.float32)[:t]
     return RetargetResult(angles, ok_t, stamps, unfiltered, conf_t)
 
+
+Packing = Literal["auto", "fine", "coarse"]
+PACKINGS: tuple[str, ...] = ("auto", "fine", "coarse")
+"""``retarget_many``'s ``packing`` values."""
 
 PACK_FRAMES = 32768
 """``retarget_many``: padded frames in one compiled call at most (the motions of one length
@@ -450,6 +463,7 @@ def retarget_many(
     neck_neutral: float | Literal["recording"] | None = "recording",
     level_legs: bool = True,
     pack_frames: int = PACK_FRAMES,
+    packing: Packing = "auto",
 ) -> list[RetargetResult | JaxprojError]:
     """``retarget`` of many motions with one setting, packed: the motions whose padded
     lengths are equal (``retarget``'s length buckets) run together, up to ``pack_frames``
@@ -457,6 +471,15 @@ def retarget_many(
     once), the number of motions in a call rounded up to a power of two (the last one
     repeated) so that a few programs serve any batch. A dataset of thousands of short clips
     then costs a few compiled calls instead of one per clip.
+
+    How finely (``packing``): ``"fine"`` pads as little as it can (``retarget``'s quarter-octave
+    length buckets; each call's motions rounded up to a power of two), for a CPU, where every
+    padded frame of a generic IK costs ~15 ms on 2 cores; ``"coarse"`` compiles as few programs
+    as it can (power-of-two length buckets, every call of a bucket the same number of rows, and
+    the last separation's buckets powers of two), for an accelerator, where a padded frame is
+    nearly free and a program is not (one G1 retarget on an H200: 58 s with an empty cache, 27 s
+    of it XLA compiling, 2026-11-30); ``"auto"``: coarse where JAX's default backend is not the
+    CPU. Either way each motion's answer is the same up to float rounding.
 
     Each motion's result is ``retarget``'s for it alone (its checks, its errors, its feasibility
     filter and last separation), except for float rounding: a differently shaped batch can
@@ -467,6 +490,7 @@ def retarget_many(
       valid, times, skeleton: per motion (``None``: ``retarget``'s default for each), the same
         length as ``positions``.
       pack_frames: padded frames per compiled call at most (>= 1).
+      packing: ``"auto"``, ``"fine"`` or ``"coarse"`` (above).
       the rest: ``retarget``'s, one value for every motion.
 
     Returns:
@@ -475,7 +499,7 @@ def retarget_many(
 
     Raises:
       ConfigError: per-motion sequences of another length than ``positions``; ``pack_frames``
-        < 1. (A setting that ``retarget`` refuses is each motion's error.)
+        < 1; another ``packing``. (A setting that ``retarget`` refuses is each motion's error.)
     """
     n = len(positions)
     for name, seq in (("valid", valid), ("times", times), ("skeleton", skeleton)):
@@ -483,6 +507,9 @@ def retarget_many(
             raise ConfigError(f"retarget_many: {name} has {len(seq)} entries for {n} motions")
     if pack_frames < 1:
         raise ConfigError(f"retarget_many: pack_frames must be >= 1, got {pack_frames}")
+    if packing not in PACKINGS:
+        raise ConfigError(f"retarget_many: packing must be one of {PACKINGS}, got {packing!r}")
+    coarse = packing == "coarse" or (packing == "auto" and jax.default_backend() != "cpu")
     out: list[Any] = [None] * n
     groups: dict[tuple, list[tuple[int, _Plan]]] = {}
     for i in range(n):
@@ -492,7 +519,7 @@ def retarget_many(
                 n_l=n_l, n_m=n_m, full=full, bones=bones, mirror=mirror, smoothing=smoothing,
                 times=None if times is None else times[i], robot=robot,
                 neck_neutral=neck_neutral, level_legs=level_legs,
-                skeleton=skeletons.DEFAULT if skeleton is None else skeleton[i],
+                skeleton=skeletons.DEFAULT if skeleton is None else skeleton[i], coarse=coarse,
             )  # fmt: skip
         except JaxprojError as e:
             out[i] = e
@@ -501,10 +528,12 @@ def retarget_many(
     for members in groups.values():
         size = members[0][1].pos.shape[0]
         per_call = max(1, pack_frames // size)
+        # coarse: every call of the group as many rows as its largest, so one program a group
+        most = 1 << (min(per_call, len(members)) - 1).bit_length()
         for start in range(0, len(members), per_call):
             chunk = members[start : start + per_call]
             plans = [pl for _, pl in chunk]
-            rows = 1 << (len(plans) - 1).bit_length()  # a power of two: few programs
+            rows = most if coarse else 1 << (len(plans) - 1).bit_length()  # a power of two
             plans += [plans[-1]] * (rows - len(plans))
             first = plans[0]
             angles, ok_out, conf = executables.call(
@@ -523,9 +552,11 @@ def retarget_many(
             )
             angles, ok_out, conf = np.asarray(angles), np.asarray(ok_out), np.asarray(conf)
             filtered = _feasible_rows(plans, angles, feasible)
+            separated = _separated_rows(plans, filtered) if coarse else [None] * len(plans)
             for j, (i, plan) in enumerate(chunk):
                 try:
-                    out[i] = _result(plan, angles[j], ok_out[j], conf[j], feasible, filtered[j])
+                    out[i] = _result(plan, angles[j], ok_out[j], conf[j], feasible, filtered[j],
+                                     separated[j])  # fmt: skip
                 except JaxprojError as e:
                     out[i] = e
     return out
@@ -548,6 +579,29 @@ def _feasible_rows(
         out = make_feasible(angles, times, lengths, config=feasible, robot=plans[0].spec)
     except ConfigError:
         return [None] * len(plans)
+    return [out[j, : pl.t] for j, pl in enumerate(plans)]
+
+
+def _separated_rows(plans: list[_Plan], filtered: list[np.ndarray | None]) -> list[Any]:
+    """The last separation of a packed call's filtered motions (``_feasible_rows``' answers),
+    in one program (``pipeline.playable_many``; the padded frames repeat each motion's last,
+    after it: a causal pass) -> each motion's ``(t, n_joints)`` angles, or ``None`` each where
+    the robot has no ``separate`` or a motion was not filtered in the batch."""
+    spec = plans[0].spec
+    if spec.separate is None or any(f is None for f in filtered):
+        return [None] * len(plans)
+    size = plans[0].pos.shape[0]
+    x = np.stack([np.concatenate([f, np.repeat(f[-1:], size - len(f), axis=0)])
+                  for f in filtered if f is not None])  # fmt: skip
+    out = np.asarray(
+        executables.call(
+            _playable_many_jit,
+            (x.astype(np.float32),),
+            static={"robot": spec},
+            name="playable_many",
+            identity=identity(spec),
+        )  # fmt: skip
+    )
     return [out[j, : pl.t] for j, pl in enumerate(plans)]
 
 

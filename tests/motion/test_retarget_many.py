@@ -41,6 +41,28 @@ def test_packed_motions_answer_as_each_alone_and_fail_in_their_place() -> None:
         assert np.array_equal(a.angles, b.angles)
 
 
+def test_coarse_packing_compiles_one_program_a_bucket_and_answers_the_same(
+    count_compiles,
+) -> None:
+    seqs = datasets.msr_action3d(subjects=[1])[:4]
+    long = np.concatenate([seqs[0].positions, seqs[1].positions])
+    positions = [s.positions for s in seqs] + [long]
+    valid = [s.valid for s in seqs] + [None]
+    assert {len(p) for p in positions[:4]} <= set(range(33, 65)) and 64 < len(long) <= 112
+    # fine, 192 frames a call: the four 64-frame motions in calls of 3 and 1 (4 rows and 1
+    # row), the long one in a 112-frame bucket; coarse: 4 rows both times, a 128-frame bucket
+    with count_compiles() as n:
+        got = retarget_many(positions, valid, pack_frames=192, packing="coarse")
+    assert n["motions"] == 2, n
+    for i, res in enumerate(got):
+        alone = retarget(positions[i], valid[i])
+        assert not isinstance(res, Exception)
+        assert np.abs(res.angles - alone.angles).max() <= ROUNDING
+        assert np.array_equal(res.valid, alone.valid)
+    with pytest.raises(ConfigError, match="packing must be one of"):
+        retarget_many(positions, packing="tight")  # type: ignore[arg-type]
+
+
 def test_per_motion_sequences_must_match_and_the_pack_must_hold_a_frame() -> None:
     x = [np.zeros((3, 20, 3), np.float32)] * 2
     with pytest.raises(ConfigError, match="valid has 1 entries for 2 motions"):
