@@ -145,6 +145,65 @@ class BonePair:
         return (self.bone,) if self.minus is None else (self.bone, self.minus)
 
 
+def _segment(model: mujoco.MjModel, gid: int) -> tuple[np.ndarray, np.ndarray]:
+    """The axis ends of capsule or sphere geom ``gid`` in its body's frame."""
+    pos = np.array(model.geom_pos[gid], np.float64)
+    half = np.zeros(3)
+    if model.geom_type[gid] == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, np.array(model.geom_quat[gid], np.float64))
+        half = rot.reshape(3, 3)[:, 2] * float(model.geom_size[gid][1])
+    return pos - half, pos + half
+
+
+def box_overhang(model: mujoco.MjModel, geom: str) -> float:
+    """How far (m) a box of ``geom``'s body that holds ``geom``'s axis stands out of the
+    capsules and spheres of that body inside it: the largest, over points of the box's 12
+    edges (11 a edge, corners included), of the distance to the nearest of those capsules
+    less its radius; 0 for a capsule in no box.
+
+    The collision term takes segments, so a robot gives capsules along a box that matters (the
+    G1's soles: three inside each box, `unitree_g1.xml`); their round sides leave the box's
+    edges out (4.1 mm along a sole's long edges, up to 9.1 mm on its short ends). The term adds the
+    overhang to such a capsule's radius, so that two boxes, edges included, stay apart."""
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    if gid < 0:
+        raise ConfigError(f"the MJCF has no geom named {geom!r}")
+    body = int(model.geom_bodyid[gid])
+    on_body = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body]
+    mine = [g for g in on_body if int(model.geom_type[g]) in _CAPSULE_KINDS]
+    boxes = [g for g in on_body if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_BOX)]
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
+    edges = [(i, j) for i in range(8) for j in range(i + 1, 8)
+             if np.abs(corners[i] - corners[j]).sum() == 2]  # fmt: skip
+    out = 0.0
+    for b in boxes:
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, np.array(model.geom_quat[b], np.float64))
+        rot = rot.reshape(3, 3)
+        centre, half = np.array(model.geom_pos[b], np.float64), np.array(model.geom_size[b])
+
+        def inside(x: np.ndarray, centre: np.ndarray = centre, rot: np.ndarray = rot,
+                   half: np.ndarray = half) -> bool:  # fmt: skip
+            return bool((np.abs(rot.T @ (x - centre)) <= half + 1e-9).all())
+
+        inner = [g for g in mine if all(inside(e) for e in _segment(model, g))]
+        if gid not in inner:
+            continue
+        t = np.linspace(0.0, 1.0, 11)[:, None]
+        local = np.concatenate([corners[i] + t * (corners[j] - corners[i]) for i, j in edges])
+        points = centre + (local * half) @ rot.T  # (132, 3) in the body's frame
+        gap = np.full(len(points), np.inf)
+        for g in inner:
+            a, e = _segment(model, g)
+            d = e - a
+            s = np.clip((points - a) @ d / max(float(d @ d), 1e-18), 0.0, 1.0)
+            dist = np.linalg.norm(points - (a + s[:, None] * d), axis=1)
+            gap = np.minimum(gap, dist - float(model.geom_size[g][0]))
+        out = max(out, float(gap.max()))
+    return out
+
+
 def capsule_points(model: mujoco.MjModel, geom: str) -> tuple[Point, Point, float]:
     """The segment ends (``(body, offset)`` points) and radius of a capsule or sphere geom of
     ``model`` (a sphere's ends coincide); ConfigError for another type or an unknown name."""
@@ -152,17 +211,9 @@ def capsule_points(model: mujoco.MjModel, geom: str) -> tuple[Point, Point, floa
     if gid < 0:
         raise ConfigError(f"the MJCF has no geom named {geom!r}")
     body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[gid]))
-    kind = model.geom_type[gid]
-    pos = np.array(model.geom_pos[gid], np.float64)
-    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-        half = np.zeros(3)
-    elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, np.array(model.geom_quat[gid], np.float64))
-        half = rot.reshape(3, 3)[:, 2] * float(model.geom_size[gid][1])
-    else:
+    if int(model.geom_type[gid]) not in _CAPSULE_KINDS:
         raise ConfigError(f"geom {geom!r}: only capsules and spheres are collision capsules")
-    a, b = pos - half, pos + half
+    a, b = _segment(model, gid)
     start: Point = (str(body), (float(a[0]), float(a[1]), float(a[2])))
     end: Point = (str(body), (float(b[0]), float(b[1]), float(b[2])))
     return start, end, float(model.geom_size[gid][0])
@@ -492,7 +543,10 @@ class GenericIK:
                     "capsule_points": np.array(
                         [[point(caps[n][0]), point(caps[n][1])] for n in used], np.int32
                     ).reshape(len(used), 2),
-                    "radii": np.array([caps[n][2] for n in used], np.float32),
+                    # a capsule inside a box: widened by the box's overhang (box_overhang)
+                    "radii": np.array(
+                        [caps[n][2] + box_overhang(model, n) for n in used], np.float32
+                    ),  # fmt: skip
                     "collide": np.array(
                         [[cap_idx[a], cap_idx[b]] for a, b in pairs], np.int32
                     ).reshape(len(pairs), 2),
@@ -1354,7 +1408,8 @@ def mjcf_collision_pairs(model: mujoco.MjModel) -> tuple[tuple[str, str], ...]:
     lets collide: their ``contype`` / ``conaffinity`` bits meet, they sit on bodies not welded
     together, not a parent and its child (MuJoCo's parent filter, on welded bodies) and not a
     pair of the MJCF's ``<exclude>``. In geom order. Boxes, meshes and planes are left out (the
-    collision term takes segments; a robot whose boxes matter gives capsules along them)."""
+    collision term takes segments; a robot whose boxes matter gives capsules along them, and
+    the term widens those by how far the box stands out of them: ``box_overhang``)."""
     excluded = {int(x) for x in model.exclude_signature}
     weld = model.body_weldid
     named = [

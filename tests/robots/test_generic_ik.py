@@ -683,3 +683,35 @@ def test_g1_track_clears_a_hand_in_the_hip_with_the_arm_and_holds_the_standing_l
     off = np.degrees(np.abs(out[:, rest] - q[rest]))
     assert off.max() < 2.0 and off[-4:].max() < 0.2  # the legs and waist: no walk
     assert np.degrees(np.abs(np.diff(out[-5:], axis=0))).max() < 0.1  # settled
+
+
+BOX_XML = """
+<mujoco><worldbody><body name="foot">
+  <geom name="sole" type="box" size="0.1 0.02 0.02"/>
+  <geom name="inside" type="capsule" size="0.02" fromto="-0.08 0 0  0.08 0 0"/>
+  <geom name="through" type="capsule" size="0.01" fromto="0 0 -0.05  0 0 0.05"/>
+  <body name="other" pos="0 0.5 0"><geom name="alone" type="sphere" size="0.03"/></body>
+</body></worldbody></mujoco>
+"""
+
+
+def test_a_capsule_inside_a_box_is_widened_by_how_far_the_box_stands_out() -> None:
+    model = mujoco.MjModel.from_xml_string(BOX_XML)
+    # the box's corners, (0.02, 0.02, 0.02) from the capsule's ends: sqrt(3) 0.02 - 0.02
+    assert generic_ik.box_overhang(model, "inside") == pytest.approx(0.02 * (3**0.5 - 1), abs=1e-9)
+    # a capsule that leaves the box, and one on a body without a box, are not widened
+    assert generic_ik.box_overhang(model, "through") == 0.0
+    assert generic_ik.box_overhang(model, "alone") == 0.0
+    with pytest.raises(ConfigError, match="no geom named"):
+        generic_ik.box_overhang(model, "nothing")
+    # the G1's soles: three capsules inside each box, whose short ends stand 9.1 mm out of them
+    g1 = UNITREE_G1.load_model()
+    for side in ("left", "right"):
+        for part in ("inner", "mid", "outer"):
+            got = generic_ik.box_overhang(g1, f"{side}_foot_{part}_geom")
+            assert got == pytest.approx(0.00907, abs=1e-5)
+    assert generic_ik.box_overhang(g1, "left_shin_geom") == 0.0
+    # and the G1's IK (its collision term and separation) takes them so widened
+    radii = np.asarray(UNITREE_G1.track.__self__.build().problems.data.radii)  # type: ignore[union-attr]
+    assert np.isclose(radii, 0.01 + 0.00907, atol=1e-5).any()
+    assert not np.isclose(radii, 0.01, atol=1e-6).any()  # the soles' own radius: none left
