@@ -178,9 +178,9 @@ def box_overhang(model: mujoco.MjModel, geom: str) -> float:
              if np.abs(corners[i] - corners[j]).sum() == 2]  # fmt: skip
     out = 0.0
     for b in boxes:
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, np.array(model.geom_quat[b], np.float64))
-        rot = rot.reshape(3, 3)
+        flat = np.zeros(9)
+        mujoco.mju_quat2Mat(flat, np.array(model.geom_quat[b], np.float64))
+        rot = flat.reshape(3, 3)
         centre, half = np.array(model.geom_pos[b], np.float64), np.array(model.geom_size[b])
 
         def inside(x: np.ndarray, centre: np.ndarray = centre, rot: np.ndarray = rot,
