@@ -476,10 +476,11 @@ def retarget_many(
     length buckets; each call's motions rounded up to a power of two), for a CPU, where every
     padded frame of a generic IK costs ~15 ms on 2 cores; ``"coarse"`` compiles as few programs
     as it can (power-of-two length buckets, every call of a bucket the same number of rows, and
-    the last separation's buckets powers of two), for an accelerator, where a padded frame is
-    nearly free and a program is not (one G1 retarget on an H200: 58 s with an empty cache, 27 s
-    of it XLA compiling, 2026-11-30); ``"auto"``: coarse where JAX's default backend is not the
-    CPU. Either way each motion's answer is the same up to float rounding.
+    a call's last separation in one program, ``pipeline.playable_many``), for an accelerator,
+    where a padded frame is nearly free and a program is not (one G1 retarget on an H200: 58 s
+    with an empty cache, 27 s of it XLA compiling, 2026-11-30); ``"auto"``: coarse where JAX's
+    default backend is not the CPU. Either way each motion's answer is the same up to float
+    rounding.
 
     Each motion's result is ``retarget``'s for it alone (its checks, its errors, its feasibility
     filter and last separation), except for float rounding: a differently shaped batch can
