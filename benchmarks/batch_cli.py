@@ -137,6 +137,15 @@ def _frames(paths: list[Path]) -> list[int]:
     return [len(read_skeleton(p).valid) for p in paths]
 
 
+def _max_diff(a: Path, b: Path) -> float:
+    """rad: the largest difference between the angles of each motion file of folder ``a`` and
+    the file of the same name in folder ``b``."""
+    return max(
+        float(np.abs(np.load(f)["angles"] - np.load(b / f.name)["angles"]).max())
+        for f in a.glob("*.npz")
+    )
+
+
 def _progress(what: str, wall: float) -> None:
     print(f"batch_cli: {what}: {wall:.1f} s", file=sys.stderr, flush=True)
 
@@ -198,23 +207,14 @@ def main() -> None:
             wall = _run(argv, root / "c3")
             res["batch_all_warm_s"] = wall
             _progress(f"batch_all_warm ({len(files)} recordings)", wall)
-            res["warm_vs_cold_max_diff_rad"] = max(
-                float(
-                    np.abs(np.load(f)["angles"] - np.load(root / "w_all" / f.name)["angles"]).max()
-                )
-                for f in (root / "b_all").glob("*.npz")
-            )
+            res["warm_vs_cold_max_diff_rad"] = _max_diff(root / "b_all", root / "w_all")
         if not args.skip_unpacked:
             wall = _run(["retarget", str(root / "all"), "--out", str(root / "u_all"), "--no-pack",
                          *robot], root / "c4")  # fmt: skip
             res["unpacked_all_s"] = wall
             res["unpacked_all_written"] = len(list((root / "u_all").glob("*.npz")))
             _progress(f"unpacked_all ({len(files)} recordings)", wall)
-            unpacked = root / "u_all"
-            res["packed_vs_unpacked_max_diff_rad"] = max(
-                float(np.abs(np.load(f)["angles"] - np.load(unpacked / f.name)["angles"]).max())
-                for f in (root / "b_all").glob("*.npz")
-            )
+            res["packed_vs_unpacked_max_diff_rad"] = _max_diff(root / "b_all", root / "u_all")
         res["errors"] = [e.replace(str(root), "DATA") for e in ERRORS]
     import jax  # after the runs: this process holds no device memory while they run
 

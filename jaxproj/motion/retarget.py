@@ -157,11 +157,10 @@ _playable_jit = jit(pipeline.playable_full, static_argnames=("robot",))
 _playable_many_jit = jit(pipeline.playable_many, static_argnames=("robot",))
 
 
-def separate_motion(angles: np.ndarray, robot: Robot, coarse: bool = False) -> np.ndarray:
+def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
     """``retarget``'s last stage on the host: one motion's ``(T, n_joints)`` angles made
     playable in time order (``pipeline.playable_full``), compiled once per row bucket (the
-    padding rows come after the motion's: the pass is causal, they change nothing; ``coarse``:
-    power-of-two buckets, ``_bucket``'s)."""
+    padding rows come after the motion's: the pass is causal, they change nothing)."""
     key = identity(robot)
 
     def fn(x: np.ndarray) -> Any:
@@ -169,7 +168,7 @@ def separate_motion(angles: np.ndarray, robot: Robot, coarse: bool = False) -> n
             _playable_jit, (x,), static={"robot": robot}, name="playable", identity=key
         )
 
-    return np.asarray(call_bucketed(fn, angles, 1, sizes=bucket if coarse else fine_bucket))
+    return np.asarray(call_bucketed(fn, angles, 1, sizes=fine_bucket))
 
 
 _motion_jit = jit(
@@ -288,7 +287,6 @@ class _Plan:
     static: dict[str, Any]
     spec: Robot
     model: Model | None
-    coarse: bool = False  # power-of-two buckets (``_bucket``)
 
 
 def _plan(
@@ -390,7 +388,7 @@ def _plan(
         level_legs=bool(level_legs),
     )
     return _Plan(p, pos, ok, t, ok_in, finite, stamps, np.asarray(gains), neutral, static, spec,
-                 model, coarse)  # fmt: skip
+                 model)  # fmt: skip
 
 
 def _result(
@@ -421,7 +419,7 @@ def _result(
         elif spec.separate is not None:
             # the filter moves joints, and a contact can come back: pushed apart again, last,
             # frame by frame in time order (the rows padded at the end: a causal pass)
-            angles = separate_motion(angles, spec, plan.coarse)
+            angles = separate_motion(angles, spec)
     if model is not None:  # the compiled call used the robot's scale: the model's own instead
         scale = spec.deviation_scale or DEVIATION_SCALE
         conf = np.asarray(rescale(jnp.asarray(conf), scale, model.confidence_scale))
