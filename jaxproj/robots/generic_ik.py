@@ -145,14 +145,19 @@ class BonePair:
         return (self.bone,) if self.minus is None else (self.bone, self.minus)
 
 
+def _rotation(model: mujoco.MjModel, gid: int) -> np.ndarray:
+    """``(3, 3)`` rotation of geom ``gid`` in its body's frame."""
+    flat = np.zeros(9)
+    mujoco.mju_quat2Mat(flat, np.array(model.geom_quat[gid], np.float64))
+    return flat.reshape(3, 3)
+
+
 def _segment(model: mujoco.MjModel, gid: int) -> tuple[np.ndarray, np.ndarray]:
     """The axis ends of capsule or sphere geom ``gid`` in its body's frame."""
     pos = np.array(model.geom_pos[gid], np.float64)
     half = np.zeros(3)
     if model.geom_type[gid] == mujoco.mjtGeom.mjGEOM_CAPSULE:
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, np.array(model.geom_quat[gid], np.float64))
-        half = rot.reshape(3, 3)[:, 2] * float(model.geom_size[gid][1])
+        half = _rotation(model, gid)[:, 2] * float(model.geom_size[gid][1])
     return pos - half, pos + half
 
 
@@ -178,9 +183,7 @@ def box_overhang(model: mujoco.MjModel, geom: str) -> float:
              if np.abs(corners[i] - corners[j]).sum() == 2]  # fmt: skip
     out = 0.0
     for b in boxes:
-        flat = np.zeros(9)
-        mujoco.mju_quat2Mat(flat, np.array(model.geom_quat[b], np.float64))
-        rot = flat.reshape(3, 3)
+        rot = _rotation(model, b)
         centre, half = np.array(model.geom_pos[b], np.float64), np.array(model.geom_size[b])
 
         def inside(x: np.ndarray, centre: np.ndarray = centre, rot: np.ndarray = rot,
