@@ -27,6 +27,11 @@ Options:
   takes long at thousands of G1 files); the check is then the subset's alone.
 * ``--warm``: the batch over the folder once more, from the first one's compilation cache
   (``batch_all_warm``: compiling apart), its output checked against the first's.
+* ``--warm-devices V,...``: after the first batch, the batch again from its cache with
+  ``--devices V`` for each value (``1``, ``2``, ``all``: its calls spread over that many
+  devices, a thread each), each output checked against the first batch's
+  (``batch_all_warm_devices_<V>_s``, ``warm_devices_<V>_max_diff_rad``): the speed-up of
+  several GPUs over one, compiling apart.
 * ``--json OUT``: the result also written to ``OUT`` (always printed on stdout); progress, a
   line a step with its wall time, goes to stderr.
 
@@ -53,7 +58,7 @@ differently shaped sums may round apart).
 Usage::
 
     python -m benchmarks.batch_cli [--loop 12] [--robot NAME] [--tile N] [--skip-unpacked]
-        [--warm] [--json OUT]
+        [--warm] [--warm-devices V,...] [--json OUT]
 """
 
 from __future__ import annotations
@@ -157,8 +162,10 @@ def main() -> None:
     ap.add_argument("--tile", type=int, default=0, help="the batch's folder holds N files")
     ap.add_argument("--skip-unpacked", action="store_true", help="no --no-pack batch")
     ap.add_argument("--warm", action="store_true", help="the batch again, from its cache")
+    ap.add_argument("--warm-devices", default="", help="warm batches with --devices V, ...")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
+    spreads = [v for v in args.warm_devices.split(",") if v]
     if args.tile < 0:
         ap.error(f"--tile {args.tile}: give N >= 1 (0: off)")
     robot = ["--robot", args.robot]
@@ -208,6 +215,13 @@ def main() -> None:
             res["batch_all_warm_s"] = wall
             _progress(f"batch_all_warm ({len(files)} recordings)", wall)
             res["warm_vs_cold_max_diff_rad"] = _max_diff(root / "b_all", root / "w_all")
+        for v in spreads:
+            out = root / f"w_all_{v}"
+            argv = ["retarget", str(root / "all"), "--out", str(out), *robot, "--devices", v]
+            wall = _run(argv, root / "c3")
+            res[f"batch_all_warm_devices_{v}_s"] = wall
+            _progress(f"batch_all_warm --devices {v} ({len(files)} recordings)", wall)
+            res[f"warm_devices_{v}_max_diff_rad"] = _max_diff(root / "b_all", out)
         if not args.skip_unpacked:
             wall = _run(["retarget", str(root / "all"), "--out", str(root / "u_all"), "--no-pack",
                          *robot], root / "c4")  # fmt: skip
@@ -221,7 +235,8 @@ def main() -> None:
     devices = jax.devices()
     res["device"] = f"{len(devices)} x {devices[0].device_kind}"
     res["jax_version"] = jax.__version__
-    for k in ("batch_subset", "loop", "batch_all", "batch_all_warm", "unpacked_all"):
+    spread_keys = [f"batch_all_warm_devices_{v}" for v in spreads]
+    for k in ("batch_subset", "loop", "batch_all", "batch_all_warm", "unpacked_all", *spread_keys):
         if f"{k}_s" not in res:  # --skip-unpacked
             continue
         every = "_all" in k
@@ -232,7 +247,8 @@ def main() -> None:
     res["batch_all_speedup_per_recording"] = (
         res["batch_all_recordings_per_s"] / res["loop_recordings_per_s"]
     )
-    checks = ("subset_max_diff_rad", "packed_vs_unpacked_max_diff_rad", "warm_vs_cold_max_diff_rad")
+    checks = ("subset_max_diff_rad", "packed_vs_unpacked_max_diff_rad", "warm_vs_cold_max_diff_rad",
+              *(f"warm_devices_{v}_max_diff_rad" for v in spreads))  # fmt: skip
     worst = max(res.get(k, 0.0) for k in checks)
     res["check"] = "passed" if worst <= bound else f"failed: angles {worst:g} rad apart"
     print(json.dumps(res, indent=1))

@@ -37,6 +37,7 @@ import hashlib
 import importlib.metadata
 import os
 import pickle
+import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -47,9 +48,14 @@ import numpy as np
 from jaxproj._internal.atomic import atomic_write
 
 _FOLDER: list[Path] = []
-_LOADED: dict[Path, Any] = {}
-"""The executables this process loaded or compiled, by file (at most ``KEEP_LOADED``): a second
-call runs the one in memory (each load maps the program's code again)."""
+_LOADED: dict[tuple[Path, int | None], Any] = {}
+"""The executables this process loaded or compiled, by file and device (at most
+``KEEP_LOADED``): a second call runs the one in memory (each load maps the program's code
+again)."""
+_LOCK = threading.Lock()
+_COMPILING: dict[Path, threading.Lock] = {}
+"""One lock a file: threads that need one program (``shards.on_devices``, a thread a device)
+compile it once; the others wait, then load it for their own device."""
 
 KEEP_LOADED = 8
 
@@ -129,6 +135,12 @@ def _devices(compiled: Any) -> list[int]:
     return sorted(found)
 
 
+def _default_device() -> jax.Device | None:
+    """The calling thread's ``jax.default_device`` where it names a device, else ``None``."""
+    found = getattr(jax.config, "jax_default_device", None)  # a thread's own setting
+    return found if isinstance(found, jax.Device) else None
+
+
 def call(
     jitted: Any,
     args: tuple,
@@ -155,40 +167,54 @@ def call(
     from jax.experimental.serialize_executable import deserialize_and_load, serialize
 
     path = folder / f"{name}-{_key(name, args, kwargs, words, identity)[:40]}.xla"
-    compiled = _LOADED.get(path)
-    if compiled is None and path.is_file():
-        try:
-            payload, in_tree, out_tree, ids = pickle.loads(path.read_bytes())
-            by_id = {d.id: d for d in jax.devices()}
-            compiled = deserialize_and_load(
-                payload, in_tree, out_tree, execution_devices=[by_id[i] for i in ids]
-            )
-        except Exception:  # noqa: BLE001 (another version's file, cut short: compile again)
-            compiled = None
+    # the thread's default device (``jax.default_device``, ``shards.on_devices``): a program
+    # kept for one device loads onto another (a one-device program's code is the same)
+    target = _default_device()
+    slot = (path, None if target is None else target.id)  # (several devices: loaded per thread)
+    with _LOCK:
+        compiled = _LOADED.get(slot)
+        gate = _COMPILING.setdefault(path, threading.Lock())
     if compiled is None:
-        compiled = jitted.lower(*args, **kwargs, **static).compile()
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            data = pickle.dumps((*serialize(compiled), _devices(compiled)))
+        with gate:
+            if path.is_file():
+                try:
+                    payload, in_tree, out_tree, ids = pickle.loads(path.read_bytes())
+                    by_id = {d.id: d for d in jax.devices()}
+                    # a one-device program onto the thread's device; one of several devices
+                    # (a CPU's rows split over its cores) onto its own
+                    one = target is not None and len(ids) == 1
+                    where = [target] if one else [by_id[i] for i in ids]
+                    compiled = deserialize_and_load(
+                        payload, in_tree, out_tree, execution_devices=where
+                    )
+                except Exception:  # noqa: BLE001 (another version's file, cut short: compile)
+                    compiled = None
+            if compiled is None:
+                compiled = jitted.lower(*args, **kwargs, **static).compile()
+                try:
+                    folder.mkdir(parents=True, exist_ok=True)
+                    data = pickle.dumps((*serialize(compiled), _devices(compiled)))
 
-            def write(tmp: Path) -> None:
-                tmp.write_bytes(data)
+                    def write(tmp: Path) -> None:
+                        tmp.write_bytes(data)
 
-            atomic_write(path, write)
-        except Exception:  # noqa: BLE001 (a program that does not serialise, a full disk: run it)
-            pass
+                    atomic_write(path, write)
+                except Exception:  # noqa: BLE001 (a program that does not serialise, a full disk)
+                    pass
     try:  # run it here, so that a program that fails to run is caught here
         out = jax.block_until_ready(compiled(*args, **kwargs))
     except jax.errors.JaxRuntimeError:
         # seen once in the test suite (2026-11-29, jaxlib 0.10.2): a kept XLA:CPU program that
         # loaded but could not find one of its own functions ("compare_reduce_fusion not
         # found"); its cause is not known. Dropped, and the call runs as a plain jit call.
-        _LOADED.pop(path, None)
+        with _LOCK:
+            _LOADED.pop(slot, None)
         with contextlib.suppress(OSError):
             path.unlink()
         return jitted(*args, **kwargs, **static)
-    if path not in _LOADED:
-        if len(_LOADED) >= KEEP_LOADED:
-            _LOADED.pop(next(iter(_LOADED)))
-        _LOADED[path] = compiled
+    with _LOCK:
+        if slot not in _LOADED:
+            if len(_LOADED) >= KEEP_LOADED:
+                _LOADED.pop(next(iter(_LOADED)))
+            _LOADED[slot] = compiled
     return out

@@ -15,8 +15,11 @@ for more, so nothing changes there by default.
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Callable
+import queue
+import threading
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -78,3 +81,46 @@ def request_host_devices() -> int | None:
         return None
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_FLAG}={n}".strip()
     return n
+
+
+def on_devices(
+    fn: Callable[[Any], None], items: Sequence[Any], devices: Sequence[jax.Device] | None
+) -> None:
+    """``fn(item)`` for every item, spread over ``devices``: one host thread a device, each
+    taking the next item in order while any is left, with that device as JAX's default (a
+    thread's own setting: its uncommitted arrays and its programs go there). ``None`` or one
+    device: in order on this thread (on that device). A program with a loop in time order keeps
+    its calling thread until it ends, so a thread a device is what lets devices overlap (as
+    ``jaxproj.projection.api.project``'s ``per_device``). The first exception any call raised is
+    raised after every thread has stopped (the others stop taking items)."""
+    if not devices or len(devices) == 1:
+        with contextlib.ExitStack() as stack:
+            if devices:
+                stack.enter_context(jax.default_device(devices[0]))
+            for item in items:
+                fn(item)
+        return
+    todo: queue.SimpleQueue[Any] = queue.SimpleQueue()
+    for item in items:
+        todo.put(item)
+    failed: list[BaseException] = []
+
+    def worker(device: jax.Device) -> None:
+        with jax.default_device(device):
+            while not failed:
+                try:
+                    item = todo.get_nowait()
+                except queue.Empty:
+                    return
+                try:
+                    fn(item)
+                except BaseException as e:  # noqa: BLE001 (raised on the calling thread)
+                    failed.append(e)
+
+    threads = [threading.Thread(target=worker, args=(d,), name=f"jaxproj-{d}") for d in devices]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if failed:
+        raise failed[0]

@@ -6,10 +6,11 @@ every compiled program serves every recording whose length falls in the same sha
 (``jaxproj._internal.buckets``), so the per-file compile that one command per file pays is paid
 once per bucket (with the persistent compilation cache across runs too, ``jaxproj.cli.cache``).
 
-* **Packed** (``run``'s ``many``: ``retarget.retarget_files``): up to ``PACK_RECORDINGS``
-  recordings are read, then retargeted together (``jaxproj.motion.retarget.retarget_many``:
-  the recordings of one length bucket in one compiled call, their feasibility filters in one
-  batch), then written; each recording's output is its own command's up to float rounding.
+* **Packed** (``run``'s ``many``: ``retarget.retarget_files``): up to ``pack_recordings()``
+  recordings (1,024 on a CPU, 16,384 on an accelerator) are read, then retargeted together
+  (``jaxproj.motion.retarget.retarget_many``: the recordings of one length bucket in one
+  compiled call, their feasibility filters in one batch), then written; each recording's
+  output is its own command's up to float rounding.
   A round that fails as a whole is done again one recording at a time.
 * **Inputs** (``expand``): a file; a folder: every recording in it and its sub-folders (the
   folder rules of ``jaxproj.io.readers.recording_format``: documentation, labels and models are
@@ -156,6 +157,21 @@ def share(todo: list[tuple[Path, Path]], count: int, index: int) -> list[tuple[P
 
 
 PACK_RECORDINGS = 1024
+PACK_RECORDINGS_ACCELERATOR = 16384
+"""Recordings read and retargeted in one round at most: 1,024 on a CPU (a round's progress
+line every few minutes), 16,384 on an accelerator (``pack_recordings``), where a round's
+length buckets each cost their passes in time order however few recordings they hold: 10,000
+G1 files in rounds of 1,024 ran the longest bucket ten times."""
+
+
+def pack_recordings() -> int:
+    """A round's recordings (``PACK_RECORDINGS`` on a CPU, ``PACK_RECORDINGS_ACCELERATOR``
+    elsewhere)."""
+    import jax
+
+    return PACK_RECORDINGS if jax.default_backend() == "cpu" else PACK_RECORDINGS_ACCELERATOR
+
+
 """Recordings read, retargeted together (``many``) and written per round of a batch."""
 
 
@@ -166,7 +182,7 @@ def run(
 ) -> int:
     """The batch (module doc): ``one(args)`` retargets one recording (``args.input``) to one
     file (``args.out``) and returns its table row; ``many`` (where given) does so for up to
-    ``PACK_RECORDINGS`` at once, returning each one's row or exception (a round that fails as
+    ``pack_recordings()`` at once, returning each one's row or exception (a round that fails as
     a whole is done again with ``one``, recording by recording). With ``--processes`` this
     process joins JAX's multi-process runtime (``jax.distributed.initialize``, before any JAX
     computation) and takes its share (``share``)."""
@@ -214,7 +230,7 @@ def run(
         except Exception as err:  # a batch never dies halfway: each failure is reported
             return err, time.perf_counter() - t0
 
-    step = PACK_RECORDINGS if many is not None else 1
+    step = pack_recordings() if many is not None else 1
     for r in range(0, len(todo), step):
         chunk = todo[r : r + step]
         argss = [each_args(src, dst) for src, dst in chunk]

@@ -102,6 +102,13 @@ def add_parsers(sub: Any) -> None:
         "rounding can differ: docs: Command line)",
     )
     pr.add_argument(
+        "--devices",
+        default="auto",
+        help="a batch: the JAX devices its packed calls are spread over, a thread each: a "
+        "count, 'all', or auto (the default): every device on a GPU, one on a CPU (whose "
+        "cores the generic IK already splits its rows over)",
+    )
+    pr.add_argument(
         "--resume",
         action="store_true",
         help="a batch: leave out a recording whose output exists (a batch stopped halfway goes "
@@ -228,6 +235,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--processes splits a batch: give several recordings or a folder")
     if args.no_pack:
         raise ConfigError("--no-pack is a batch's: give several recordings or a folder")
+    if args.devices != "auto":
+        raise ConfigError("--devices spreads a batch: give several recordings or a folder")
     args.input = args.input[0]
     retarget_file(args)
     return 0
@@ -246,6 +255,17 @@ def retarget_file(args: argparse.Namespace) -> dict[str, Any]:
     except NoValidFrameError as e:
         raise _no_valid_frame(args, prep, e) from None
     return _write(args, prep, result)
+
+
+def batch_devices(value: str) -> list | None:
+    """``--devices`` of a batch -> ``retarget_many``'s ``devices``: ``auto`` is every JAX
+    device where the default backend is not the CPU, else ``None`` (one); a count or ``all``
+    as ``options.devices``."""
+    import jax
+
+    if value == "auto":
+        return jax.devices() if jax.default_backend() != "cpu" and len(jax.devices()) > 1 else None
+    return options.devices(value)
 
 
 def retarget_files(each: list[argparse.Namespace]) -> list[dict[str, Any] | Exception]:
@@ -268,6 +288,7 @@ def retarget_files(each: list[argparse.Namespace]) -> list[dict[str, Any] | Exce
     recs = [prep.rec for _, prep in ready]
     results = retarget_many([r.positions for r in recs], [r.valid for r in recs],
                             [r.times for r in recs], [r.skeleton for r in recs],
+                            devices=batch_devices(first_args.devices),
                             **_retarget_options(first_args, first))  # fmt: skip
     for (i, prep), result in zip(ready, results, strict=True):
         try:

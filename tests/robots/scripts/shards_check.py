@@ -7,7 +7,9 @@ import json
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
+from typing import Any
 
 from jaxproj._internal import shards
 
@@ -25,7 +27,7 @@ from jaxproj.motion import retarget as retarget_module  # noqa: E402
 
 
 def main() -> None:
-    robot = robots.load(Path(sys.argv[1]))
+    robot = robots.get(Path(sys.argv[1]))  # registered: its programs can be kept
     d = datasets.valid_descriptors(datasets.msr_action3d(subjects=[1]))[:100]
     split = np.asarray(robot.ik(d, "upper"))  # host rows: padded to 128, split over the devices
     one = np.asarray(jax.jit(lambda x: robot.traced_ik(x, "upper"))(np.asarray(d, np.float32)))
@@ -33,6 +35,21 @@ def main() -> None:
     split_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
     retarget_module.host_shards = lambda: 1  # the same call on one device
     one_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
+    # a batch's calls spread over the devices, a thread each (`retarget_many(devices=)`): two
+    # length buckets, so two calls, one a device; each answer that of the calls on one device
+    other = datasets.msr_action3d(subjects=[1], actions=[2])[0]
+    positions = [seq.positions, np.tile(other.positions, (3, 1, 1))]
+    valid = [seq.valid, np.tile(other.valid, 3)]
+    lengths = [len(x) for x in positions]
+    alone = retarget_module.retarget_many(positions, valid, robot=robot)
+    spread = retarget_module.retarget_many(positions, valid, robot=robot, devices=jax.devices())
+    seen: dict[int, str] = {}
+
+    def note(i: int) -> None:
+        time.sleep(0.2)  # each thread takes an item before either is done
+        seen[i] = str(jax.config.jax_default_device)
+
+    shards.on_devices(note, range(4), jax.devices())
     # a kept one-device program, loaded again in this process of several devices (a loaded
     # program is told its devices; left alone it took them all and refused its arguments)
     with tempfile.TemporaryDirectory() as tmp, executables.kept_in(Path(tmp)):
@@ -41,6 +58,24 @@ def main() -> None:
         kept = np.asarray(executables.call(double, (x,), name="double", identity=("t",)))
         executables._LOADED.clear()
         loaded = np.asarray(executables.call(double, (x,), name="double", identity=("t",)))
+        # the kept program loaded onto each device by a thread of its own
+        each: dict[int, Any] = {}
+
+        def twice(i: int) -> None:
+            each[i] = executables.call(double, (x + i,), name="double", identity=("t",))
+
+        shards.on_devices(twice, range(2), jax.devices()[::-1])
+        on_each = sorted(str(next(iter(v.devices()))) for v in each.values())
+        # programs split over the CPU devices, kept, then loaded by each thread on their own
+        # devices (remapped onto one, XLA aborted the process: 2026-11-30)
+        executables._LOADED.clear()
+        retarget_module.host_shards = shards.host_shards
+        kept_spread = []
+        for _ in range(2):  # compiled and kept, then loaded from the files
+            executables._LOADED.clear()
+            kept_spread.append(retarget_module.retarget_many(positions, valid, robot=robot,
+                                                             devices=jax.devices()))  # fmt: skip
+        kept_files = len(list(Path(tmp).glob("retarget_many-*.xla")))
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(json.dumps({
         "asked": asked,
@@ -53,6 +88,17 @@ def main() -> None:
         "motion_frames": len(split_motion),
         "motion_max_diff": float(np.abs(split_motion - one_motion).max()),
         "kept_and_loaded": kept.tolist() == loaded.tolist() == [0.0, 2.0, 4.0, 6.0],
+        "kept_on_each": on_each,
+        "kept_each_right": all(np.asarray(v).tolist() == (2 * (x + i)).tolist()
+                               for i, v in each.items()),
+        "devices": [str(d) for d in jax.devices()],
+        "spread_threads": sorted(set(seen.values())),
+        "spread_lengths": lengths,
+        "kept_spread_files": kept_files,
+        "kept_spread_max_diff": max(float(np.abs(a.angles - b.angles).max())
+                                    for a, b in zip(*kept_spread, strict=True)),
+        "spread_max_diff": max(float(np.abs(a.angles - b.angles).max())
+                               for a, b in zip(alone, spread, strict=True)),
     }))  # fmt: skip
 
 
