@@ -317,6 +317,16 @@ class IKConfig:
                 raise ConfigError(f"IKConfig.{name} must be finite and >= 0, got {v}")
 
 
+SIDE_BY_SIDE: bool | None = None
+"""``track``'s two ways side by side (``vmap``, ``True``) or one after the other in one scan
+(``False``), read when a program is traced; ``None`` (the default): side by side on any backend
+but the CPU (``benchmarks/experiments/batch_timeline.py`` compares the two)."""
+
+
+def _side_by_side() -> bool:
+    return jax.default_backend() != "cpu" if SIDE_BY_SIDE is None else SIDE_BY_SIDE
+
+
 @dataclass(frozen=True)
 class TrackConfig:
     """Settings of ``GenericIK.track`` (the continuity pass).
@@ -1030,7 +1040,7 @@ class GenericIK:
             ways = over_rows(one_way, 2)(jnp.stack([q, q[::-1]]), jnp.stack([h, h[::-1]]),
                                          jnp.stack([valid, valid[::-1]]))  # fmt: skip
             fwd, bwd = ways[0], ways[1][::-1]
-        elif jax.default_backend() != "cpu":  # the two ways side by side (vmap): T steps
+        elif _side_by_side():  # the two ways side by side (vmap): T steps
 
             def way(qs: jax.Array, hs: jax.Array, vs: jax.Array) -> jax.Array:
                 start = (standing, standing, hs[0], jnp.asarray(False))
