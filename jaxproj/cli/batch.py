@@ -179,13 +179,15 @@ def run(
     args: argparse.Namespace,
     one: Callable[[argparse.Namespace], dict[str, Any]],
     many: Callable[[list[argparse.Namespace]], list[dict[str, Any] | Exception]] | None = None,
+    check: Callable[[], object] | None = None,
 ) -> int:
     """The batch (module doc): ``one(args)`` retargets one recording (``args.input``) to one
     file (``args.out``) and returns its table row; ``many`` (where given) does so for up to
     ``pack_recordings()`` at once, returning each one's row or exception (a round that fails as
     a whole is done again with ``one``, recording by recording). With ``--processes`` this
     process joins JAX's multi-process runtime (``jax.distributed.initialize``, before any JAX
-    computation) and takes its share (``share``)."""
+    computation) and takes its share (``share``). ``check()`` then runs before any recording: its
+    ``ConfigError`` (a bad option) stops the batch."""
     if args.plot is not None:
         raise ConfigError("--plot draws one recording: leave it out of a batch")
     multi = processes(args.processes)
@@ -197,6 +199,8 @@ def run(
         jax.distributed.initialize(address, num_processes=count, process_id=index)
         todo = share(todo, jax.process_count(), jax.process_index())
         skipped = skipped[index::count]
+    if check is not None:  # the batch's own options that need JAX (after its runtime started)
+        check()
     n = len(todo) + len(skipped)
     rows: list[tuple[str, dict[str, Any]]] = []
     failed: list[tuple[Path, str]] = []

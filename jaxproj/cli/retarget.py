@@ -230,7 +230,8 @@ def run(args: argparse.Namespace) -> int:
     from jaxproj.cli import batch
 
     if batch.is_batch(args.input):
-        return batch.run(args, retarget_file, None if args.no_pack else retarget_files)
+        return batch.run(args, retarget_file, None if args.no_pack else retarget_files,
+                         check=lambda: batch_devices(args.devices))  # fmt: skip
     if args.processes is not None:
         raise ConfigError("--processes splits a batch: give several recordings or a folder")
     if args.no_pack:
@@ -258,14 +259,28 @@ def retarget_file(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def batch_devices(value: str) -> list | None:
-    """``--devices`` of a batch -> ``retarget_many``'s ``devices``: ``auto`` is every JAX
-    device where the default backend is not the CPU, else ``None`` (one); a count or ``all``
-    as ``options.devices``."""
+    """``--devices`` of a batch -> ``retarget_many``'s ``devices``, this process's own devices
+    (``jax.local_devices()``: with ``--processes`` every process spreads its share over its own
+    host's): ``auto``, all of them where the default backend is not the CPU, else ``None`` (one
+    device); ``all``; or a count ``N``, the first ``N``.
+
+    Raises:
+      ConfigError: a count outside ``1..len(jax.local_devices())``, or another word.
+    """
     import jax
 
-    if value == "auto":
-        return jax.devices() if jax.default_backend() != "cpu" and len(jax.devices()) > 1 else None
-    return options.devices(value)
+    local = jax.local_devices()
+    if value in ("auto", "all"):
+        spread = value == "all" or jax.default_backend() != "cpu"
+        return local if spread and len(local) > 1 else None
+    try:
+        n = int(value)
+    except ValueError:
+        raise ConfigError(f"--devices {value}: a count, 'all' or 'auto'") from None
+    if not 1 <= n <= len(local):
+        raise ConfigError(f"--devices {value}: this process has {len(local)} JAX device(s) "
+                          f"({', '.join(str(d) for d in local)}); use 1..{len(local)}")  # fmt: skip
+    return local[:n] if n > 1 else None
 
 
 def retarget_files(each: list[argparse.Namespace]) -> list[dict[str, Any] | Exception]:

@@ -134,6 +134,12 @@ def test_files_and_lists_and_what_a_batch_refuses(
         ([str(data), "--out", str(tmp_path / "z"), "--processes", "two"], "expected HOST:PORT,N,I"),
         ([str(data / "walk.csv"), "--out", str(tmp_path / "w.npz"), "--no-pack"],
          "--no-pack is a batch's"),
+        ([str(data / "walk.csv"), "--out", str(tmp_path / "w.npz"), "--devices", "2"],
+         "--devices spreads a batch"),
+        ([str(data), "--out", str(tmp_path / "z"), "--devices", "64"],
+         "--devices 64: this process has"),  # at most 8 CPU devices (shards.MAX_SHARDS)
+        ([str(data), "--out", str(tmp_path / "z"), "--devices", "some"],
+         "--devices some: a count, 'all' or 'auto'"),
     ):  # fmt: skip
         code, _, err = run_cli(capsys, "retarget", *argv)
         assert_one_line_error(code, err, words)

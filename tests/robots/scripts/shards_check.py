@@ -35,14 +35,6 @@ def main() -> None:
     split_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
     retarget_module.host_shards = lambda: 1  # the same call on one device
     one_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
-    # a batch's calls spread over the devices, a thread each (`retarget_many(devices=)`): two
-    # length buckets, so two calls, one a device; each answer that of the calls on one device
-    other = datasets.msr_action3d(subjects=[1], actions=[2])[0]
-    positions = [seq.positions, np.tile(other.positions, (3, 1, 1))]
-    valid = [seq.valid, np.tile(other.valid, 3)]
-    lengths = [len(x) for x in positions]
-    alone = retarget_module.retarget_many(positions, valid, robot=robot)
-    spread = retarget_module.retarget_many(positions, valid, robot=robot, devices=jax.devices())
     seen: dict[int, str] = {}
 
     def note(i: int) -> None:
@@ -66,16 +58,22 @@ def main() -> None:
 
         shards.on_devices(twice, range(2), jax.devices()[::-1])
         on_each = sorted(str(next(iter(v.devices()))) for v in each.values())
-        # programs split over the CPU devices, kept, then loaded by each thread on their own
-        # devices (remapped onto one, XLA aborted the process: 2026-11-30)
+        # a program split over the CPU devices (a batch's IK rows, `over_rows`), kept, then
+        # loaded by a thread a device onto its own devices (remapped onto the thread's one
+        # device, XLA aborted the process: 2026-11-30)
+        split_double = jax.jit(shards.over_rows(lambda r: 2.0 * r, 2))
+        rows = np.arange(8, dtype=np.float32).reshape(4, 2)
+        executables.call(split_double, (rows,), name="split", identity=("t",))
         executables._LOADED.clear()
-        retarget_module.host_shards = shards.host_shards
-        kept_spread = []
-        for _ in range(2):  # compiled and kept, then loaded from the files
-            executables._LOADED.clear()
-            kept_spread.append(retarget_module.retarget_many(positions, valid, robot=robot,
-                                                             devices=jax.devices()))  # fmt: skip
-        kept_files = len(list(Path(tmp).glob("retarget_many-*.xla")))
+        spread: dict[int, Any] = {}
+
+        def split_twice(i: int) -> None:
+            spread[i] = executables.call(split_double, (rows + i,), name="split", identity=("t",))
+
+        shards.on_devices(split_twice, range(2), jax.devices())
+        kept_slots = sorted(str(k[1]) for k in executables._LOADED if k[0].name.startswith("split"))
+        spread_right = all(np.asarray(v).tolist() == (2 * (rows + i)).tolist()
+                           for i, v in spread.items())  # fmt: skip
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(json.dumps({
         "asked": asked,
@@ -93,12 +91,8 @@ def main() -> None:
                                for i, v in each.items()),
         "devices": [str(d) for d in jax.devices()],
         "spread_threads": sorted(set(seen.values())),
-        "spread_lengths": lengths,
-        "kept_spread_files": kept_files,
-        "kept_spread_max_diff": max(float(np.abs(a.angles - b.angles).max())
-                                    for a, b in zip(*kept_spread, strict=True)),
-        "spread_max_diff": max(float(np.abs(a.angles - b.angles).max())
-                               for a, b in zip(alone, spread, strict=True)),
+        "kept_spread_slots": kept_slots,
+        "kept_spread_right": spread_right,
     }))  # fmt: skip
 
 
