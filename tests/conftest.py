@@ -117,24 +117,32 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 HEAVY_FILES = (
     "integration/test_notebooks.py",
     "projection/test_projection.py",
-    "integration/test_demo.py",
-    "integration/test_reliability.py",
-    "eval/test_rollout.py",
-    "motion/test_streaming.py",
-    "integration/test_bench.py",
-    "integration/test_cli.py",
     "robots/test_generic_ik.py",
-    "projection/test_landmarks.py",
-    "test_testing.py",
-    "integration/test_robot_seam.py",
-    "eval/test_evaluate.py",
+    "integration/test_reliability.py",
+    "integration/test_demo.py",
+    "integration/test_cli.py",
+    "eval/test_rollout.py",
+    "integration/test_robot_file_cli.py",
     "integration/test_readme.py",
+    "integration/test_bench.py",
+    "integration/test_robot_seam.py",
     "projection/test_sharding.py",
-    "integration/test_bad_input.py",
+    "projection/test_search.py",
+    "test_testing.py",
+    "motion/test_streaming.py",
+    "motion/test_pipeline.py",
+    "projection/test_landmarks.py",
+    "robots/test_shards.py",
+    "motion/test_whole_body.py",
+    "eval/test_evaluate.py",
+    "motion/test_retarget_many.py",
+    "motion/test_retarget.py",
+    "motion/test_head.py",
 )
-"""The test files of more than ~40 worker-seconds, longest first (measured on the 2-core VM,
-2026-11-26, ``--durations=0`` summed per file: 318 s for the notebooks down to 40 s; the
-streaming file placed by its 2026-11-28 cost, ~190 s with the G1 continuity test)."""
+"""The test files of more than ~35 worker-seconds, longest first (measured on the 2-core VM,
+2026-11-30, ``JAXPROJ_TEST_TIMELINE`` summed per file under extra load: 294 s for the notebooks
+down to 37 s; ``test_shards.py``, ~45 s alone, and ``test_robot_file_cli.py``, ~110 s, had been
+left out and ran last: one worker ended ~50 s before the other)."""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
