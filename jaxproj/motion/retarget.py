@@ -436,9 +436,11 @@ PACK_FRAMES = 32768
 bucket packed together; a longer motion alone), fine packing."""
 
 PACK_FRAMES_COARSE = 131072
-"""The same for coarse packing (an accelerator): a call's passes in time order cost the same
-for 1 row or thousands on a GPU, so a bucket's motions go in as few calls as memory allows
-(10,000 G1 files: 7 calls instead of 25)."""
+"""The same for coarse packing (an accelerator): a call's passes in time order cost nearly the
+same for a hundred rows or a thousand on a GPU (a 64-frame G1 call on an H200: 6.4 s for 128
+rows, 9.4 s for 1,024), so a bucket's motions go in as few calls as memory allows
+(the 10,000 tiled files of ``benchmarks/batch_cli.py``: 8 calls instead of 22, counted
+by length bucket)."""
 
 _motions_jit = jit(
     pipeline.motions,
@@ -494,8 +496,12 @@ def retarget_many(
       positions: the motions' ``(T_i, 20, 3)`` joint positions.
       valid, times, skeleton: per motion (``None``: ``retarget``'s default for each), the same
         length as ``positions``.
-      pack_frames: padded frames per compiled call at most (>= 1).
+      pack_frames: padded frames per compiled call at most (>= 1; ``None``: ``PACK_FRAMES``,
+        or ``PACK_FRAMES_COARSE`` for coarse packing).
       packing: ``"auto"``, ``"fine"`` or ``"coarse"`` (above).
+      devices: the calls spread over these devices, a host thread each, the longest calls
+        first (``jaxproj._internal.shards.on_devices``; each answer the same as on one
+        device); ``None``: JAX's default device.
       the rest: ``retarget``'s, one value for every motion.
 
     Returns:
