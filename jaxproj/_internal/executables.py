@@ -180,10 +180,13 @@ def call(
                 try:
                     payload, in_tree, out_tree, ids = pickle.loads(path.read_bytes())
                     by_id = {d.id: d for d in jax.devices()}
-                    # a one-device program onto the thread's device; one of several devices
-                    # (a CPU's rows split over its cores) onto its own
-                    one = target is not None and len(ids) == 1
-                    where = [target] if one else [by_id[i] for i in ids]
+                    # a one-device program onto the thread's device (or the default one,
+                    # whichever device wrote it); one of several devices (a CPU's rows split
+                    # over its cores) onto its own
+                    if len(ids) == 1:
+                        where = [target if target is not None else jax.devices()[0]]
+                    else:
+                        where = [by_id[i] for i in ids]
                     compiled = deserialize_and_load(
                         payload, in_tree, out_tree, execution_devices=where
                     )
