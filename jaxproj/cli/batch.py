@@ -158,10 +158,11 @@ def share(todo: list[tuple[Path, Path]], count: int, index: int) -> list[tuple[P
 
 PACK_RECORDINGS = 1024
 PACK_RECORDINGS_ACCELERATOR = 16384
-"""Recordings read and retargeted in one round at most: 1,024 on a CPU (a round's progress
-line every few minutes), 16,384 on an accelerator (``pack_recordings``), where a round's
-length buckets each cost their passes in time order however few recordings they hold: 10,000
-G1 files in rounds of 1,024 ran the longest bucket ten times."""
+"""Recordings read, retargeted together (``many``) and written in one round of a batch at
+most: 1,024 on a CPU (a round's progress line every few minutes), 16,384 on an accelerator
+(``pack_recordings``), where a round's length buckets each cost their passes in time order
+however few recordings they hold: 10,000 G1 files in rounds of 1,024 ran the longest bucket
+ten times."""
 
 
 def pack_recordings() -> int:
@@ -170,9 +171,6 @@ def pack_recordings() -> int:
     import jax
 
     return PACK_RECORDINGS if jax.default_backend() == "cpu" else PACK_RECORDINGS_ACCELERATOR
-
-
-"""Recordings read, retargeted together (``many``) and written per round of a batch."""
 
 
 def run(

@@ -537,10 +537,9 @@ def retarget_many(
             continue
         groups.setdefault((plan.pos.shape[0], plan.gains.shape), []).append((i, plan))
     calls: list[tuple[list[tuple[int, _Plan]], list[_Plan]]] = []
+    frames = pack_frames or (PACK_FRAMES_COARSE if coarse else PACK_FRAMES)
     for members in groups.values():
         size = members[0][1].pos.shape[0]
-        frames = pack_frames if pack_frames is not None else (
-            PACK_FRAMES_COARSE if coarse else PACK_FRAMES)  # fmt: skip
         per_call = max(1, frames // size)
         # coarse: every call of the group as many rows as its largest, so one program a group
         most = 1 << (min(per_call, len(members)) - 1).bit_length()
