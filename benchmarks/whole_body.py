@@ -52,7 +52,8 @@ from jaxproj import robots
 from jaxproj.cli.main import main as cli
 from jaxproj.human.skeleton import J
 from jaxproj.io.motion_files import Motion, load_motion
-from jaxproj.motion.feet import _foot_points, _subtree
+from jaxproj.motion.stance import _foot_points
+from jaxproj.motion.stance import subtree as _subtree
 from jaxproj.motion.whole_body import _point, world_frame
 from jaxproj.robots.base import joint_qpos_index
 

@@ -305,15 +305,43 @@ def retarget_files(each: list[argparse.Namespace]) -> list[dict[str, Any] | Exce
                             [r.times for r in recs], [r.skeleton for r in recs],
                             devices=batch_devices(first_args.devices),
                             **_retarget_options(first_args, first))  # fmt: skip
-    for (i, prep), result in zip(ready, results, strict=True):
+    bodies = _root_motions(first_args, ready, results)
+    for (i, prep), result, body in zip(ready, results, bodies, strict=True):
         try:
             if isinstance(result, NoValidFrameError):
                 raise _no_valid_frame(each[i], prep, result)
             if isinstance(result, Exception):
                 raise result
-            out[i] = _write(each[i], prep, result)
+            if isinstance(body, Exception):
+                raise body
+            out[i] = _write(each[i], prep, result, body)
         except Exception as err:  # noqa: BLE001 (the batch reports it with the file)
             out[i] = err
+    return out
+
+
+def _root_motions(
+    args: argparse.Namespace, ready: list[tuple[int, Any]], results: list[Any]
+) -> list[Any]:
+    """With ``--root world``, the whole-body stage of a batch's retargeted recordings at once
+    (``whole_body.root_trajectories``: their stance IKs and last separations in one compiled call
+    per length bucket): one ``RootMotion`` (or the error it raised) per recording, ``None``
+    where there is none to compute."""
+    if args.root != "world":
+        return [None] * len(ready)
+    from jaxproj.motion.whole_body import root_trajectories
+
+    done = [k for k, r in enumerate(results) if not isinstance(r, Exception)]
+    robot = ready[0][1].robot
+    motions = [(ready[k][1].rec.positions, results[k].valid, results[k].times, results[k].angles)
+               for k in done]  # fmt: skip
+    try:
+        got = root_trajectories(motions, robot)
+    except Exception as err:  # noqa: BLE001 (the batch reports it with every file)
+        got = [err] * len(done)
+    out: list[Any] = [None] * len(ready)
+    for k, body in zip(done, got, strict=True):
+        out[k] = body
     return out
 
 
@@ -426,7 +454,9 @@ def _no_valid_frame(
     return NoValidFrameError(args.input, f"{problem}{hint}; nothing written", e.n_frames)
 
 
-def _write(args: argparse.Namespace, prep: _Prepared, result: Any) -> dict[str, Any]:
+def _write(
+    args: argparse.Namespace, prep: _Prepared, result: Any, body: Any = None
+) -> dict[str, Any]:
     """``retarget_file``'s second half: the motion file, the summary lines, the table row."""
     from jaxproj.io.motion_files import Motion, save_motion
     from jaxproj.motion import feasible
@@ -460,8 +490,10 @@ def _write(args: argparse.Namespace, prep: _Prepared, result: Any) -> dict[str, 
     if args.root == "world":
         from jaxproj.motion.whole_body import root_trajectory
 
-        # rec.positions are Kinect v1's 20 joints whatever the file recorded (rec.skeleton)
-        body = root_trajectory(rec.positions, result.valid, result.times, angles, robot)
+        # rec.positions are Kinect v1's 20 joints whatever the file recorded (rec.skeleton);
+        # a batch has planted its recordings' feet at once (``body``)
+        if body is None:
+            body = root_trajectory(rec.positions, result.valid, result.times, angles, robot)
         root = {"root_pos": body.root_pos, "root_rot": body.root_rot, "contacts": body.contacts}
         angles = body.angles  # the stance feet planted
         meta["root"] = "world"

@@ -171,6 +171,34 @@ def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
     return np.asarray(call_bucketed(fn, angles, 1, sizes=fine_bucket))
 
 
+def separate_many(angles: Sequence[np.ndarray], robot: Robot) -> list[np.ndarray]:
+    """``separate_motion`` of several motions (``(T_i, n_joints)`` each): those of one length
+    bucket (``fine_bucket``) in one program (``pipeline.playable_many``; each padded with its
+    last frame, after it: a causal pass); a bucket of one motion as ``separate_motion``."""
+    out: list[np.ndarray] = [np.zeros(0)] * len(angles)
+    groups: dict[int, list[int]] = {}
+    for i, q in enumerate(angles):
+        groups.setdefault(fine_bucket(len(q)), []).append(i)
+    for size, members in groups.items():
+        if len(members) == 1:
+            out[members[0]] = separate_motion(angles[members[0]], robot)
+            continue
+        x = np.stack([np.concatenate([angles[i], np.repeat(angles[i][-1:], size - len(angles[i]),
+                                      axis=0)]) for i in members]).astype(np.float32)  # fmt: skip
+        got = np.asarray(
+            executables.call(
+                _playable_many_jit,
+                (x,),
+                static={"robot": robot},
+                name="playable_many",
+                identity=identity(robot),
+            )
+        )
+        for j, i in enumerate(members):
+            out[i] = got[j, : len(angles[i])]
+    return out
+
+
 _motion_jit = jit(
     pipeline.motion,
     static_argnames=(

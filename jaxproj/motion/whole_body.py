@@ -78,8 +78,9 @@ MuJoCo's own ``qpos`` is scalar first).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 import mujoco
@@ -93,18 +94,21 @@ from jaxproj.motion.feet import (
     ROOT_SLACK,
     _below_floor,
     _foot_points,
-    _plant_feet,
     _root_body,
     _set,
     _sole_heights,
     _stance_weights,
-    _subtree,
+    plan_feet,
+    plant_planned,
 )
+from jaxproj.motion.stance import Plan
+from jaxproj.motion.stance import subtree as _subtree
 from jaxproj.robots import Robot
 from jaxproj.robots.base import joint_qpos_index
 
 __all__ = ["HEADING_FRAMES", "ContactConfig", "RootMotion", "WorldFrame", "check_robot",
-           "contacts_of", "robot_leg_length", "root_trajectory", "world_frame"]  # fmt: skip
+           "contacts_of", "robot_leg_length", "root_trajectories", "root_trajectory",
+           "world_frame"]  # fmt: skip
 
 HEADING_FRAMES = 15
 """Valid frames at the start of a recording whose median forward direction is the world's +x."""
@@ -377,6 +381,70 @@ def root_trajectory(
     Raises:
       ConfigError: shapes that disagree, no valid frame, a robot without legs or feet.
     """
+    return root_trajectories([(positions, valid, times, angles)], robot, skeleton=skeleton,
+                             contact=contact, level_soles=level_soles, separate=separate,
+                             raise_errors=True)[0]  # fmt: skip
+
+
+def root_trajectories(
+    motions: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+    robot: Robot,
+    *,
+    skeleton: skeletons.SkeletonLike = skeletons.DEFAULT,
+    contact: ContactConfig | None = None,
+    level_soles: bool = LEVEL_SOLES,
+    separate: bool = True,
+    raise_errors: bool = False,
+) -> list[Any]:
+    """``root_trajectory`` of each of several motions, ``(positions, valid, times, angles)``
+    each, their stance IKs in one compiled call per length bucket (``feet.plant_planned``) and
+    their last separations in one per bucket (``retarget.separate_many``): a batch's
+    whole-body stage. One entry per motion, in order: its ``RootMotion``, or the
+    ``ConfigError`` ``root_trajectory`` raises for it (raised here with ``raise_errors``)."""
+    out: list[Any] = [None] * len(motions)
+    ready: list[tuple[int, _Prepared]] = []
+    for i, (positions, valid, times, angles) in enumerate(motions):
+        try:
+            ready.append((i, _prepare(positions, valid, times, angles, robot, skeleton=skeleton,
+                                      contact=contact, level_soles=level_soles)))  # fmt: skip
+        except ConfigError as err:
+            if raise_errors:
+                raise
+            out[i] = err
+    planted = plant_planned(robot, [pre.plan for _, pre in ready])
+    angles_out = [q for q, _ in planted]
+    if separate and ready:
+        from jaxproj.motion.retarget import separate_many  # the fixed base's compiled pass
+
+        angles_out = separate_many(angles_out, robot)
+    for (i, pre), q_out, (_, root_pos) in zip(ready, angles_out, planted, strict=True):
+        out[i] = _finish(robot, pre, np.asarray(q_out, np.float64), root_pos)
+    return out
+
+
+class _Prepared(NamedTuple):
+    """One motion between ``root_trajectories``' host stages."""
+
+    plan: Plan
+    rot_root: np.ndarray
+    contacts: np.ndarray
+    world: WorldFrame
+    budget: np.ndarray
+
+
+def _prepare(
+    positions: np.ndarray,
+    valid: np.ndarray,
+    times: np.ndarray,
+    angles: np.ndarray,
+    robot: Robot,
+    *,
+    skeleton: skeletons.SkeletonLike = skeletons.DEFAULT,
+    contact: ContactConfig | None = None,
+    level_soles: bool = LEVEL_SOLES,
+) -> _Prepared:
+    """``root_trajectory``'s host stage before the stance IK: the world frame, contacts, the
+    root's orientation, its positions by the height and stance rules, and the stance plan."""
     p = np.asarray(positions, np.float64)
     q = np.asarray(angles, np.float64)
     n = len(p)
@@ -455,11 +523,16 @@ def root_trajectory(
     budget = np.concatenate([[0.0], np.linalg.norm(np.diff(hip, axis=0), axis=1)]) + ROOT_SLACK
     if np.ptp(hip, axis=0).max() < CENTRED:  # the pelvis is the recording's origin: no bound
         budget[:] = np.inf
-    q_out, root_pos = _plant_feet(robot, q, root_pos, rot_root, stance, ramp, trees, budget)
-    if separate:
-        from jaxproj.motion.retarget import separate_motion  # the fixed base's compiled pass
+    plan = plan_feet(q, root_pos, rot_root, stance, ramp, budget)
+    return _Prepared(plan, rot_root, contacts, world, budget)
 
-        q_out = separate_motion(q_out.astype(np.float32), robot).astype(np.float64)
+
+def _finish(robot: Robot, pre: _Prepared, q_out: np.ndarray, root_pos: np.ndarray) -> RootMotion:
+    """``root_trajectory``'s host stage after the stance IK (and the last separation, already
+    run on ``q_out``): the root raised by whatever of the robot is below the floor, spread over
+    the frames around it; the quaternions."""
+    rot_root, budget, n = pre.rot_root, pre.budget, len(q_out)
+    root_pos = np.array(root_pos, np.float64)
     planted = np.concatenate([[0.0], np.linalg.norm(np.diff(root_pos, axis=0), axis=1)])
     lift = _below_floor(robot, q_out, root_pos, rot_root)
     root_pos[:, 2] += _spread(lift, np.maximum(budget + LIFT_SLACK - planted, 0.0))
@@ -469,8 +542,8 @@ def root_trajectory(
         mujoco.mju_mat2Quat(wxyz, rot_root[t].ravel())
         quat[t] = np.roll(wxyz, -1)
     quat *= np.where(quat[:, 3:] < 0, -1.0, 1.0)  # w >= 0: one of the two
-    return RootMotion(root_pos.astype(np.float32), quat.astype(np.float32), contacts, world,
-                      q_out.astype(np.float32))  # fmt: skip
+    return RootMotion(root_pos.astype(np.float32), quat.astype(np.float32), pre.contacts,
+                      pre.world, q_out.astype(np.float32))  # fmt: skip
 
 
 def _spread(lift: np.ndarray, rate: np.ndarray) -> np.ndarray:

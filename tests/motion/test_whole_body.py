@@ -312,3 +312,86 @@ def test_every_format_with_feet_gets_a_root(tmp_path, capsys, monkeypatch) -> No
     assert np.linalg.norm(roots["kinect_v1.csv"][-1, :2] - roots["kinect_v1.csv"][0, :2]) > 0.7
     for name in ("kinect_v2.skeleton", "smpl.npz"):
         np.testing.assert_allclose(roots[name], roots["kinect_v1.csv"], atol=1e-3)  # files round
+
+
+def test_a_batch_plants_its_motions_together_as_each_alone(walk, monkeypatch) -> None:
+    """``root_trajectories``: the motions of one length bucket planted in one vmapped program
+    (``stance.plant_many``), a motion alone in its bucket by ``stance.plant``; each motion's
+    root and angles are those ``root_trajectory`` gives it alone (float rounding apart: the
+    batched program's products round differently), a motion that cannot be done is its error
+    and stops no other."""
+    from jaxproj.motion import feet
+
+    rec, angles, _ = walk
+    centred = rec.positions - rec.positions[:, J["HipCenter"]][:, None]
+    calls = []
+    real = feet.plant_planned
+
+    def spy(robot, plans):
+        calls.append([len(p.angles) for p in plans])
+        return real(robot, plans)
+
+    def part(pos: np.ndarray, n: int, start: int = 0) -> tuple:
+        cut = slice(start, start + n)
+        return pos[cut], rec.valid[cut], rec.times[cut], angles[cut]
+
+    monkeypatch.setattr(wb, "plant_planned", spy)
+    # fine_bucket: the first two 64 rows, planted together; the last 96, alone
+    wrong = part(rec.positions, 60)[:3] + (angles[:3],)  # angles that disagree
+    motions = [part(rec.positions, 60), part(centred, 56, 40), wrong, part(rec.positions, 90, 80)]
+    got = wb.root_trajectories(motions, G1, separate=False)
+    assert calls == [[60, 56, 90]] and isinstance(got[2], ConfigError)
+    for i in (0, 1, 3):
+        one, many = wb.root_trajectory(*motions[i], G1, separate=False), got[i]
+        assert np.array_equal(one.contacts, many.contacts) and one.contacts.any()
+        step = np.abs(one.root_pos - many.root_pos).max(axis=1)
+        turn = np.abs(one.angles - many.angles).max(axis=1)
+        assert np.median(step) < 1e-5 and np.median(turn) < 1e-4
+        assert (step < 1e-3).mean() > 0.95 and (turn < 1e-2).mean() > 0.95
+
+
+def test_the_stance_ik_differentiates_the_feet_as_mujoco_does() -> None:
+    """``stance.foot_jacobians`` at a random pose (root placed and turned, legs bent) equals
+    MuJoCo's on the free model: each sole's reference point and axes (``mj_kinematics``), the
+    point's translation Jacobian and the foot's rotation Jacobian (``mj_jac``) by the root's
+    position and the legs' joints."""
+    import functools
+
+    import jax
+    import jax.numpy as jnp
+
+    from jaxproj.motion import stance
+
+    feet = stance.feet_of(G1)
+    rng = np.random.default_rng(3)
+    q = (G1.standing + rng.normal(0.0, 0.3, G1.n_joints)).clip(G1.lower, G1.upper)
+    root = np.array([0.3, -0.2, 0.7])
+    wxyz = rng.normal(size=4)
+    wxyz /= np.linalg.norm(wxyz)
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, wxyz)
+    rot = rot.reshape(3, 3)
+    x = np.concatenate([root, q[feet.cols]])
+    jacobians = jax.jit(functools.partial(stance.foot_jacobians, feet))
+    point, j_point, axes, j_turn = (
+        np.asarray(a, np.float64)
+        for a in jacobians(jnp.asarray(x, jnp.float32), jnp.asarray(q, jnp.float32),
+                           jnp.asarray(rot, jnp.float32))
+    )  # fmt: skip
+    model = G1.load_model("free")
+    data = mujoco.MjData(model)
+    adr = joint_qpos_index(model, G1.joint_names)
+    data.qpos[0:3], data.qpos[3:7], data.qpos[adr] = root, wxyz, q
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    dofs = np.concatenate([[0, 1, 2], [model.jnt_dofadr[model.jnt_qposadr.tolist().index(a)]
+                                       for a in adr[feet.cols]]])  # fmt: skip
+    for k, (name, _) in enumerate(G1.mjcf.figure.feet[:2]):
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        r = data.xmat[body].reshape(3, 3)
+        np.testing.assert_allclose(axes[k], r, atol=2e-6)
+        jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+        mujoco.mj_jac(model, data, jp, jr, point[k], body)
+        np.testing.assert_allclose(j_point[k], jp[:, dofs], atol=2e-5)
+        np.testing.assert_allclose(j_turn[k], jr[:, dofs], atol=2e-5)
+        assert np.abs(j_point[k][:, 3:]).max() > 0.1 and np.abs(j_turn[k][:, 3:]).max() > 0.5
