@@ -7,7 +7,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxproj._internal.buckets import LINEAR_FROM, MIN_ROWS, bucket, fine_bucket, pad_rows
+from jaxproj._internal.buckets import (
+    LINEAR_FROM,
+    MIN_ROWS,
+    bucket,
+    fine_bucket,
+    packed_calls,
+    pad_rows,
+)
 from jaxproj.errors import ConfigError
 from jaxproj.human import skeleton
 from jaxproj.io import datasets
@@ -52,6 +59,25 @@ def recordings() -> list[np.ndarray]:
     out = [s.positions for s in seqs if 33 <= len(s.positions) <= 64][:3]
     assert len({len(p) for p in out}) >= 2
     return out
+
+
+def test_packed_calls_stack_motions_of_one_padded_length():
+    """Every motion in exactly one call; a call's motions of one padded length (powers of two
+    where coarse, quarter-octaves otherwise), at most ``frames // rows`` of them, its stack a
+    power of two."""
+    lengths = [60, 56, 50, 90, 300, 10, 64, 65] + [100] * 9
+    for coarse in (True, False):
+        calls = packed_calls(lengths, coarse=coarse, frames=1024)
+        seen = sorted(i for _, members, _ in calls for i in members)
+        assert seen == list(range(len(lengths)))
+        sizes = bucket if coarse else fine_bucket
+        for rows, members, count in calls:
+            assert all(sizes(lengths[i]) == rows for i in members)
+            assert len(members) <= max(1, 1024 // rows) and count >= len(members)
+            assert count & (count - 1) == 0 and count < 2 * len(members)
+    # coarse: 64 rows for five, then 128 for eleven, 1024 // 128 = 8 a call; 512 for one
+    got = [(r, len(m), c) for r, m, c in packed_calls(lengths, coarse=True, frames=1024)]
+    assert got == [(64, 5, 8), (128, 8, 8), (128, 3, 4), (512, 1, 1)]
 
 
 def test_descriptor_of_host_recordings_compiles_once_per_bucket(recordings, count_compiles):

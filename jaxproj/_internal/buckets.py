@@ -12,7 +12,7 @@ not. See each caller for the padding rows it uses.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -78,3 +78,25 @@ def call_bucketed(
         return jax.device_put(a[:n].reshape(lead + a.shape[1:]))
 
     return jax.tree.map(cut, out)
+
+
+def packed_calls(
+    lengths: Sequence[int], *, coarse: bool, frames: int, minimum: int = MIN_ROWS
+) -> list[tuple[int, list[int], int]]:
+    """Calls of a program over many motions of ``lengths`` frames, each a stack of motions of
+    one padded length: ``(rows, members, count)`` per call, ``rows`` the padded length
+    (``bucket``, powers of two, where ``coarse``: few programs; else ``fine_bucket``),
+    ``members`` the motions' indices (at most ``frames // rows`` of them) and ``count`` the
+    stack's size, a power of two (the caller repeats a member to fill it): a few compiled
+    shapes serve any batch."""
+    sizes = bucket if coarse else fine_bucket
+    groups: dict[int, list[int]] = {}
+    for i, n in enumerate(lengths):
+        groups.setdefault(sizes(n, minimum), []).append(i)
+    out = []
+    for rows, members in groups.items():
+        per_call = max(1, frames // rows)
+        for start in range(0, len(members), per_call):
+            chunk = members[start : start + per_call]
+            out.append((rows, chunk, 1 << (len(chunk) - 1).bit_length()))
+    return out

@@ -12,13 +12,12 @@ that a batch plants many motions in one call (``stance.plant_many``).
 
 from __future__ import annotations
 
-import functools
-
+import jax
 import mujoco
 import numpy as np
 
 from jaxproj._internal import executables
-from jaxproj._internal.buckets import bucket, fine_bucket, pad_rows
+from jaxproj._internal.buckets import bucket, packed_calls, pad_rows
 from jaxproj.motion.stance import (
     PLANT_ITERATIONS,
     PLANT_ORIENTATION,
@@ -59,8 +58,7 @@ there."""
 SINGLE_ROWS = 256
 """The fewest frames one motion's stance program is compiled for: a motion alone is padded to
 ``bucket(T, SINGLE_ROWS)`` (one program for every motion up to 256 frames; a padding frame
-solves nothing), a batch's motions to ``fine_bucket`` of the longest in a group (there every
-frame of every motion costs a solve)."""
+solves nothing there, where in a batch's vmapped program every frame costs a solve)."""
 
 
 def plan_feet(
@@ -103,30 +101,37 @@ def _padded(plan: Plan, rows: int) -> Plan:
 def plant_planned(robot: Robot, plans: list[Plan]) -> list[tuple[np.ndarray, np.ndarray]]:
     """Every plan's motion planted (``stance.plant``): ``((T, J) angles, (T, 3) root)`` each,
     float64. One plan: one call of ``stance.plant`` (its frames padded to ``bucket(T,
-    SINGLE_ROWS)``: a padding frame costs little there);
-    several: one call of ``stance.plant_many`` per length bucket, its motions padded to one
-    length (a batch of whole-body recordings in one program a bucket)."""
+    SINGLE_ROWS)``: a padding frame costs little there); several: ``stance.plant_many`` over
+    stacks of motions of one padded length (``buckets.packed_calls``, as ``retarget_many``
+    packs: few programs on an accelerator, little padding on a CPU), a batch of whole-body
+    recordings in a few programs."""
     out: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(0), np.zeros(0))] * len(plans)
-    groups: dict[int, list[int]] = {}
-    sizes = fine_bucket if len(plans) > 1 else functools.partial(bucket, minimum=SINGLE_ROWS)
-    for i, plan in enumerate(plans):
-        groups.setdefault(sizes(len(plan.angles)), []).append(i)
     key = identity(robot)
-    for rows, members in groups.items():
+    if len(plans) == 1:
+        rows = bucket(len(plans[0].angles), SINGLE_ROWS)
+        got = executables.call(plant_jit, (_padded(plans[0], rows),), static={"robot": robot},
+                               name="stance", identity=key)  # fmt: skip
+        n = len(plans[0].angles)
+        return [
+            (np.asarray(got[0])[:n].astype(np.float64), np.asarray(got[1])[:n].astype(np.float64))
+        ]
+    coarse = jax.default_backend() != "cpu"
+    calls = packed_calls([len(p.angles) for p in plans], coarse=coarse, frames=PACK_FRAMES)
+    for rows, members, count in calls:
         padded = [_padded(plans[i], rows) for i in members]
-        if len(members) == 1:
-            got = executables.call(plant_jit, (padded[0],), static={"robot": robot},
-                                   name="stance", identity=key)  # fmt: skip
-            angles, pos = (np.asarray(a)[None] for a in got)
-        else:
-            stacked = Plan(*(np.stack(a) for a in zip(*padded, strict=True)))
-            got = executables.call(plant_many_jit, (stacked,), static={"robot": robot},
-                                   name="stance_many", identity=key)  # fmt: skip
-            angles, pos = (np.asarray(a) for a in got)
+        padded += [padded[-1]] * (count - len(padded))
+        stacked = Plan(*(np.stack(a) for a in zip(*padded, strict=True)))
+        got = executables.call(plant_many_jit, (stacked,), static={"robot": robot},
+                               name="stance_many", identity=key)  # fmt: skip
+        angles, pos = (np.asarray(a) for a in got)
         for j, i in enumerate(members):
             n = len(plans[i].angles)
             out[i] = (angles[j, :n].astype(np.float64), pos[j, :n].astype(np.float64))
     return out
+
+
+PACK_FRAMES = 131072
+"""Padded frames of a batch's stance program a call at most (``plant_planned``)."""
 
 
 def _plant_feet(

@@ -70,7 +70,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj._internal import executables
-from jaxproj._internal.buckets import bucket, call_bucketed, fine_bucket
+from jaxproj._internal.buckets import bucket, call_bucketed, fine_bucket, packed_calls
 from jaxproj._internal.jit import jit
 from jaxproj._internal.shards import host_shards, on_devices
 from jaxproj.errors import ConfigError, JaxprojError, NoValidFrameError
@@ -172,19 +172,20 @@ def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
 
 
 def separate_many(angles: Sequence[np.ndarray], robot: Robot) -> list[np.ndarray]:
-    """``separate_motion`` of several motions (``(T_i, n_joints)`` each): those of one length
-    bucket (``fine_bucket``) in one program (``pipeline.playable_many``; each padded with its
-    last frame, after it: a causal pass); a bucket of one motion as ``separate_motion``."""
+    """``separate_motion`` of several motions (``(T_i, n_joints)`` each): stacks of motions of
+    one padded length in one program each (``pipeline.playable_many``, packed as
+    ``retarget_many`` packs, ``buckets.packed_calls``; each motion padded with its last
+    frame, after it: a causal pass); one motion as ``separate_motion``."""
+    if len(angles) == 1:
+        return [separate_motion(angles[0], robot)]
     out: list[np.ndarray] = [np.zeros(0)] * len(angles)
-    groups: dict[int, list[int]] = {}
-    for i, q in enumerate(angles):
-        groups.setdefault(fine_bucket(len(q)), []).append(i)
-    for size, members in groups.items():
-        if len(members) == 1:
-            out[members[0]] = separate_motion(angles[members[0]], robot)
-            continue
-        x = np.stack([np.concatenate([angles[i], np.repeat(angles[i][-1:], size - len(angles[i]),
-                                      axis=0)]) for i in members]).astype(np.float32)  # fmt: skip
+    coarse = jax.default_backend() != "cpu"
+    frames = PACK_FRAMES_COARSE if coarse else PACK_FRAMES
+    for rows, members, count in packed_calls([len(q) for q in angles], coarse=coarse,
+                                             frames=frames):  # fmt: skip
+        stack = [np.concatenate([angles[i], np.repeat(angles[i][-1:], rows - len(angles[i]),
+                                 axis=0)]) for i in members]  # fmt: skip
+        x = np.stack(stack + [stack[-1]] * (count - len(stack))).astype(np.float32)
         got = np.asarray(
             executables.call(
                 _playable_many_jit,
