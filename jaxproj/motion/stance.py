@@ -42,6 +42,7 @@ from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.robots import Robot
 from jaxproj.robots.base import joint_qpos_index
+from jaxproj.robots.generic_ik import spd_solve
 from jaxproj.robots.kinematics import TreeFK
 
 _HIGHEST = jax.lax.Precision.HIGHEST
@@ -327,7 +328,7 @@ def _levenberg_marquardt(
     def step(_: int, state: tuple) -> tuple:
         x, res, jac, miss, mu = state
         a = jac.T @ jac + mu * jnp.eye(len(x)) + keep
-        d = jnp.linalg.solve(a, -jac.T @ res)
+        d = spd_solve(a, -jac.T @ res)
         d = d * jnp.minimum(1.0, MAX_STEP / jnp.maximum(jnp.max(jnp.abs(d)), 1e-12))
         trial = jnp.clip(x + d, lo, hi)
         res_t, jac_t, miss_t = linear(trial)
@@ -391,7 +392,7 @@ def _lift(
         n, x, h, g = state
         jac = jnp.concatenate([(g * mask)[None], PLANT_PULL * jnp.diag(mask)])
         res = jnp.concatenate([h[None], PLANT_PULL * (x - given)])
-        d = jnp.linalg.solve(jac.T @ jac + 1e-6 * jnp.eye(len(x)) + keep, -jac.T @ res)
+        d = spd_solve(jac.T @ jac + 1e-6 * jnp.eye(len(x)) + keep, -jac.T @ res)
         d = d * jnp.minimum(1.0, MAX_STEP / jnp.maximum(jnp.max(jnp.abs(d)), 1e-12))
         x = jnp.clip(x + d, lo, hi)
         return (n + 1, x, *below(x))
@@ -436,23 +437,22 @@ def plant(feet: Feet, plan: Plan) -> tuple[jax.Array, jax.Array]:
         solve = functools.partial(_levenberg_marquardt, feet, q=q, rot=p.rot[t], weight=weight,
                                   target_p=target_p, target_r=target_r)  # fmt: skip
 
-        def attempt(i: int, state: tuple) -> tuple:
+        def attempt(state: tuple) -> tuple:
             # the first solve; then, where its root steps past the budget, again with the root
-            # held at the bound: one copy of the solver in the program
-            x, miss, start, free = state
-            run_it = jnp.any(active) & ((i == 0) | jnp.any(start != x[:3]))
-            x, miss = jax.lax.cond(
-                run_it,
-                lambda _: solve(jnp.concatenate([start, q[cols]]), free),
-                lambda _: (x, miss),
-                None,
-            )
+            # held at the bound: one copy of the solver in the program, and in a vmapped
+            # batch a second pass only while some motion's frame needs one
+            i, _, _, start, free = state
+            x, miss = solve(jnp.concatenate([start, q[cols]]), free)
             held = jnp.where(t > 0, _bounded(last, x[:3], p.budget[t]), x[:3])
-            return x, miss, held, free * (owner >= 0).astype(jnp.float32)
+            return i + 1, x, miss, held, free * (owner >= 0).astype(jnp.float32)
+
+        def more(state: tuple) -> jax.Array:
+            i, x, _, start, _ = state
+            return jnp.any(active) & ((i == 0) | ((i == 1) & jnp.any(start != x[:3])))
 
         x0 = jnp.concatenate([pos, q[cols]])
-        state = (x0, jnp.zeros(k, jnp.float32), pos, mask)
-        x, miss, _, _ = jax.lax.fori_loop(0, 2, attempt, state)
+        state = (0, x0, jnp.zeros(k, jnp.float32), pos, mask)
+        _, x, miss, _, _ = jax.lax.while_loop(more, attempt, state)
         pos = x[:3]
         out = q.at[cols].set(x[3:])
         # a target out of reach inside its run: anchored anew next frame, where the foot is
