@@ -74,10 +74,12 @@ def test_packed_calls_stack_motions_of_one_padded_length():
         for rows, members, count in calls:
             assert all(sizes(lengths[i]) == rows for i in members)
             assert len(members) <= max(1, 1024 // rows) and count >= len(members)
-            assert count & (count - 1) == 0 and count < 2 * len(members)
+            assert count & (count - 1) == 0 and count >= len(members)
     # coarse: 64 rows for five, then 128 for eleven, 1024 // 128 = 8 a call; 512 for one
     got = [(r, len(m), c) for r, m, c in packed_calls(lengths, coarse=True, frames=1024)]
-    assert got == [(64, 5, 8), (128, 8, 8), (128, 3, 4), (512, 1, 1)]
+    assert got == [(64, 5, 8), (128, 8, 8), (128, 3, 8), (512, 1, 1)]  # one stack size a length
+    fine = [(r, len(m), c) for r, m, c in packed_calls(lengths, coarse=False, frames=1024)]
+    assert (112, 9, 16) in fine and (96, 1, 1) in fine  # quarter-octave rows: 100s, the 90
 
 
 def test_descriptor_of_host_recordings_compiles_once_per_bucket(recordings, count_compiles):

@@ -88,7 +88,9 @@ def packed_calls(
     (``bucket``, powers of two, where ``coarse``: few programs; else ``fine_bucket``),
     ``members`` the motions' indices (at most ``frames // rows`` of them) and ``count`` the
     stack's size, a power of two (the caller repeats a member to fill it): a few compiled
-    shapes serve any batch."""
+    shapes serve any batch. Where ``coarse``, every call of a length the same ``count`` (that
+    of its largest call): ``retarget_many``'s rule, so that a later stage over the same motions
+    meets the shapes its calls compiled."""
     sizes = bucket if coarse else fine_bucket
     groups: dict[int, list[int]] = {}
     for i, n in enumerate(lengths):
@@ -96,7 +98,8 @@ def packed_calls(
     out = []
     for rows, members in groups.items():
         per_call = max(1, frames // rows)
+        most = 1 << (min(per_call, len(members)) - 1).bit_length()
         for start in range(0, len(members), per_call):
             chunk = members[start : start + per_call]
-            out.append((rows, chunk, 1 << (len(chunk) - 1).bit_length()))
+            out.append((rows, chunk, most if coarse else 1 << (len(chunk) - 1).bit_length()))
     return out

@@ -172,17 +172,17 @@ def separate_motion(angles: np.ndarray, robot: Robot) -> np.ndarray:
 
 
 def separate_many(angles: Sequence[np.ndarray], robot: Robot) -> list[np.ndarray]:
-    """``separate_motion`` of several motions (``(T_i, n_joints)`` each): stacks of motions of
-    one padded length in one program each (``pipeline.playable_many``, packed as
-    ``retarget_many`` packs, ``buckets.packed_calls``; each motion padded with its last
-    frame, after it: a causal pass); one motion as ``separate_motion``."""
-    if len(angles) == 1:
-        return [separate_motion(angles[0], robot)]
+    """``separate_motion`` of several motions (``(T_i, n_joints)`` each). On an accelerator,
+    stacks of motions of one padded length in one program each (``pipeline.playable_many``,
+    packed as ``retarget_many``'s coarse calls, ``buckets.packed_calls``: the motions it
+    retargeted meet the programs its own last separation compiled; each motion padded with
+    its last frame, after it: a causal pass); on a CPU, one motion at a time, as
+    ``retarget_many`` separates there."""
+    if jax.default_backend() == "cpu" or len(angles) == 1:
+        return [separate_motion(q, robot) for q in angles]
     out: list[np.ndarray] = [np.zeros(0)] * len(angles)
-    coarse = jax.default_backend() != "cpu"
-    frames = PACK_FRAMES_COARSE if coarse else PACK_FRAMES
-    for rows, members, count in packed_calls([len(q) for q in angles], coarse=coarse,
-                                             frames=frames):  # fmt: skip
+    for rows, members, count in packed_calls([len(q) for q in angles], coarse=True,
+                                             frames=PACK_FRAMES_COARSE):  # fmt: skip
         stack = [np.concatenate([angles[i], np.repeat(angles[i][-1:], rows - len(angles[i]),
                                  axis=0)]) for i in members]  # fmt: skip
         x = np.stack(stack + [stack[-1]] * (count - len(stack))).astype(np.float32)
