@@ -42,7 +42,6 @@ from jaxproj._internal.jit import jit
 from jaxproj.errors import ConfigError
 from jaxproj.robots import Robot
 from jaxproj.robots.base import joint_qpos_index
-from jaxproj.robots.generic_ik import spd_solve
 from jaxproj.robots.kinematics import TreeFK
 
 _HIGHEST = jax.lax.Precision.HIGHEST
@@ -328,7 +327,7 @@ def _levenberg_marquardt(
     def step(_: int, state: tuple) -> tuple:
         x, res, jac, miss, mu = state
         a = jac.T @ jac + mu * jnp.eye(len(x)) + keep
-        d = spd_solve(a, -jac.T @ res)
+        d = jnp.linalg.solve(a, -jac.T @ res)
         d = d * jnp.minimum(1.0, MAX_STEP / jnp.maximum(jnp.max(jnp.abs(d)), 1e-12))
         trial = jnp.clip(x + d, lo, hi)
         res_t, jac_t, miss_t = linear(trial)
@@ -392,7 +391,7 @@ def _lift(
         n, x, h, g = state
         jac = jnp.concatenate([(g * mask)[None], PLANT_PULL * jnp.diag(mask)])
         res = jnp.concatenate([h[None], PLANT_PULL * (x - given)])
-        d = spd_solve(jac.T @ jac + 1e-6 * jnp.eye(len(x)) + keep, -jac.T @ res)
+        d = jnp.linalg.solve(jac.T @ jac + 1e-6 * jnp.eye(len(x)) + keep, -jac.T @ res)
         d = d * jnp.minimum(1.0, MAX_STEP / jnp.maximum(jnp.max(jnp.abs(d)), 1e-12))
         x = jnp.clip(x + d, lo, hi)
         return (n + 1, x, *below(x))

@@ -1340,7 +1340,7 @@ def _levenberg_marquardt(
         mask = free[:, None] & free[None, :]
         diag = jnp.diagonal(a)
         a_free = jnp.where(mask, a, 0.0) + jnp.diag(jnp.where(free, mu * (diag + 1e-6), 1.0))
-        delta = spd_solve(a_free, -jnp.where(free, g, 0.0))
+        delta = _spd_solve(a_free, -jnp.where(free, g, 0.0))
         x_new = jnp.clip(x + delta, lo, hi)
         r_new, jac_new = res_jac(x_new)
         f_new = jnp.sum(r_new * r_new)
@@ -1385,7 +1385,7 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.eye(3) + k + k @ k / (1.0 + c)
 
 
-def spd_solve(a: jax.Array, b: jax.Array) -> jax.Array:
+def _spd_solve(a: jax.Array, b: jax.Array) -> jax.Array:
     """``a^-1 b`` for one small symmetric positive definite ``(n, n)`` matrix: an unrolled
     Cholesky factorisation and two triangular solves (elementwise code: no LAPACK call per
     pose, which costs more than the arithmetic at these sizes)."""
