@@ -3,8 +3,9 @@
 
 ``retarget`` gives joint angles in the torso's frame; a legged robot that walks, turns or bends
 also needs where its root body (the MJCF's free-joint body, a humanoid's pelvis) is and how it is
-turned. ``root_trajectory`` adds them, on the host (NumPy and MuJoCo's kinematics, a few ms a
-frame with the stance IK), for any robot whose correspondence matches the thighs and shins (the
+turned. ``root_trajectory`` adds them (the rules on the host, NumPy and MuJoCo's kinematics,
+about 1 ms a frame; the stance IK compiled, ``jaxproj.motion.stance``; ``root_trajectories``
+for a batch, its stance IKs in one call per length), for any robot whose correspondence matches the thighs and shins (the
 generic IK's rows ``thigh_<side>``, ``shin_<side>``) and whose figure names its feet
 (``Figure.feet``: the foot bodies whose geoms touch the floor).
 
