@@ -98,24 +98,23 @@ def _padded(plan: Plan, rows: int) -> Plan:
                 pad_rows(plan.swing, rows))  # fmt: skip
 
 
-def plant_planned(robot: Robot, plans: list[Plan]) -> list[tuple[np.ndarray, np.ndarray]]:
+def plant_planned(
+    robot: Robot, plans: list[Plan], together: bool | None = None
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Every plan's motion planted (``stance.plant``): ``((T, J) angles, (T, 3) root)`` each,
-    float64. One plan: one call of ``stance.plant`` (its frames padded to ``bucket(T,
-    SINGLE_ROWS)``: a padding frame costs little there); several: ``stance.plant_many`` over
-    stacks of motions of one padded length (``buckets.packed_calls``, as ``retarget_many``
-    packs: few programs on an accelerator, little padding on a CPU), a batch of whole-body
-    recordings in a few programs."""
+    float64. One at a time: ``stance.plant``, the frames padded to ``bucket(T, SINGLE_ROWS)``
+    (a padding frame costs little there). ``together`` (``None``: on an accelerator, with
+    several plans): ``stance.plant_many`` over stacks of motions of one padded length
+    (``buckets.packed_calls``, as ``retarget_many`` packs), a batch's recordings in a few
+    programs. A CPU plants one at a time: there a stack's vmapped program pays every frame's
+    solves (the padding's, a frame's with no foot down) and compiles a program per length and
+    stack size; measured on the 2-core VM, 67 bundled recordings' whole-body stage stacked
+    took 35.6 s from the cache and 132 s more compiling."""
     out: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(0), np.zeros(0))] * len(plans)
     key = identity(robot)
-    if len(plans) == 1:
-        rows = bucket(len(plans[0].angles), SINGLE_ROWS)
-        got = executables.call(plant_jit, (_padded(plans[0], rows),), static={"robot": robot},
-                               name="stance", identity=key)  # fmt: skip
-        n = len(plans[0].angles)
-        return [
-            (np.asarray(got[0])[:n].astype(np.float64), np.asarray(got[1])[:n].astype(np.float64))
-        ]
     coarse = jax.default_backend() != "cpu"
+    if len(plans) == 1 or not (coarse if together is None else together):
+        return [_plant_one(robot, plan) for plan in plans]
     calls = packed_calls([len(p.angles) for p in plans], coarse=coarse, frames=PACK_FRAMES)
     for rows, members, count in calls:
         padded = [_padded(plans[i], rows) for i in members]
@@ -132,6 +131,16 @@ def plant_planned(robot: Robot, plans: list[Plan]) -> list[tuple[np.ndarray, np.
 
 PACK_FRAMES = 131072
 """Padded frames of a batch's stance program a call at most (``plant_planned``)."""
+
+
+def _plant_one(robot: Robot, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
+    """``stance.plant`` of one plan, its frames padded to ``bucket(T, SINGLE_ROWS)``."""
+    n = len(plan.angles)
+    padded = _padded(plan, bucket(n, SINGLE_ROWS))
+    got = executables.call(plant_jit, (padded,), static={"robot": robot}, name="stance",
+                           identity=identity(robot))  # fmt: skip
+    angles, pos = (np.asarray(a)[:n].astype(np.float64) for a in got)
+    return angles, pos
 
 
 def _plant_feet(

@@ -5,9 +5,9 @@
 also needs where its root body (the MJCF's free-joint body, a humanoid's pelvis) is and how it is
 turned. ``root_trajectory`` adds them (the rules on the host, NumPy and MuJoCo's kinematics,
 about 1 ms a frame; the stance IK compiled, ``jaxproj.motion.stance``; ``root_trajectories``
-for a batch, its stance IKs in one call per length), for any robot whose correspondence matches the thighs and shins (the
-generic IK's rows ``thigh_<side>``, ``shin_<side>``) and whose figure names its feet
-(``Figure.feet``: the foot bodies whose geoms touch the floor).
+for a batch, its stance IKs in one call per length), for any robot whose correspondence
+matches the thighs and shins (the generic IK's rows ``thigh_<side>``, ``shin_<side>``) and
+whose figure names its feet (``Figure.feet``: the foot bodies whose geoms touch the floor).
 
 The world frame (``WorldFrame``), found from the recording alone:
 
@@ -396,12 +396,15 @@ def root_trajectories(
     level_soles: bool = LEVEL_SOLES,
     separate: bool = True,
     raise_errors: bool = False,
+    together: bool | None = None,
 ) -> list[Any]:
     """``root_trajectory`` of each of several motions, ``(positions, valid, times, angles)``
     each, their stance IKs in one compiled call per length bucket (``feet.plant_planned``) and
     their last separations in one per bucket (``retarget.separate_many``): a batch's
     whole-body stage. One entry per motion, in order: its ``RootMotion``, or the
-    ``ConfigError`` ``root_trajectory`` raises for it (raised here with ``raise_errors``)."""
+    ``ConfigError`` ``root_trajectory`` raises for it (raised here with ``raise_errors``).
+    ``together``: ``feet.plant_planned``'s (``None``: stacked on an accelerator, one at a time
+    on a CPU)."""
     out: list[Any] = [None] * len(motions)
     ready: list[tuple[int, _Prepared]] = []
     for i, (positions, valid, times, angles) in enumerate(motions):
@@ -412,7 +415,7 @@ def root_trajectories(
             if raise_errors:
                 raise
             out[i] = err
-    planted = plant_planned(robot, [pre.plan for _, pre in ready])
+    planted = plant_planned(robot, [pre.plan for _, pre in ready], together)
     angles_out = [q for q, _ in planted]
     if separate and ready:
         from jaxproj.motion.retarget import separate_many  # the fixed base's compiled pass

@@ -327,9 +327,9 @@ def test_a_batch_plants_its_motions_together_as_each_alone(walk, monkeypatch) ->
     calls = []
     real = feet.plant_planned
 
-    def spy(robot, plans):
+    def spy(robot, plans, together):
         calls.append([len(p.angles) for p in plans])
-        return real(robot, plans)
+        return real(robot, plans, together)
 
     def part(pos: np.ndarray, n: int, start: int = 0) -> tuple:
         cut = slice(start, start + n)
@@ -339,7 +339,7 @@ def test_a_batch_plants_its_motions_together_as_each_alone(walk, monkeypatch) ->
     # all three padded to 64 rows (fine_bucket, a CPU) and planted together, a stack of 4
     wrong = part(rec.positions, 60)[:3] + (angles[:3],)  # angles that disagree
     motions = [part(rec.positions, 60), part(centred, 56, 40), wrong, part(rec.positions, 50, 120)]
-    got = wb.root_trajectories(motions, G1, separate=False)
+    got = wb.root_trajectories(motions, G1, separate=False, together=True)  # stacked on a CPU too
     assert calls == [[60, 56, 50]] and isinstance(got[2], ConfigError)
     for i in (0, 1, 3):
         one, many = wb.root_trajectory(*motions[i], G1, separate=False), got[i]
