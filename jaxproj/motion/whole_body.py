@@ -399,10 +399,11 @@ def root_trajectories(
     together: bool | None = None,
 ) -> list[Any]:
     """``root_trajectory`` of each of several motions, ``(positions, valid, times, angles)``
-    each, their stance IKs in one compiled call per length bucket (``feet.plant_planned``) and
-    their last separations in one per bucket (``retarget.separate_many``): a batch's
-    whole-body stage. One entry per motion, in order: its ``RootMotion``, or the
-    ``ConfigError`` ``root_trajectory`` raises for it (raised here with ``raise_errors``).
+    each: a batch's whole-body stage. On an accelerator their stance IKs run stacked, in one
+    compiled call per length bucket (``feet.plant_planned``), and so do their last separations
+    (``retarget.separate_many``); a CPU runs both one motion at a time. One entry per motion,
+    in order: its ``RootMotion``, or the ``ConfigError`` ``root_trajectory`` raises for it
+    (raised here with ``raise_errors``).
     ``together``: ``feet.plant_planned``'s (``None``: stacked on an accelerator, one at a time
     on a CPU)."""
     out: list[Any] = [None] * len(motions)
