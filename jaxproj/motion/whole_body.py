@@ -72,6 +72,11 @@ bounded. The angles returned
 touched): after ``retarget``'s feasibility filter, so a joint's speed can exceed its bound there
 (``benchmarks.whole_body`` counts it).
 
+Size: over 500 lines: the world frame, the contacts and the root's rules of one recording,
+and the batch's split around the compiled stance IK (``root_trajectories``: the host stages
+before and after it), which share the recording's host arrays; the stance IK itself and the
+feet's geometry live in ``jaxproj.motion.stance`` and ``jaxproj.motion.feet``.
+
 Quaternions are written ``(x, y, z, w)`` (scalar last: GMR's ``root_rot`` and the LAFAN1
 retargeting CSVs that motion-tracking trainers read, sources in the guide's "Whole-body motion";
 MuJoCo's own ``qpos`` is scalar first).
