@@ -11,10 +11,15 @@ apart; each run's time is also printed on stderr as it ends). Checked first: bot
 the same recordings, and every whole-body file loads back with a finite root and contacts of
 its length.
 
+A machine whose time per command holds neither pass of the whole data can run them in two
+commands: ``--work DIR`` keeps the recordings, outputs and compilation caches in DIR, and
+``--passes cold`` then ``--passes warm`` run one pass each (the warm pass needs the cold one's
+cache in DIR).
+
 Usage::
 
     python -m benchmarks.whole_body_batch [--robot unitree_g1] [--every 1] [--ways fixed,world]
-        [--json OUT]
+        [--passes cold,warm] [--work DIR] [--json OUT]
 """
 
 from __future__ import annotations
@@ -23,10 +28,12 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -52,30 +59,50 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ways", default="fixed,world",
                     help="which ways to run, in order (fixed, world): one alone when a machine's "
                     "time per command does not hold both")  # fmt: skip
+    ap.add_argument("--passes", default="cold,warm",
+                    help="which passes to run (cold: compiling into a fresh cache; warm: from the "
+                    "cache the cold pass left in --work)")  # fmt: skip
+    ap.add_argument(
+        "--work",
+        type=Path,
+        default=None,
+        help="keep recordings, outputs and caches here (default: a temporary folder)",
+    )
     args = ap.parse_args(argv)
     ways = args.ways.split(",")
     if not ways or set(ways) - {"fixed", "world"}:
         ap.error("--ways takes fixed, world or both, comma-separated")
+    passes = args.passes.split(",")
+    if not passes or set(passes) - {"cold", "warm"}:
+        ap.error("--passes takes cold, warm or both, comma-separated")
+    if "cold" not in passes and args.work is None:
+        ap.error("--passes warm alone needs --work: the folder a cold pass left its cache in")
     res: dict = {"robot": args.robot, "cpus": os.cpu_count(), "platform": platform.machine(),
                  "load_before": os.getloadavg()[0]}  # fmt: skip
-    with tempfile.TemporaryDirectory() as tmp:
+    keep = nullcontext(str(args.work)) if args.work else tempfile.TemporaryDirectory()
+    with keep as tmp:
         root = Path(tmp)
-        files = write_bundled(root / "all")
-        for i, f in enumerate(files):
-            if i % args.every:
-                f.unlink()
+        if not (root / "all").is_dir():
+            files = write_bundled(root / "all")
+            for i, f in enumerate(files):
+                if i % args.every:
+                    f.unlink()
         res["every"] = args.every
-        res["recordings"] = len(files[:: args.every])
+        res["recordings"] = len(list((root / "all").iterdir()))
         for way in ways:
             extra = ["--root", "world"] if way == "world" else []
             out, cache = root / way, root / f"cache_{way}"
             cmd = ["retarget", str(root / "all"), "--robot", args.robot, "--out", str(out), *extra]
-            res[f"{way}_cold_s"], errors = _run(cmd, cache)
-            print(f"whole_body_batch: {way} cold {res[f'{way}_cold_s']:.1f} s", file=sys.stderr,
-                  flush=True)  # fmt: skip
-            res[f"{way}_warm_s"], _ = _run([*cmd, "--force"], cache)
-            print(f"whole_body_batch: {way} warm {res[f'{way}_warm_s']:.1f} s", file=sys.stderr,
-                  flush=True)  # fmt: skip
+            errors: list[str] = []
+            for run in passes:
+                if run == "warm" and not cache.is_dir():
+                    raise SystemExit(f"whole_body_batch: no cache at {cache}: run --passes cold")
+                if run == "cold":
+                    shutil.rmtree(cache, ignore_errors=True)  # a fresh cache: compiling counts
+                force = ["--force"] if run == "warm" or out.is_dir() else []
+                res[f"{way}_{run}_s"], errors = _run([*cmd, *force], cache)
+                print(f"whole_body_batch: {way} {run} {res[f'{way}_{run}_s']:.1f} s",
+                      file=sys.stderr, flush=True)  # fmt: skip
             written = sorted(p.name for p in out.glob("*.npz"))
             res[f"{way}_written"] = len(written)
             res[f"{way}_errors"] = [e.replace(str(root), "DATA") for e in errors]
@@ -97,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         res["frames_written"] = frames
     for way in ways:
         del res[f"{way}_files"]
-        for run in ("cold", "warm"):
+        for run in passes:
             s = res[f"{way}_{run}_s"]
             res[f"{way}_{run}_recordings_per_s"] = res[f"{way}_written"] / s
             res[f"{way}_{run}_frames_per_s"] = res["frames_written"] / s

@@ -7,7 +7,7 @@ import json
 import os
 import sys
 import tempfile
-import time
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -36,9 +36,14 @@ def main() -> None:
     retarget_module.host_shards = lambda: 1  # the same call on one device
     one_motion = retarget_module.retarget(seq.positions, seq.valid, robot=robot).angles
     seen: dict[int, str] = {}
+    # `on_devices` hands items to whichever thread asks next: a thread done quickly could take
+    # both items (seen in the suite, 2026-11-30). Each thread waits here for the other, so each
+    # takes one item before either is done.
+    both = threading.Barrier(2, timeout=120)
 
     def note(i: int) -> None:
-        time.sleep(0.2)  # each thread takes an item before either is done
+        if i < 2:
+            both.wait()
         seen[i] = str(jax.config.jax_default_device)
 
     shards.on_devices(note, range(4), jax.devices())
@@ -54,6 +59,7 @@ def main() -> None:
         each: dict[int, Any] = {}
 
         def twice(i: int) -> None:
+            both.wait()
             each[i] = executables.call(double, (x + i,), name="double", identity=("t",))
 
         shards.on_devices(twice, range(2), jax.devices()[::-1])
@@ -68,6 +74,7 @@ def main() -> None:
         spread: dict[int, Any] = {}
 
         def split_twice(i: int) -> None:
+            both.wait()
             spread[i] = executables.call(split_double, (rows + i,), name="split", identity=("t",))
 
         shards.on_devices(split_twice, range(2), jax.devices())
