@@ -446,7 +446,7 @@ def project(
     h = np.asarray(descriptors, np.float32)
     if h.ndim != 2 or h.shape[1] != m:
         raise ConfigError(f"descriptors must be (B, {m}), got {h.shape}")
-    finite = np.isfinite(h).all(axis=1)  # host side, before tracing: NaN in would be NaN out
+    finite = _finite_rows(h)  # host side, before tracing: NaN in would be NaN out
     if not finite.all():
         raise NonFiniteRowsError(np.flatnonzero(~finite), len(h))
     if batch_size is None:
@@ -489,6 +489,21 @@ def project(
     for s, out in pending:
         answers.put(s, out)
     return answers.angles, answers.value
+
+
+def _finite_rows(h: np.ndarray) -> np.ndarray:
+    """``np.isfinite(h).all(axis=1)`` for ``(B, m)`` float32 ``h``, as ``(B,)`` bool, by way of
+    each row's sum: NaN or inf in a row makes its sum NaN or inf, and a sum that overflowed is
+    checked element by element. One BLAS matrix-vector product (threaded) reads ``h`` once
+    and writes ``B`` floats, where ``isfinite`` wrote a ``(B, m)`` mask first: on 4 M rows of
+    30 this check was most of ``project``'s host time that more devices do not share (2-core
+    VM: 0.28 s against 0.08 s, issue 61)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow: checked below
+        ok = np.isfinite(h @ np.ones(h.shape[1], h.dtype))
+    if not ok.all():
+        unsure = np.flatnonzero(~ok)
+        ok[unsure] = np.isfinite(h[unsure]).all(axis=1)
+    return ok
 
 
 class _Answers:
