@@ -2,7 +2,7 @@
 device and on N, against the same work with the host left out step by step.
 
     python -m benchmarks.experiments.multi_host_side [--robot nao_h25] [--model M.npz]
-        [--queries 4194304] [--json OUT]
+        [--queries 4194304] [--project-only] [--json OUT]
 
 The robot's default model (or ``--model``), held-out MSR queries tiled to ``--queries`` (as
 ``benchmarks.bench_multi_device``), relaxed L = M = 10, the default batch of one device
@@ -14,7 +14,14 @@ The robot's default model (or ``--model``), held-out MSR queries tiled to ``--qu
   answer on the device (no transfer either way);
 - ``in_N``: as ``device_N`` with each share sent from the host in the loop;
 - ``inout_N``: as ``in_N`` with each answer fetched to the host (no writing into one array);
-- ``copy_projector_s``: one ``device_put`` of the projector to the second device.
+- ``copy_projector_s``: one ``device_put`` of the projector to the second device;
+- ``check_isfinite_s`` / ``check_rows_s``: the host's finiteness check of the queries, as
+  ``project`` made it before (``np.isfinite(h).all(axis=1)``) and as it makes it now
+  (``api._finite_rows``), and ``project_1_isfinite`` / ``project_N_isfinite``: ``project`` with
+  the check of before put back (the baseline, in the same run).
+
+``--project-only``: only the checks and the ``project`` timings (a machine with little time).
+Each figure is printed on stderr as it is measured.
 """
 
 from __future__ import annotations
@@ -51,6 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot", default=robots.DEFAULT, choices=robots.names())
     ap.add_argument("--model", help="the robot's model (else built as jaxproj build builds it)")
     ap.add_argument("--queries", type=int, default=1 << 22)
+    ap.add_argument("--project-only", action="store_true")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     devs = jax.devices()
@@ -70,8 +78,29 @@ def main(argv: list[str] | None = None) -> int:
     jax.block_until_ready(jax.device_put(p, devs[-1]))
     out["copy_projector_s"] = time.perf_counter() - t0
     copies = [jax.device_put(p, d) for d in devs]
+    out["check_isfinite_s"] = _median(lambda: np.isfinite(h).all(axis=1))
+    out["check_rows_s"] = _median(lambda: engine._finite_rows(h))
+    out["model_s"] = round(out["model_s"], 1)
+    _say(out)
     out["project_1"] = _median(lambda: engine.project(model, h, "relaxed"))
+    _say(out)
     out["project_N"] = _median(lambda: engine.project(model, h, "relaxed", devices=devs))
+    _say(out)
+    now = engine._finite_rows
+    engine._finite_rows = lambda x: np.isfinite(x).all(axis=1)  # the check of before
+    try:
+        out["project_1_isfinite"] = _median(lambda: engine.project(model, h, "relaxed"))
+        _say(out)
+        out["project_N_isfinite"] = _median(
+            lambda: engine.project(model, h, "relaxed", devices=devs)
+        )
+        _say(out)
+    finally:
+        engine._finite_rows = now
+    out["project_speedup"] = out["project_1"] / out["project_N"]
+    out["project_isfinite_speedup"] = out["project_1_isfinite"] / out["project_N_isfinite"]
+    if args.project_only:
+        return _done(out, args.json)
     shares = [[h[s + i * b : s + (i + 1) * b] for s in range(0, len(h), b * k)] for i in range(k)]
     on_dev = [[jax.device_put(x, devs[i]) for x in shares[i]] for i in range(k)]
     one = [jax.device_put(h[s : s + b], devs[0]) for s in range(0, len(h), b)]
@@ -102,12 +131,19 @@ def main(argv: list[str] | None = None) -> int:
     out["device_N"] = _median(lambda: threads(lambda i: device_only(i, on_dev[i])))
     out["in_N"] = _median(lambda: threads(with_in))
     out["inout_N"] = _median(lambda: threads(with_inout))
-    for key in ("project", "device"):
-        out[f"{key}_speedup"] = out[f"{key}_1"] / out[f"{key}_N"]
+    out["device_speedup"] = out["device_1"] / out["device_N"]
+    return _done(out, args.json)
+
+
+def _say(out: dict) -> None:
+    print(f"multi_host_side: {out}", file=sys.stderr, flush=True)
+
+
+def _done(out: dict, path: str | None) -> int:
     text = json.dumps(out, indent=1, default=float)
     print(text)
-    if args.json:
-        Path(args.json).write_text(text)
+    if path:
+        Path(path).write_text(text)
     return 0
 
 
