@@ -66,8 +66,9 @@ frame would otherwise swing the root around the planted feet), and the final lif
 falls over neighbouring frames (``LIFT_SLACK``), so that no step exceeds the pelvis's by 1.9
 cm. What it costs: where a tracker's lost leg leaves a foot out of reach, that foot slides or
 stands above the floor for a while instead of the root jumping. A recording centred on its
-pelvis (``CENTRED``: MediaPipe's world landmarks) has no pelvis steps to bound by, and is not
-bounded. The angles returned
+pelvis (``CENTRED``: MediaPipe's world landmarks) has no pelvis steps to bound by: its root's
+steps are bounded by the planned root's horizontal steps (the stance feet's) plus the slack, so
+the feet can carry the root while its height does not jump. The angles returned
 (``RootMotion.angles``) are the given ones with the legs so moved (and the arms where they
 touched): after ``retarget``'s feasibility filter, so a joint's speed can exceed its bound there
 (``benchmarks.whole_body`` counts it).
@@ -531,8 +532,9 @@ def _prepare(
             xy[t] = xy[t - 1] + hip[t, :2] - hip[t - 1, :2]
     root_pos = np.concatenate([xy, z[:, None]], axis=1)
     budget = np.concatenate([[0.0], np.linalg.norm(np.diff(hip, axis=0), axis=1)]) + ROOT_SLACK
-    if np.ptp(hip, axis=0).max() < CENTRED:  # the pelvis is the recording's origin: no bound
-        budget[:] = np.inf
+    if np.ptp(hip, axis=0).max() < CENTRED:  # the pelvis is the recording's origin: its steps
+        # say nothing; the stance feet's horizontal steps (the plan's) stand in for them
+        budget[1:] = np.linalg.norm(np.diff(xy, axis=0), axis=1) + ROOT_SLACK
     plan = plan_feet(q, root_pos, rot_root, stance, ramp, budget)
     return _Prepared(plan, rot_root, contacts, world, budget)
 

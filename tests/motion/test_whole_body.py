@@ -110,13 +110,17 @@ def test_the_root_walks_with_the_person_over_the_floor(walk) -> None:
 
 def test_a_hip_centred_recording_moves_its_root_by_the_feet(walk) -> None:
     """The walk centred on its pelvis in every frame (as MediaPipe writes world landmarks):
-    its pelvis steps are all 0, so the root's steps are not bounded by them (``CENTRED``); the
-    stance feet move the root, more than the slack in a frame."""
+    its pelvis steps are all 0, so the root's steps are not bounded by them (``CENTRED``) but by
+    the stance feet's: they move the root, more than the slack in a frame, and no step exceeds
+    the planned horizontal one by more than the slack."""
     rec, angles, _ = walk
     centred = rec.positions - rec.positions[:, J["HipCenter"]][:, None]
     root = wb.root_trajectory(centred, rec.valid, rec.times, angles, G1)
     steps = np.linalg.norm(np.diff(root.root_pos.astype(np.float64), axis=0), axis=1)
     assert steps.max() > feet_mod.ROOT_SLACK + wb.LIFT_SLACK
+    budget = wb._prepare(centred, rec.valid, rec.times, angles, G1).budget[1:]
+    assert np.isfinite(budget).all() and (budget >= feet_mod.ROOT_SLACK).all()
+    assert (steps - budget).max() <= wb.LIFT_SLACK + 1e-6
 
 
 def test_a_lift_rises_and_falls_within_its_rate() -> None:
