@@ -9,9 +9,9 @@ JAX implementation) and returns the deepest penetration of each kind. The contac
 MuJoCo's own: the MJCF's ``contype`` / ``conaffinity``, its excludes and the parent-child
 filter, so a count over ``self_m > 1e-3`` is the count of frames where ``mj_forward`` finds two
 of the robot's geoms more than 1 mm into each other (``tests/eval/test_replay.py`` compares
-them with MuJoCo's, pose by pose). Frames are independent: any number of frames from any
-number of recordings are concatenated and run ``REPLAY_BATCH`` at a time (the last batch
-padded), one compile per robot.
+them with MuJoCo's, ``host_depths``, pose by pose). Frames are independent: any number of
+frames from any number of recordings are concatenated and run ``REPLAY_BATCH`` at a time (the
+last batch padded), one compile per robot.
 
 Strict promotion: MJX's internals rely on implicit promotion, so its calls are traced inside
 ``jax.numpy_dtype_promotion("standard")`` / ``jax.numpy_rank_promotion("allow")`` (as
@@ -145,12 +145,8 @@ def replay_depths(
     if bad.any():
         raise ConfigError(f"replay_depths: frame {int(np.argmax(bad))} holds NaN or inf "
                           f"({int(bad.sum())} of {f} frames)")  # fmt: skip
-    rep, qpos0, adr = _setup(robot)
-    qpos = np.tile(qpos0, (f, 1))
-    free = adr[0]
-    qpos[:, free : free + 3] = pos
-    qpos[:, free + 3 : free + 7] = np.roll(rot, 1, axis=1)  # xyzw -> wxyz
-    qpos[:, adr[1:]] = q
+    rep = _setup(robot)[0]
+    qpos = _qpos(robot, pos, rot, q).astype(np.float32)
     floor = np.zeros(f, np.float32)
     own = np.zeros(f, np.float32)
     for s in range(0, f, REPLAY_BATCH):
@@ -162,3 +158,34 @@ def replay_depths(
         floor[s : s + k] = np.asarray(a)[:k]
         own[s : s + k] = np.asarray(b)[:k]
     return Depths(floor, own)
+
+
+def _qpos(robot: Robot, pos: np.ndarray, rot: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``(F, nq)`` float64 configurations of ``floor_model(robot)``: the root at ``pos`` turned
+    by ``rot`` (x, y, z, w), the joints at ``q``, the rest at ``qpos0``."""
+    _, qpos0, adr = _setup(robot)
+    qpos = np.tile(qpos0.astype(np.float64), (len(pos), 1))
+    free = adr[0]
+    qpos[:, free : free + 3] = pos
+    qpos[:, free + 3 : free + 7] = np.roll(rot, 1, axis=1)  # xyzw -> wxyz
+    qpos[:, adr[1:]] = q
+    return qpos
+
+
+def host_depths(
+    robot: Robot, root_pos: np.ndarray, root_rot: np.ndarray, angles: np.ndarray
+) -> Depths:
+    """``replay_depths``' answer by MuJoCo's ``mj_forward`` on the host, one frame after the
+    other (float64; the reference the MJX replay is checked against, for a few frames)."""
+    model = floor_model(robot)
+    data = mujoco.MjData(model)
+    floor_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)
+    qpos = _qpos(robot, np.asarray(root_pos), np.asarray(root_rot), np.asarray(angles))
+    out = np.zeros((2, len(qpos)), np.float32)
+    for t, x in enumerate(qpos):
+        data.qpos[:] = x
+        mujoco.mj_forward(model, data)
+        for c in data.contact[: data.ncon]:
+            k = 0 if floor_id in c.geom else 1
+            out[k, t] = max(out[k, t], -c.dist)
+    return Depths(out[0], out[1])
