@@ -13,6 +13,11 @@ the robot's own MJCF with its free base:
   frames; 0 if none does);
 * ``root_jump_cm``: the largest amount by which one frame's root step exceeds the person's
   scaled HipCenter step (``scale`` of the file's meta);
+* ``root_jump_ref_cm`` (hip-centred recordings only, when the run holds a recording of the same
+  motion with a moving pelvis: the files' names agree up to the first dot, as in
+  ``tests/data/formats/same_motion``): the same against that recording's scaled HipCenter
+  steps, frame for frame (a hip-centred recording's own pelvis never moves: ``reference`` names
+  the file);
 * ``trunk_deg``: the robot's torso up axis against the person's trunk (HipCenter ->
   ShoulderCenter), both in the world frame: median and p90 over valid frames;
   ``torso_tilt_deg`` / ``person_tilt_deg``: each one's median angle from the vertical;
@@ -54,7 +59,7 @@ from jaxproj.human.skeleton import J
 from jaxproj.io.motion_files import Motion, load_motion
 from jaxproj.motion.stance import _foot_points
 from jaxproj.motion.stance import subtree as _subtree
-from jaxproj.motion.whole_body import _point, world_frame
+from jaxproj.motion.whole_body import CENTRED, _point, world_frame
 from jaxproj.robots.base import joint_qpos_index
 
 
@@ -121,10 +126,7 @@ def measure_motion(motion: Motion) -> dict:
          ("KneeLeft", "AnkleLeft"), ("HipRight", "KneeRight"), ("KneeRight", "AnkleRight"))],
         axis=1,
     )  # fmt: skip
-    hip_step = np.linalg.norm(np.diff(person[:, J["HipCenter"]], axis=0), axis=-1)
-    root_step = np.linalg.norm(np.diff(motion.root_pos.astype(np.float64), axis=0), axis=-1)
-    ok_step = valid[1:] & valid[:-1]
-    jump = (root_step - hip_step)[ok_step]
+    jump = _root_excess(motion, _pelvis_steps(motion))
     trunk_err = _angle(torso_up, trunk)[valid]
     leg_err = _angle(robot_legs, person_legs)[valid]
     vertical = np.array([0.0, 0.0, 1.0])
@@ -168,6 +170,46 @@ def measure_motion(motion: Motion) -> dict:
             float(np.linalg.norm(motion.root_pos[-1, :2] - motion.root_pos[0, :2])), 3
         ),  # fmt: skip
     }
+
+
+def _pelvis_steps(motion: Motion) -> np.ndarray:
+    """``(T - 1,)``: the person's scaled HipCenter steps in the world frame (m); NaN where a
+    step leaves an invalid frame."""
+    assert motion.positions is not None
+    valid = motion.valid & np.isfinite(motion.positions).all(axis=(1, 2))
+    hip = world_frame(motion.positions, valid, motion.robot).to_world(motion.positions)
+    step = np.linalg.norm(np.diff(hip[:, J["HipCenter"]], axis=0), axis=-1)
+    return np.where(valid[1:] & valid[:-1], step, np.nan)
+
+
+def _root_excess(motion: Motion, pelvis: np.ndarray) -> np.ndarray:
+    """The root's steps less ``pelvis`` (``(T - 1,)``, m), where both are known."""
+    assert motion.root_pos is not None
+    root = np.linalg.norm(np.diff(motion.root_pos.astype(np.float64), axis=0), axis=-1)
+    excess = root - pelvis
+    return excess[np.isfinite(excess)]
+
+
+def same_motion_references(motions: dict[str, Motion]) -> dict[str, str]:
+    """For each hip-centred file (its person's pelvis moves less than ``whole_body.CENTRED``)
+    of ``motions`` (by file name), the first other file of the same motion (the names agree up
+    to the first dot), of as many frames, whose pelvis moves."""
+
+    def centred(m: Motion) -> bool:
+        assert m.positions is not None
+        hip = m.positions[:, J["HipCenter"]]
+        return bool(np.ptp(hip[np.isfinite(hip).all(axis=1)], axis=0).max() < CENTRED)
+
+    refs = {}
+    for name, m in motions.items():
+        if not centred(m):
+            continue
+        for other, r in motions.items():
+            if (other != name and other.split(".")[0] == name.split(".")[0]
+                    and len(r.angles) == len(m.angles) and not centred(r)):  # fmt: skip
+                refs[name] = other
+                break
+    return refs
 
 
 _PERSON = (("HipCenter", "Spine"), ("Spine", "ShoulderCenter"), ("ShoulderCenter", "Head"),
@@ -275,6 +317,15 @@ def main(argv: list[str] | None = None) -> int:
             r = measure(f, a.extra.split(), Path(tmp), robot)
             rows.append(r)
             print(json.dumps(r), flush=True)
+        motions = {f.name: load_motion(Path(tmp) / f"{f.stem}.npz") for f in files}
+        refs = same_motion_references(motions)
+        for r in rows:
+            if r["file"] in refs:
+                ref = refs[r["file"]]
+                jump = _root_excess(motions[r["file"]], _pelvis_steps(motions[ref]))
+                r["root_jump_ref_cm"] = round(float(max(0.0, jump.max(initial=0.0)) * 100), 2)
+                r["reference"] = ref
+                print(json.dumps({k: r[k] for k in ("file", "reference", "root_jump_ref_cm")}))
     if a.json:
         Path(a.json).write_text(json.dumps({"robot": robot, "rows": rows}, indent=1) + "\n")
     return 0

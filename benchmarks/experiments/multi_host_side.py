@@ -21,6 +21,11 @@ The robot's default model (or ``--model``), held-out MSR queries tiled to ``--qu
   the check of before put back (the baseline, in the same run).
 
 ``--project-only``: only the checks and the ``project`` timings (a machine with little time).
+``--timeline``: only ``project`` on 1 and N devices, traced (``timeline_1`` / ``timeline_N``:
+per device thread, when its last call was dispatched, how long it waited for answers and how
+long it spent copying them into ``project``'s arrays, and when it ended, all from the call's
+start), and ``project`` with its answer arrays made and touched beforehand
+(``project_1_touched`` / ``project_N_touched``: what the first writes into fresh memory cost).
 Each figure is printed on stderr as it is measured.
 """
 
@@ -29,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -41,6 +47,8 @@ from benchmarks.harness import header
 from jaxproj import robots
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
+
+ROUNDS = 7
 
 
 def _median(fn, repeats: int = 3) -> float:
@@ -59,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--model", help="the robot's model (else built as jaxproj build builds it)")
     ap.add_argument("--queries", type=int, default=1 << 22)
     ap.add_argument("--project-only", action="store_true")
+    ap.add_argument("--timeline", action="store_true")
+    ap.add_argument("--trace", default=None, help="--timeline: a profile of one N-device call")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     devs = jax.devices()
@@ -78,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     jax.block_until_ready(jax.device_put(p, devs[-1]))
     out["copy_projector_s"] = time.perf_counter() - t0
     copies = [jax.device_put(p, d) for d in devs]
+    if args.timeline:
+        return _done(_timeline(out, model, h, devs, args.trace), args.json)
     out["check_isfinite_s"] = _median(lambda: np.isfinite(h).all(axis=1))
     out["check_rows_s"] = _median(lambda: engine._finite_rows(h))
     out["model_s"] = round(out["model_s"], 1)
@@ -133,6 +145,78 @@ def main(argv: list[str] | None = None) -> int:
     out["inout_N"] = _median(lambda: threads(with_inout))
     out["device_speedup"] = out["device_1"] / out["device_N"]
     return _done(out, args.json)
+
+
+def _timeline(out: dict, model, h: np.ndarray, devs: list, trace: str | None) -> dict:
+    """``--timeline``'s figures (module doc), into ``out``."""
+    events: list[tuple[str, str, float]] = []
+    chunk, put = engine.project_chunk, engine._Answers.put
+
+    def traced_chunk(*a, **k):
+        r = chunk(*a, **k)
+        events.append((threading.current_thread().name, "dispatched", time.perf_counter()))
+        return r
+
+    def traced_put(self, start, o):
+        name = threading.current_thread().name
+        t0 = time.perf_counter()
+        jax.block_until_ready(o)
+        for x in o:
+            np.asarray(x)
+        t1 = time.perf_counter()
+        put(self, start, o)
+        events.extend([(name, "wait", t1 - t0), (name, "copy", time.perf_counter() - t1)])
+
+    def summary(t0: float, t_end: float) -> dict:
+        rows: dict = {}
+        for name, what, v in events:
+            r = rows.setdefault(name, {"last_dispatch_s": 0.0, "wait_s": 0.0, "copy_s": 0.0})
+            if what == "dispatched":
+                r["last_dispatch_s"] = round(v - t0, 4)
+            else:
+                r[f"{what}_s"] = round(r[f"{what}_s"] + v, 4)
+        return {"total_s": round(t_end - t0, 4), "threads": rows}
+
+    engine.project_chunk, engine._Answers.put = traced_chunk, traced_put
+    try:
+        for key, d in (("timeline_1", None), ("timeline_N", devs)):
+            engine.project(model, h, "relaxed", devices=d)  # compiled, copies made
+            events.clear()
+            t0 = time.perf_counter()
+            engine.project(model, h, "relaxed", devices=d)
+            out[key] = summary(t0, time.perf_counter())
+            _say(out)
+    finally:
+        engine.project_chunk, engine._Answers.put = chunk, put
+    if trace:  # the JAX profiler (a Perfetto trace too) around one N-device call
+        with jax.profiler.trace(trace, create_perfetto_trace=True):
+            engine.project(model, h, "relaxed", devices=devs)
+    touch = engine._Answers.touch
+
+    def timed(d, fresh: bool) -> float:
+        engine._Answers.touch = touch if not fresh else lambda self, a, b: None
+        try:
+            t0 = time.perf_counter()
+            engine.project(model, h, "relaxed", devices=d)
+            return time.perf_counter() - t0
+        finally:
+            engine._Answers.touch = touch
+
+    runs: dict[str, list[float]] = {"project_1": [], "project_N": [], "project_1_fresh": [],
+                                    "project_N_fresh": []}  # fmt: skip
+    for _ in range(ROUNDS):  # interleaved: a drift of the machine moves both alike
+        runs["project_1"].append(timed(None, False))
+        runs["project_N"].append(timed(devs, False))
+        runs["project_1_fresh"].append(timed(None, True))
+        runs["project_N_fresh"].append(timed(devs, True))
+    for key, v in runs.items():
+        out[key] = float(np.median(v))
+        out[key + "_runs"] = [round(x, 4) for x in v]
+    out["project_speedup"] = out["project_1"] / out["project_N"]
+    out["fresh_speedup"] = out["project_1_fresh"] / out["project_N_fresh"]
+    out["speedup_runs"] = [round(x / y, 3) for x, y in zip(runs["project_1"], runs["project_N"],
+                                                          strict=True)]  # fmt: skip
+    return out
 
 
 def _say(out: dict) -> None:

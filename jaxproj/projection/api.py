@@ -467,9 +467,8 @@ def project(
         # executable with callers that compile ``project_chunk`` without ``impl``
         kw["impl"] = impl
     cut = len(h)
-    filler = _padding_query(p)
     if isinstance(place, Mesh) and spread == "per_device":
-        return _project_per_device(p, h, list(place.devices.flat), batch_size, filler, kw, n)
+        return _project_per_device(p, h, list(place.devices.flat), batch_size, kw, n)
     answers = _Answers(cut, n)
     pending: list[tuple[int, tuple[jax.Array, jax.Array]]] = []
     for s in range(0, cut, batch_size):
@@ -477,7 +476,7 @@ def project(
         # transfer out right after it, so both overlap the device's work on the batches around
         # them (one transfer of the whole array each way waited for all of it first); only the
         # last batch is padded, on its own
-        part = _padded(h[s : s + batch_size], batch_size, filler)
+        part = _padded(h[s : s + batch_size], batch_size, p)
         if isinstance(place, Mesh):
             x = jax.device_put(part, NamedSharding(place, PartitionSpec("batch")))
             out = project_sharded(p, x, mesh=place, **kw)
@@ -486,6 +485,7 @@ def project(
         for a in out:
             a.copy_to_host_async()
         pending.append((s, out))
+    answers.touch(0, cut)  # while the device works through the calls
     for s, out in pending:
         answers.put(s, out)
     return answers.angles, answers.value
@@ -515,6 +515,13 @@ class _Answers:
         self.angles = np.empty((cut, n), np.float32)
         self.value = np.empty((cut,), np.float32)
 
+    def touch(self, start: int, stop: int) -> None:
+        """Write zeros into rows ``start:stop``: the first write into fresh memory faults its
+        pages in, which a caller does while its device works (measured on 2 x H200: a
+        thread's copies of its answers 0.02-0.04 s a call into fresh rows, issue 61)."""
+        self.angles[start:stop] = 0.0
+        self.value[start:stop] = 0.0
+
     def put(self, start: int, out: tuple[jax.Array, jax.Array]) -> None:
         """Write one call's ``(angles, value)`` from row ``start`` on (cut at the end)."""
         k = max(0, min(len(self.value) - start, int(out[1].shape[0])))
@@ -527,7 +534,6 @@ def _project_per_device(
     h: np.ndarray,
     devices: list[jax.Device],
     batch_size: int,
-    filler: np.ndarray,
     kw: dict[str, Any],
     n: int,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -548,11 +554,13 @@ def _project_per_device(
         q, d = _on_device(p, devices[i]), devices[i]
         pending = []
         for s in starts:
-            part = _padded(h[s + i * share : min(s + (i + 1) * share, cut)], share, filler)
+            part = _padded(h[s + i * share : min(s + (i + 1) * share, cut)], share, p)
             out = project_chunk(q, jax.device_put(part, d), **kw)
             for a in out:
                 a.copy_to_host_async()
             pending.append((s + i * share, out))
+        for s, _ in pending:  # while the device works through the calls
+            answers.touch(s, s + share)
         for s, out in pending:  # each device's thread writes its own rows, as they arrive
             answers.put(s, out)
 
@@ -598,18 +606,32 @@ def calibrated(model: Model, descriptors: np.ndarray) -> Model:
                    * HELD_OUT_RATIO)  # fmt: skip
 
 
-def _padded(part: np.ndarray, size: int, filler: np.ndarray) -> np.ndarray:
-    """``part`` (``(k, m)``, ``k <= size``) with ``filler`` rows appended up to ``size``."""
+def _padded(part: np.ndarray, size: int, p: AnyProjector) -> np.ndarray:
+    """``part`` (``(k, m)``, ``k <= size``) with ``p``'s padding query appended up to ``size``
+    rows (``_padding_query``: asked only when a batch is short)."""
     if len(part) == size:
         return part
-    return np.concatenate([part, np.repeat(filler, size - len(part), axis=0)])
+    return np.concatenate([part, np.repeat(_padding_query(p), size - len(part), axis=0)])
+
+
+_FILLERS: dict[int, np.ndarray] = {}
 
 
 def _padding_query(p: AnyProjector) -> np.ndarray:
-    """``(1, m)``: a harmless padding query (the first landmark of each chain)."""
+    """``(1, m)``: a harmless padding query (the first landmark of each chain), made once per
+    projector and kept while it lives: made on every ``project`` call it cost a slice and a
+    transfer from the device per chain before any batch was sent (on 2 x H200 with the NAO's
+    default model, most of the 48 ms before the first batch in a profiled call; issue 61)."""
+    hit = _FILLERS.get(id(p))
+    if hit is not None:
+        return hit
     if isinstance(p, StackedProjector):
-        q = np.zeros((1, p.layout.m), np.float32)
+        first = np.asarray(p.stack.human[:, 0])  # (chains, width): one transfer
+        hit = np.zeros((1, p.layout.m), np.float32)
         for c, cols in enumerate(p.layout.inputs):
-            q[0, list(cols)] = np.asarray(p.stack.human[c, 0, : len(cols)])
-        return q
-    return np.asarray(p.human[:1])
+            hit[0, list(cols)] = first[c, : len(cols)]
+    else:
+        hit = np.asarray(p.human[:1], np.float32)
+    _FILLERS[id(p)] = hit
+    weakref.finalize(p, _FILLERS.pop, id(p), None)
+    return hit

@@ -51,6 +51,7 @@ def test_per_device_programs_equal_one_device(sharded: dict) -> None:
     assert sharded["full"]["per_device"]["max_abs_diff"] < 1e-4
     # the projector is copied to each device once, and the copies go with the projector
     assert sharded["copies"] == {"after_calls": 4, "reused": True, "after_del": 0}
+    assert sharded["fillers"] == {"after_calls": 1, "after_del": 0}  # made once per projector
 
 
 def test_sharded_projection_equals_one_device(sharded: dict) -> None:

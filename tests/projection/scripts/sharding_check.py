@@ -93,9 +93,12 @@ def main() -> None:
         "after_calls": len(copies),
         "reused": all(engine._COPIES[k] is v for k, v in copies.items()),
     }
+    # so is the padding query, made when a batch is first short
+    out["fillers"] = {"after_calls": len(engine._FILLERS)}
     del model, p
     gc.collect()
     out["copies"]["after_del"] = len(engine._COPIES)
+    out["fillers"]["after_del"] = len(engine._FILLERS)
     json.dump(out, sys.stdout)
 
 
