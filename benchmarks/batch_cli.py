@@ -120,7 +120,12 @@ robot, whose IK is closed-form (measured on the 2-core VM: 2.4e-7 on the subset,
 the 668 bundled recordings)."""
 ROUNDING_ITERATIVE = 2e-3
 """rad: the same for a robot of the generic IK, whose iterations and continuity pass carry a
-rounding difference further (measured: up to 8.2e-4 rad on four MSR Action3D motions)."""
+rounding difference further (measured: up to 8.2e-4 rad on four MSR Action3D motions; 1.9e-3 on
+an H200, ``batch_cli_g1_10000_h200.json``). Where it starts (2-core VM, 2026-11-30, the longest
+held-out UTKinect segment, 62 frames, the G1): the per-frame solve of the same frames padded to
+64 and to 96 rows differs by up to 1.7e-3 rad (XLA compiles each batch shape on its own), and
+``retarget`` by 2.0e-3; the continuity pass given the same per-frame answers returns the same
+angles at either padding (difference 0)."""
 
 ERRORS: list[str] = []
 """The ``jaxproj: error:`` lines of the commands run (a recording that failed)."""
