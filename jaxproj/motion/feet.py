@@ -193,20 +193,6 @@ def _stance_weights(stance: np.ndarray, ramp: int) -> tuple[np.ndarray, np.ndarr
     return which, weight
 
 
-def _sole_heights(
-    model: mujoco.MjModel, data: mujoco.MjData, robot: Robot, trees: list[list[int]]
-) -> list[float]:
-    """Per foot (``trees``: each foot body's subtree), how high its sole's reference point (the
-    mean of its geoms' lowest points) is above the sole when the foot is level (the standing
-    posture, the foot's own frame); what ``_plant_feet`` holds it at."""
-    _set(model, data, joint_qpos_index(model, robot.joint_names), robot.standing)
-    out = []
-    for tree in trees:
-        pts, rad = _foot_points(model, data, tree, tree[0])
-        out.append(float(pts.mean(axis=0)[2] - np.min(pts[:, 2] - rad)))
-    return out
-
-
 def _below_floor(
     robot: Robot, q: np.ndarray, root_pos: np.ndarray, rot_root: np.ndarray
 ) -> np.ndarray:

@@ -478,8 +478,10 @@ def plant_many(feet: Feet, plan: Plan) -> tuple[jax.Array, jax.Array]:
     return jax.vmap(functools.partial(plant, feet))(plan)
 
 
+@functools.cache
 def feet_of(robot: Robot) -> Feet:
-    """``Feet.of`` the robot's first two feet (``Figure.feet``)."""
+    """``Feet.of`` the robot's first two feet (``Figure.feet``), read once per robot (the
+    stance IK's programs and ``whole_body``'s host stage share it)."""
     assert robot.mjcf is not None
     return Feet.of(robot, tuple(b for b, _ in robot.mjcf.figure.feet)[:2])
 

@@ -103,12 +103,11 @@ from jaxproj.motion.feet import (
     _foot_points,
     _root_body,
     _set,
-    _sole_heights,
     _stance_weights,
     plan_feet,
     plant_planned,
 )
-from jaxproj.motion.stance import Plan
+from jaxproj.motion.stance import Plan, feet_of
 from jaxproj.motion.stance import subtree as _subtree
 from jaxproj.robots import Robot
 from jaxproj.robots.base import joint_qpos_index
@@ -517,7 +516,7 @@ def _prepare(
     # a stance foot: its sole's reference point at its height above the floor when level (the
     # planting IK levels it: a tilted foot's lowest corner would leave the root too high, and
     # the IK would straighten the leg to reach down)
-    flat = np.array(_sole_heights(model, data, robot, trees))
+    flat = np.asarray(feet_of(robot).height, np.float64)  # the stance IK's own
     stand = flat[None] - centre[:, :, 2]
     z = np.min(weight * stand + (1.0 - weight) * free[:, None], axis=1)
     # horizontal: the scaled pelvis's steps, or the stance feet held
