@@ -574,8 +574,8 @@ _COPIES: dict[tuple[int, int], AnyProjector] = {}
 
 def _on_device(p: AnyProjector, device: jax.Device) -> AnyProjector:
     """``p`` copied to ``device``, once per projector and device: the copy is kept while ``p``
-    lives (copying the default NAO model to the second of 2 H200s on every ``project`` call
-    cost more than a tenth of the call, issue 61)."""
+    lives (copying the default robot's default model to the second of 2 H200s on every
+    ``project`` call cost more than a tenth of the call, issue 61)."""
     key = (id(p), device.id)
     hit = _COPIES.get(key)
     if hit is None:
@@ -620,8 +620,9 @@ _FILLERS: dict[int, np.ndarray] = {}
 def _padding_query(p: AnyProjector) -> np.ndarray:
     """``(1, m)``: a harmless padding query (the first landmark of each chain), made once per
     projector and kept while it lives: made on every ``project`` call it cost a slice and a
-    transfer from the device per chain before any batch was sent (on 2 x H200 with the NAO's
-    default model, most of the 48 ms before the first batch in a profiled call; issue 61)."""
+    transfer from the device per chain before any batch was sent (on 2 x H200 with the default
+    robot's default model, most of the 48 ms before the first batch in a profiled call; issue
+    61)."""
     hit = _FILLERS.get(id(p))
     if hit is not None:
         return hit
