@@ -70,7 +70,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxproj._internal import executables
-from jaxproj._internal.buckets import bucket, call_bucketed, fine_bucket, packed_calls
+from jaxproj._internal.buckets import (
+    MIN_ROWS,
+    bucket,
+    call_bucketed,
+    fine_bucket,
+    packed_calls,
+)
 from jaxproj._internal.jit import jit
 from jaxproj._internal.shards import host_shards, on_devices
 from jaxproj.errors import ConfigError, JaxprojError, NoValidFrameError
@@ -150,7 +156,7 @@ def _bucket(t: int, coarse: bool = False) -> int:
     padded frame is mapped, and a frame of a bundled robot's generic IK costs ~15 ms on
     a 2-core CPU); ``coarse``: the next power of two, at least 64 (``retarget_many``'s
     packing on an accelerator, where a program costs more than its padded frames)."""
-    return bucket(t, 64) if coarse else fine_bucket(t, 64)
+    return bucket(t, MIN_ROWS) if coarse else fine_bucket(t, MIN_ROWS)
 
 
 _playable_jit = jit(pipeline.playable_full, static_argnames=("robot",))
@@ -564,19 +570,15 @@ def retarget_many(
         except JaxprojError as e:
             out[i] = e
             continue
-        groups.setdefault((plan.pos.shape[0], plan.gains.shape), []).append((i, plan))
+        groups.setdefault(plan.gains.shape, []).append((i, plan))
     calls: list[tuple[list[tuple[int, _Plan]], list[_Plan]]] = []
     frames = pack_frames or (PACK_FRAMES_COARSE if coarse else PACK_FRAMES)
-    for members in groups.values():
-        size = members[0][1].pos.shape[0]
-        per_call = max(1, frames // size)
-        # coarse: every call of the group as many rows as its largest, so one program a group
-        most = 1 << (min(per_call, len(members)) - 1).bit_length()
-        for start in range(0, len(members), per_call):
-            chunk = members[start : start + per_call]
+    for members in groups.values():  # per gains' shape, stacks of one padded length (_bucket's)
+        for _, which, count in packed_calls([pl.t for _, pl in members], coarse=coarse,
+                                            frames=frames):  # fmt: skip
+            chunk = [members[j] for j in which]
             plans = [pl for _, pl in chunk]
-            rows = most if coarse else 1 << (len(plans) - 1).bit_length()  # a power of two
-            calls.append((chunk, plans + [plans[-1]] * (rows - len(plans))))
+            calls.append((chunk, plans + [plans[-1]] * (count - len(plans))))
 
     def run(call: tuple[list[tuple[int, _Plan]], list[_Plan]]) -> None:
         chunk, plans = call
