@@ -125,7 +125,11 @@ an H200, ``batch_cli_g1_10000_h200.json``). Where it starts (2-core VM, 2026-11-
 held-out UTKinect segment, 62 frames, the G1): the per-frame solve of the same frames padded to
 64 and to 96 rows differs by up to 1.7e-3 rad (XLA compiles each batch shape on its own), and
 ``retarget`` by 2.0e-3; the continuity pass given the same per-frame answers returns the same
-angles at either padding (difference 0)."""
+angles at either padding (difference 0). The solve vmapped over 64 and 80 rows agrees, over 96
+or 112 differs from it by 7.0e-4, over 128-256 by 4.5e-4 (the first 62 rows of the held-out
+UTKinect segments); the same solve mapped over chunks of 16 rows (``lax.map``) gives the same
+answers at every size, 1.27 s against 1.07 s for 128 rows on the VM: a fix for the CPU, not
+made (on a GPU the chunks would run one after another)."""
 
 ERRORS: list[str] = []
 """The ``jaxproj: error:`` lines of the commands run (a recording that failed)."""
