@@ -25,7 +25,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import shutil
@@ -39,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.batch_cli import write_bundled
+from benchmarks.harness import report
 from jaxproj.io.motion_files import load_motion
 
 
@@ -128,10 +128,7 @@ def main(argv: list[str] | None = None) -> int:
             s = res[f"{way}_{run}_s"]
             res[f"{way}_{run}_recordings_per_s"] = res[f"{way}_written"] / s
             res[f"{way}_{run}_frames_per_s"] = res["frames_written"] / s
-    text = json.dumps(res, indent=1)
-    print(text)
-    if args.json is not None:
-        args.json.write_text(text + "\n")
+    report(res, None if args.json is None else str(args.json))
     return 0
 
 

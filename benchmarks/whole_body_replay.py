@@ -25,7 +25,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -33,6 +32,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from benchmarks.harness import report
 from jaxproj import robots
 from jaxproj.eval import replay
 from jaxproj.io.motion_files import load_motion
@@ -97,10 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         "device": f"{len(devices)} x {devices[0].device_kind}",
         "jax_version": jax.__version__,
     }
-    text = json.dumps(res, indent=1)
-    print(text)
-    if args.json is not None:
-        args.json.write_text(text + "\n")
+    report(res, None if args.json is None else str(args.json))
     return 0
 
 

@@ -14,14 +14,13 @@ first call, which makes the entry), ``now_ms`` (median of 50 later calls); the a
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
 
+from benchmarks.harness import report
 from jaxproj import robots
 from jaxproj.io import datasets
 from jaxproj.projection import api as engine
@@ -67,10 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     out["now_first_ms"] = (time.perf_counter() - t0) * 1e3
     out["now_ms"] = _ms(lambda: engine._padding_query(p))
     out["equal"] = bool(np.array_equal(first, _before(p)))
-    text = json.dumps(out, indent=1)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text)
+    report(out, a.json)
     return 0
 
 

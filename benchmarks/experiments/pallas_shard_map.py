@@ -35,10 +35,10 @@ from __future__ import annotations
 
 import argparse
 import functools
-import json
 import subprocess
 import sys
-from pathlib import Path
+
+from benchmarks.harness import report
 
 SIMPLE = ("add", "barrier", "asm", "scratch", "int_out", "fori_store", "grid2d", "gather",
           "whole_block")  # fmt: skip
@@ -221,10 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         out["cases"][case] = {"rc": run.returncode, "stdout": said,
                               "stderr_tail": err[-3:]}  # fmt: skip
         print(case, run.returncode, said, err[-1:] if run.returncode else "", flush=True)
-    text = json.dumps(out, indent=1)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text)
+    report(out, a.json)
     return 0
 
 
