@@ -24,11 +24,18 @@ jitted on one GPU, the control):
   projector);
 - ``knn_pruned``: ``ops.knn_pallas.knn`` with ``prune=True`` (its data-dependent fallback: a
   ``lax.cond`` / ``switch`` around a second ``pallas_call``);
+- ``knn_stage0`` .. ``knn_stage3``: ``knn_full`` with its kernel cut short (the same call, grid,
+  blocks and outputs): 0 writes zeros only (the blocks and the wrapper's padding alone), 1 the
+  block minima (the tiled distance pass, its scratch output, the barrier), 2 with the ``n``
+  rounds choosing blocks, 3 with the distances recomputed at the chosen blocks' landmarks
+  (the gather); the full kernel adds the second ``n`` rounds;
 - ``back_min`` / ``back_min_slow``: ``ops.backproj_pallas.back_min`` on a random bank (4,096
   kernels, hidden 64, 9 -> 12), with the fast sigmoid (inline PTX) and without.
 
 Output: per case its exit code (``-11``: SIGSEGV) and its last stderr line; ``device``,
-``jax_version``. Each child prints ``ok <max |sharded - one device|>`` when it finishes.
+``jax_version``. Each child prints ``compiled`` once the sharded program is compiled (so that a
+crash is placed at compiling or at running) and ``ok <max |sharded - one device|>`` when it
+finishes.
 """
 
 from __future__ import annotations
@@ -42,8 +49,132 @@ from benchmarks.harness import report
 
 SIMPLE = ("add", "barrier", "asm", "scratch", "int_out", "fori_store", "grid2d", "gather",
           "whole_block")  # fmt: skip
-CASES = ("add_one", *SIMPLE, "knn_one", "knn", "knn_numpy", "knn_args", "knn_pruned",
-         "back_min", "back_min_slow")  # fmt: skip
+STAGES = ("knn_stage0", "knn_stage1", "knn_stage2", "knn_stage3")
+ZERO = ("zero", "zero_nowrap", "zero_no4d", "zero_nopf", "zero_nobm", "zero_c2", "zero_padx",
+        "zero_padp", "zero_transpose", "zero_jnppad", "zero_scale", "zero_padrows")  # fmt: skip
+
+
+def _zero(kind: str, c: int):  # noqa: ANN202 - knn_full's call, a kernel writing zeros
+    import jax
+    import jax.numpy as jnp
+    from jax.experimental import pallas as pl
+    from jax.experimental.pallas import triton as plgpu
+
+    rows, slots, block, nb = 16, 16, 16, 256
+    kp, d = nb * block, 9
+    four, pf, bm = kind != "zero_no4d", kind != "zero_nopf", kind != "zero_nobm"
+
+    def kernel(x_ref, *refs):  # noqa: ANN001
+        outs = refs[four + pf :]
+        outs[0][...] = jnp.zeros((rows, slots), jnp.int32)
+        outs[1][...] = x_ref[:, :1] + jnp.zeros((rows, slots), jnp.float32)
+        if bm:
+            outs[2][...] = jnp.zeros((rows, nb), jnp.float32)
+
+    def call(xp: jax.Array, pt: jax.Array) -> jax.Array:
+        r = xp.shape[1]
+        ins = [pl.BlockSpec((None, rows, d), lambda ci, b: (ci, b, 0))]
+        args = [xp]
+        if four:
+            ins.append(pl.BlockSpec((None, d, nb, block), lambda ci, b: (ci, 0, 0, 0)))
+            args.append(pt.reshape(c, d, nb, block))
+        if pf:
+            ins.append(pl.BlockSpec((None, d, kp), lambda ci, b: (ci, 0, 0)))
+            args.append(pt)
+        outs = [pl.BlockSpec((None, rows, slots), lambda ci, b: (ci, b, 0))] * 2
+        shapes = [jax.ShapeDtypeStruct((c, r, slots), jnp.int32),
+                  jax.ShapeDtypeStruct((c, r, slots), jnp.float32)]  # fmt: skip
+        if bm:
+            outs.append(pl.BlockSpec((None, rows, nb), lambda ci, b: (ci, b, 0)))
+            shapes.append(jax.ShapeDtypeStruct((c, r, nb), jnp.float32))
+        got = pl.pallas_call(kernel, grid=(c, r // rows), in_specs=ins, out_specs=outs,
+                             out_shape=shapes,
+                             compiler_params=plgpu.CompilerParams(num_warps=4))(*args)  # fmt: skip
+        return got[1]
+
+    if kind == "zero_nowrap":  # the padded arrays made outside, passed in
+        return call, d
+
+    def wrapped(x: jax.Array, pts: jax.Array) -> jax.Array:  # as knn_full pads (or a part)
+        if kind in ("zero_padx", "zero_scale", "zero_padrows"):  # pts come padded, transposed
+            pt = pts
+        elif kind == "zero_transpose":  # pts come padded, (C, kp, d): transposed here
+            pt = pts.transpose(0, 2, 1)
+        elif kind == "zero_jnppad":
+            pt = jnp.pad(pts.transpose(0, 2, 1), ((0, 0), (0, 0), (0, kp - pts.shape[1])),
+                         constant_values=1e18)  # fmt: skip
+        else:
+            pt = (
+                jnp.full((c, d, kp), 1e18, jnp.float32)
+                .at[:, :, : pts.shape[1]]
+                .set(pts.transpose(0, 2, 1))
+            )
+        if kind == "zero_scale":  # one elementwise op before the call
+            return call(x * 2.0, pt)
+        if kind in ("zero_padp", "zero_transpose", "zero_jnppad"):
+            return call(x, pt)
+        if kind == "zero_padrows":  # rows padded to a whole block more (a real padding)
+            xp = jnp.zeros((c, x.shape[1] + rows, d), jnp.float32).at[:, :-rows].set(x)
+            return call(xp, pt)[:, :-rows]
+        xp = jnp.zeros(x.shape[:2] + (d,), jnp.float32).at[:, :, : x.shape[2]].set(x)
+        return call(xp, pt)
+
+    return wrapped, d
+
+
+CASES = ("add_one", *SIMPLE, "knn_one", "knn", "knn_numpy", "knn_args", "knn_pruned", *STAGES,
+         *ZERO, "back_min", "back_min_slow")  # fmt: skip
+
+
+def _cut_kernel(
+    x_ref, p_ref, pf_ref, idx_ref, d_ref, bm_ref, *, stop: int, n: int, d: int, nb: int,
+    nt: int, block: int, tb: int, sync: bool,
+):  # fmt: skip  # noqa: ANN001 - knn_pallas._kernel up to stage ``stop`` (module doc)
+    import jax
+    import jax.numpy as jnp
+
+    from jaxproj.projection.ops import knn_pallas as kp
+
+    rows, slots_n = kp.ROWS, kp.SLOTS
+    if stop == 0:
+        idx_ref[...] = jnp.zeros((rows, slots_n), jnp.int32)
+        d_ref[...] = x_ref[:, :1] + jnp.zeros((rows, slots_n), jnp.float32)
+        bm_ref[...] = jnp.zeros((rows, nb), jnp.float32)
+        return
+    xs = [x_ref[:, j] for j in range(d)]
+
+    def minima(s):  # noqa: ANN001, ANN202
+        d2 = jnp.zeros((rows, tb, block), jnp.float32)
+        for j in range(d):
+            diff = xs[j][:, None, None] - p_ref[j, kp.pl.ds(s, tb), :][None]
+            d2 = d2 + diff * diff
+        return jnp.min(d2, axis=2)
+
+    kp._tiles(bm_ref, tb, nt, nb // tb, minima, kp.EMPTY)
+    kp._barrier(sync)
+    bm = bm_ref[...]
+    if stop == 1:
+        idx_ref[...] = jnp.zeros((rows, slots_n), jnp.int32)
+        d_ref[...] = bm[:, :slots_n]
+        return
+    cols = jax.lax.broadcasted_iota(jnp.int32, (rows, nb), 1)
+    slots = jax.lax.broadcasted_iota(jnp.int32, (rows, slots_n), 1)
+    blk = jnp.zeros((rows, slots_n), jnp.int32)
+    for r in range(n):
+        m = jnp.min(bm, axis=1)
+        pos = jnp.min(jnp.where(bm == m[:, None], cols, nb), axis=1)
+        pos = jnp.minimum(pos, nb - 1)
+        blk = jnp.where(slots == r, pos[:, None], blk)
+        bm = jnp.where(cols == pos[:, None], jnp.inf, bm)
+    if stop == 2:
+        idx_ref[...] = blk
+        d_ref[...] = jnp.zeros((rows, slots_n), jnp.float32)
+        return
+    member = jax.lax.broadcasted_iota(jnp.int32, (rows, slots_n, block), 2)
+    pidx = blk[:, :, None] * block + member
+    d2 = kp._gathered_d2(xs, pf_ref, pidx)
+    idx_ref[...] = blk
+    d_ref[...] = jnp.min(d2, axis=2)
 
 
 def _simple(kind: str):  # noqa: ANN202, C901 - a traceable function of one (B, 128) array
@@ -139,11 +270,25 @@ def child(case: str, n_dev: int) -> int:
 
     rng = np.random.default_rng(0)
     devs = jax.devices()[:n_dev]
+    if case in STAGES:  # knn_full's call with its kernel cut short (``_cut_kernel``)
+        knn_pallas._kernel = functools.partial(_cut_kernel, stop=int(case[-1]))
+        case = "knn"
     mesh = Mesh(np.array(devs), ("b",))
     base = case.removesuffix("_one")
     if base in SIMPLE:
         x = rng.standard_normal((1024 * n_dev, 128)).astype(np.float32)
         fn, args, specs = _simple(base), (x,), (PartitionSpec("b"),)
+    elif base in ZERO:
+        c = 2 if base == "zero_c2" else 1
+        fn, d = _zero(base, c)
+        x = rng.standard_normal((c, 8192 * n_dev, d)).astype(np.float32)
+        pts = rng.standard_normal((c, 4000, d)).astype(np.float32)
+        if base in ("zero_nowrap", "zero_padx", "zero_scale", "zero_padrows"):  # (C, d, kp)
+            pts = np.full((c, d, 4096), 1e18, np.float32)
+        if base == "zero_transpose":  # padded, (C, kp, d)
+            pts = np.full((c, 4096, d), 1e18, np.float32)
+        args = (x, pts)
+        specs = (PartitionSpec(None, "b"), PartitionSpec())
     elif base.startswith("knn"):
         pts_np = rng.standard_normal((1, 4096, 9)).astype(np.float32)
         valid_np = np.ones((1, 4096), bool)
@@ -187,12 +332,15 @@ def child(case: str, n_dev: int) -> int:
         jax.block_until_ready(one)
         print("ok 0.0", flush=True)
         return 0
-    out_spec = PartitionSpec(None, "b") if base.startswith("knn") else PartitionSpec("b")
+    knn_like = base.startswith("knn") or base in ZERO
+    out_spec = PartitionSpec(None, "b") if knn_like else PartitionSpec("b")
     sharded = jax.jit(
         jax.shard_map(fn, mesh=mesh, in_specs=specs, out_specs=out_spec, check_vma=False)
     )
     placed = [jax.device_put(a, NamedSharding(mesh, s)) for a, s in zip(args, specs, strict=True)]
-    got = sharded(*placed)
+    compiled = sharded.lower(*placed).compile()
+    print("compiled", flush=True)
+    got = compiled(*placed)
     diff = float(np.max(np.abs(np.asarray(got, np.float64) - np.asarray(one, np.float64))))
     print(f"ok {diff}", flush=True)
     return 0

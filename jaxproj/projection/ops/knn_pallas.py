@@ -88,6 +88,20 @@ def _pow2(v: int) -> int:
     return p
 
 
+def _row_pad(a: jax.Array, size: int, fill: float, axis: int = 1) -> jax.Array:
+    """``a`` padded with ``fill`` to ``size`` along ``axis`` (``lax.pad``; ``a`` itself where it
+    is that size). Not ``jnp.full(...).at[...].set(a)``: on several GPUs under ``jax.shard_map``,
+    where that scatter covers the whole array XLA removes it and its zero-sized index constant,
+    captured into the ``shard_map`` body, is left unused there; the partitioner (Shardy) then
+    segfaults while compiling (jax 0.11.2, 2 H200s, 2026-11-30: the ``zero_padx`` case of
+    ``benchmarks/experiments/pallas_shard_map.py``)."""
+    if a.shape[axis] == size:
+        return a
+    widths = [(0, 0)] * a.ndim
+    widths[axis] = (0, size - a.shape[axis])
+    return jnp.pad(a, widths, constant_values=fill)
+
+
 def _gathered_d2(xs: list[jax.Array], pf_ref: Any, pidx: jax.Array) -> jax.Array:
     """``|x - p|^2`` of each row ``x`` (``xs``: ``d`` coordinates, ``(ROWS,)`` each) to the
     landmarks ``pidx`` (``(ROWS, S, B)`` indices into ``pf_ref``, ``(d, K)``), coordinate by
@@ -219,8 +233,11 @@ def knn_full(
     kp = nb * block
     rp = -(-r // ROWS) * ROWS
     pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
-    pt = jnp.full((c, d, kp), FAR, jnp.float32).at[:, :, :k].set(pts.transpose(0, 2, 1))
-    xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
+    # padded by ``lax.pad``, not a scatter into a filled array: a scatter that covers its whole
+    # target (no padding needed) leaves a zero-sized constant in a ``shard_map`` body, on which
+    # XLA's partitioner crashes (``benchmarks/experiments/pallas_shard_map.py``, ``_row_pad``)
+    pt = _row_pad(pts.transpose(0, 2, 1), kp, FAR, axis=2)
+    xp = _row_pad(x.astype(jnp.float32), rp, 0.0)
     nt = -(-k // (tb * block)) if SKIP_EMPTY_TILES else nb // tb
     kern = functools.partial(
         _kernel, n=n, d=d, nb=nb, nt=nt, block=block, tb=tb, sync=not interpret
@@ -579,7 +596,7 @@ def knn_pruned(
     if index is None or not index.fits(c, k, d):
         index = prune_index(points, valid, block, lbt)
     order = index.order
-    xp = jnp.zeros((c, rp, d), jnp.float32).at[:, :r].set(x.astype(jnp.float32))
+    xp = _row_pad(x.astype(jnp.float32), rp, 0.0)
     nt = -(-nblk // lbt)
     ns = visit * (block // sub)
     kern = functools.partial(_pruned_kernel, n=n, d=d, nb=nb, nt=nt, block=block, sub=sub,
