@@ -29,6 +29,15 @@ jitted on one GPU, the control):
   block minima (the tiled distance pass, its scratch output, the barrier), 2 with the ``n``
   rounds choosing blocks, 3 with the distances recomputed at the chosen blocks' landmarks
   (the gather); the full kernel adds the second ``n`` rounds;
+- ``zero`` / ``zero_one``: ``knn_full``'s call (the same grid, blocks, outputs and padding)
+  around a kernel that writes zeros; one part of the call changed at a time: ``zero_nowrap``
+  (the padded inputs made outside and passed in), ``zero_no4d`` / ``zero_nopf`` (without the 4-D
+  landmark block / the whole one), ``zero_nobm`` (without the scratch output), ``zero_c2`` (2
+  landmark sets), ``zero_padx`` (only the query rows padded inside, by a scatter covering its
+  whole target, as ``knn_full`` padded them before 2026-11-30: the crash), ``zero_padp`` /
+  ``zero_jnppad`` (only the landmarks padded inside, by a scatter / ``jnp.pad``),
+  ``zero_transpose`` (only transposed inside), ``zero_scale`` (one elementwise op before the
+  call), ``zero_padrows`` (the rows padded by a real block more);
 - ``back_min`` / ``back_min_slow``: ``ops.backproj_pallas.back_min`` on a random bank (4,096
   kernels, hidden 64, 9 -> 12), with the fast sigmoid (inline PTX) and without.
 

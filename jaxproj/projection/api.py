@@ -418,9 +418,9 @@ def project(
         share, dispatched by a host thread of its own, so the devices run together; the
         answers are those of one device given the same share. ``"shard_map"``: one program
         over a 1-D mesh (``project_sharded``); its per-device program is compiled once, but
-        XLA fuses the share otherwise (last-bit differences in the value), and with the Pallas
-        kernels the process dies with a segmentation fault in the CUDA plugin while compiling
-        it (4 x H100, issue 61; 2 x H200, jax 0.11.2, 2026-11-29).
+        XLA fuses the share otherwise (last-bit differences in the value; a segmentation fault
+        while compiling it with the Pallas kernels, jax 0.11.2, was the k-NN kernels'
+        padding, fixed: ``knn_pallas._row_pad``).
       impl: backend of the relaxed projection's k-NN searches and back-projection:
         ``"auto"`` (default) resolved once from the platform of ``devices`` (``None``: the
         default backend): the Pallas kernels on CUDA GPUs, XLA elsewhere; ``"xla"``; or

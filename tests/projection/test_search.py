@@ -7,6 +7,7 @@ padding, ragged row counts) is checked without a GPU. Its Triton lowering and sp
 on a GPU by ``benchmarks/experiments/fused_knn_ab.py``.
 """
 
+import functools
 import re
 
 import jax
@@ -95,6 +96,24 @@ def test_fused_kernel_rejects_a_selection_wider_than_its_registers():
     pts = jnp.zeros((1, 64, 4))
     with pytest.raises(ValueError, match="n=17"):
         _knn_pallas.knn(pts, jnp.ones((1, 64), bool), jnp.zeros((1, 4, 4)), 17, True)
+
+
+@pytest.mark.parametrize("rows", [32, 30])  # a whole number of program rows, and a short one
+def test_kernels_pad_without_a_scatter(rows):
+    """The k-NN kernels' inputs are padded by ``lax.pad`` (or not at all), never scattered into
+    a filled array: under ``jax.shard_map`` on GPUs, a scatter covering its whole target left a
+    zero-sized constant that crashed XLA's partitioner (``knn_pallas._row_pad``)."""
+    rng = np.random.default_rng(0)
+    pts = rng.standard_normal((1, 300, 4)).astype(np.float32)
+    ok = np.ones((1, 300), bool)
+    x = rng.standard_normal((1, rows, 4)).astype(np.float32)
+    index = _knn_pallas.prune_index(pts, ok, 64, _knn_pallas.PRUNE_LB_TILE)  # as projectors keep
+    full = functools.partial(_knn_pallas.knn_full, pts, ok)
+    pruned = functools.partial(_knn_pallas.knn_pruned, pts, ok, index=index)
+    for name, fn in (("knn_full", full), ("knn_pruned", pruned)):
+        text = str(jax.make_jaxpr(lambda a, fn=fn: fn(a, 3, interpret=True))(x))
+        calls = text.split("pallas_call")[0]  # the wrapper's operations before the first kernel
+        assert "pallas_call" in text and "scatter" not in calls, name
 
 
 @pytest.mark.parametrize("n", [10, 20])
