@@ -20,7 +20,7 @@ the batching and device placement) are one surface a reader checks together.
 from __future__ import annotations
 
 import weakref
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import Any, Literal
@@ -579,11 +579,16 @@ def _on_device(p: AnyProjector, device: jax.Device) -> AnyProjector:
     """``p`` copied to ``device``, once per projector and device: the copy is kept while ``p``
     lives (copying the default robot's default model to the second of 2 H200s on every
     ``project`` call cost more than a tenth of the call, issue 61)."""
-    key = (id(p), device.id)
-    hit = _COPIES.get(key)
+    return _kept(p, _COPIES, (id(p), device.id), lambda: jax.device_put(p, device))
+
+
+def _kept(p: AnyProjector, table: dict, key: Any, make: Callable[[], Any]) -> Any:
+    """``table[key]``, made by ``make()`` on first use and dropped from ``table`` when the
+    projector ``p`` is collected (its ``id`` may then be reused by another)."""
+    hit = table.get(key)
     if hit is None:
-        hit = _COPIES[key] = jax.device_put(p, device)
-        weakref.finalize(p, _COPIES.pop, key, None)
+        hit = table[key] = make()
+        weakref.finalize(p, table.pop, key, None)
     return hit
 
 
@@ -626,16 +631,14 @@ def _padding_query(p: AnyProjector) -> np.ndarray:
     transfer from the device per chain before any batch was sent (on 2 x H200 with the default
     robot's default model, most of the 48 ms before the first batch in a profiled call; issue
     61)."""
-    hit = _FILLERS.get(id(p))
-    if hit is not None:
-        return hit
-    if isinstance(p, StackedProjector):
+
+    def make() -> np.ndarray:
+        if not isinstance(p, StackedProjector):
+            return np.asarray(p.human[:1], np.float32)
         first = np.asarray(p.stack.human[:, 0])  # (chains, width): one transfer
-        hit = np.zeros((1, p.layout.m), np.float32)
+        q = np.zeros((1, p.layout.m), np.float32)
         for c, cols in enumerate(p.layout.inputs):
-            hit[0, list(cols)] = first[c, : len(cols)]
-    else:
-        hit = np.asarray(p.human[:1], np.float32)
-    _FILLERS[id(p)] = hit
-    weakref.finalize(p, _FILLERS.pop, id(p), None)
-    return hit
+            q[0, list(cols)] = first[c, : len(cols)]
+        return q
+
+    return _kept(p, _FILLERS, id(p), make)

@@ -233,9 +233,6 @@ def knn_full(
     kp = nb * block
     rp = -(-r // ROWS) * ROWS
     pts = jnp.where(valid[..., None], points.astype(jnp.float32), FAR)
-    # padded by ``lax.pad``, not a scatter into a filled array: a scatter that covers its whole
-    # target (no padding needed) leaves a zero-sized constant in a ``shard_map`` body, on which
-    # XLA's partitioner crashes (``benchmarks/experiments/pallas_shard_map.py``, ``_row_pad``)
     pt = _row_pad(pts.transpose(0, 2, 1), kp, FAR, axis=2)
     xp = _row_pad(x.astype(jnp.float32), rp, 0.0)
     nt = -(-k // (tb * block)) if SKIP_EMPTY_TILES else nb // tb
