@@ -39,12 +39,21 @@ jitted on one GPU, the control):
   ``zero_transpose`` (only transposed inside), ``zero_scale`` (one elementwise op before the
   call), ``zero_padrows`` (the rows padded by a real block more);
 - ``back_min`` / ``back_min_slow``: ``ops.backproj_pallas.back_min`` on a random bank (4,096
-  kernels, hidden 64, 9 -> 12), with the fast sigmoid (inline PTX) and without.
+  kernels, hidden 64, 9 -> 12), with the fast sigmoid (inline PTX) and without;
+- no Pallas at all: ``empty_sum`` (``x + jnp.sum(e)``, ``e`` a closed-over ``(0, 128)``
+  array), ``empty_arg`` (``e`` passed in, replicated), ``empty_concat``
+  (``jnp.concatenate([x, e]) + 1``), ``scatter_plain`` (the old whole-cover row padding before
+  a multiply): on 2 H200s (jax 0.11.2) every one crashes, so the cause is a zero-sized array in
+  the program under XLA's Shardy pass; run with ``JAX_USE_SHARDY_PARTITIONER=false`` they pass;
+- ``rollout_one`` / ``rollout_closed`` / ``rollout_args``: the MJX rollout step
+  (``rollout_physics._simulate_jit``, the default robot, 64 motions x 15 frames per device), its
+  model closed over or passed in replicated (an MJX model holds zero-sized fields).
 
 Output: per case its exit code (``-11``: SIGSEGV) and its last stderr line; ``device``,
 ``jax_version``. Each child prints ``compiled`` once the sharded program is compiled (so that a
-crash is placed at compiling or at running) and ``ok <max |sharded - one device|>`` when it
-finishes.
+crash is placed at compiling or at running; before it, ``one device ok`` once the one-device
+control has run) and ``ok <max |sharded - one device|>`` when it finishes. ``--timeout`` bounds
+each case (s).
 """
 
 from __future__ import annotations
@@ -131,8 +140,10 @@ def _zero(kind: str, c: int):  # noqa: ANN202 - knn_full's call, a kernel writin
     return wrapped, d
 
 
+EMPTY = ("empty_concat", "empty_sum", "empty_arg", "scatter_plain")
+ROLLOUT = ("rollout_one", "rollout_closed", "rollout_args")
 CASES = ("add_one", *SIMPLE, "knn_one", "knn", "knn_numpy", "knn_args", "knn_pruned", *STAGES,
-         *ZERO, "back_min", "back_min_slow")  # fmt: skip
+         *ZERO, "back_min", "back_min_slow", *EMPTY, *ROLLOUT)  # fmt: skip
 
 
 def _cut_kernel(
@@ -287,6 +298,30 @@ def child(case: str, n_dev: int) -> int:
     if base in SIMPLE:
         x = rng.standard_normal((1024 * n_dev, 128)).astype(np.float32)
         fn, args, specs = _simple(base), (x,), (PartitionSpec("b"),)
+    elif base in EMPTY:  # no Pallas: zero-sized arrays and a whole-cover scatter
+        x = rng.standard_normal((1024 * n_dev, 128)).astype(np.float32)
+        e = np.zeros((0, 128), np.float32)
+        args, specs = (x,), (PartitionSpec("b"),)
+        if base == "empty_concat":  # a zero-sized constant that simplification drops
+
+            def fn(x_: jax.Array) -> jax.Array:
+                return jnp.concatenate([x_, e]) + 1
+
+        elif base == "empty_sum":
+
+            def fn(x_: jax.Array) -> jax.Array:
+                return x_ + jnp.sum(e)
+
+        elif base == "empty_arg":  # passed in, replicated
+
+            def fn(x_: jax.Array, e_: jax.Array) -> jax.Array:  # type: ignore[misc]
+                return x_ + jnp.sum(e_)
+
+            args, specs = (x, e), (PartitionSpec("b"), PartitionSpec())
+        else:  # scatter_plain: knn_full's old row padding, whole cover, before a plain op
+
+            def fn(x_: jax.Array) -> jax.Array:
+                return jnp.zeros_like(x_).at[:, : x_.shape[1]].set(x_) * 2
     elif base in ZERO:
         c = 2 if base == "zero_c2" else 1
         fn, d = _zero(base, c)
@@ -318,6 +353,30 @@ def child(case: str, n_dev: int) -> int:
                 return knn_pallas.knn(pts, valid, xs, 10, prune=prune)[0]
 
             args, specs = (x,), (PartitionSpec(None, "b"),)
+    elif base.startswith("rollout"):  # no Pallas: the MJX rollout step (diary 2026-11-22)
+        from jaxproj.eval.rollout_model import RolloutConfig, _setup
+        from jaxproj.eval.rollout_physics import _simulate_jit
+        from jaxproj.robots import get
+
+        robot = get(None)
+        setup, sub = _setup(RolloutConfig(), "whole", robot)
+        mid = (np.asarray(robot.lower) + np.asarray(robot.upper)) / 2
+        q = mid + 0.1 * rng.standard_normal((64 * n_dev, 15, robot.n_joints))
+        q = np.clip(q, robot.lower, robot.upper).astype(np.float32)
+        lengths = np.full(len(q), 15, np.int32)
+        if base == "rollout_args":  # the model an argument, replicated: zero-sized parameters
+
+            def fn(s, q_, n_):  # noqa: ANN001, ANN202
+                return _simulate_jit(s, q_, n_, sub)
+
+            args = (setup, q, lengths)
+            specs = (PartitionSpec(), PartitionSpec("b"), PartitionSpec("b"))
+        else:  # closed over: its zero-sized arrays become constants of the shard_map body
+
+            def fn(q_, n_):  # noqa: ANN001, ANN202
+                return _simulate_jit(setup, q_, n_, sub)
+
+            args, specs = (q, lengths), (PartitionSpec("b"), PartitionSpec("b"))
     else:
         k, hid, di, do = 4096, 64, 9, 12
         bank = ELMBank(
@@ -336,7 +395,8 @@ def child(case: str, n_dev: int) -> int:
         backproj_pallas.FAST_SIGMOID = base == "back_min"
         fn = functools.partial(backproj_pallas.back_min, bank, d_in=di, d_out=do, hidden=hid)
         args, specs = (r, h, idx), (PartitionSpec("b"),) * 3
-    one = jax.jit(fn)(*(jax.device_put(a, devs[0]) for a in args))
+    one = jax.block_until_ready(jax.jit(fn)(*jax.device_put(args, devs[0])))
+    print("one device ok", flush=True)
     if case.endswith("_one"):
         jax.block_until_ready(one)
         print("ok 0.0", flush=True)
@@ -347,6 +407,14 @@ def child(case: str, n_dev: int) -> int:
         jax.shard_map(fn, mesh=mesh, in_specs=specs, out_specs=out_spec, check_vma=False)
     )
     placed = [jax.device_put(a, NamedSharding(mesh, s)) for a, s in zip(args, specs, strict=True)]
+    if base.startswith("rollout"):  # RolloutResult: compare its leaves
+        compiled = sharded.lower(*placed).compile()
+        print("compiled", flush=True)
+        got = jax.tree.leaves(compiled(*placed))
+        diff = max(float(np.max(np.abs(np.asarray(g, np.float64) - np.asarray(o, np.float64))))
+                   for g, o in zip(got, jax.tree.leaves(one), strict=True))  # fmt: skip
+        print(f"ok {diff}", flush=True)
+        return 0
     compiled = sharded.lower(*placed).compile()
     print("compiled", flush=True)
     got = compiled(*placed)
@@ -361,6 +429,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--devices", type=int, default=2)
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--timeout", type=float, default=300, help="seconds per case")
     a = ap.parse_args(argv)
     if a.child:
         return child(a.child, a.devices)
@@ -371,7 +440,7 @@ def main(argv: list[str] | None = None) -> int:
     for case in a.cases.split(","):
         run = subprocess.run(
             [sys.executable, "-m", "benchmarks.experiments.pallas_shard_map", "--child", case,
-             "--devices", str(a.devices)], capture_output=True, text=True, timeout=300,
+             "--devices", str(a.devices)], capture_output=True, text=True, timeout=a.timeout,
         )  # fmt: skip
         said = (run.stdout.strip().splitlines() or [""])[-1]
         err = [ln for ln in run.stderr.strip().splitlines() if ln.strip()]

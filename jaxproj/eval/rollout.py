@@ -160,9 +160,10 @@ def simulate(
         contiguous share per device and each device runs the one-device program on its share
         (one host thread per device, so they run at the same time; the model copied to each;
         no collective); the results are concatenated on the first device. Not ``shard_map``:
-        XLA's GPU compiler (jax 0.11.2) crashed with a segmentation fault compiling the
-        shard_mapped MJX step on two H200s, while the one-device program is the one every
-        single-GPU rollout already runs.
+        XLA's GPU partitioner (Shardy, jax 0.11.2) segfaults on any zero-sized array in a
+        ``shard_map`` program, and an MJX model holds some (measured on two H200s; with the
+        older partitioner it compiles); the one-device program is the one every single-GPU
+        rollout already runs.
       robot: the robot (a ``Robot`` or a registered name; ``None``: the default robot); it
         needs an MJCF (and ``mjcf.split`` for ``split_legs``; without it the whole model runs).
       backend: ``"mjx"`` (MuJoCo MJX: jitted, vmapped, on JAX devices), ``"mujoco"`` (CPU

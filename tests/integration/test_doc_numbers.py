@@ -58,6 +58,14 @@ NUMBERS: list[tuple[str, str, str, Callable[[dict], float], str]] = [
      lambda r: _us(r["speed"]["relaxed"]["poses_per_s"]), "{:,.0f}"),
     ("docs/guide/cli.md", r"five chains, about ([\d,]+) landmarks each", G1_H100,
      lambda r: round(float(np.mean(list(r["landmarks"].values()))), -3), "{:,.0f}"),
+    ("docs/results.md", r"--full-queries 8192` \| [\d.]+ M poses/s \| [\d.]+ M \S+ \| ([\d.]+)x",
+     "multi_device_shard_map_nao_h200x2.json", lambda r: r["relaxed"]["speedup"], "{:.2f}"),
+    ("docs/results.md", r"full --queries 4194304` \| [\d.]+ M \S+ \| [\d.]+ M \S+ \| ([\d.]+)x",
+     "multi_device_shard_map_g1_h200x2.json", lambda r: r["relaxed"]["speedup"], "{:.2f}"),
+    ("docs/results.md", r"\| back-projection \(`back_min`\) \| ([\d.]+) ms",
+     "kernel_outside_jax_back_min_h200.json", lambda r: r["jax_median_ms"], "{:.2f}"),
+    ("docs/results.md", r"\| k-NN, full scan \(`knn_full`\) \| ([\d.]+) ms",
+     "kernel_outside_jax_knn_full_h200.json", lambda r: r["jax_median_ms"], "{:.2f}"),
 ]  # fmt: skip
 
 

@@ -8,6 +8,7 @@ inspects the compiled per-device programs of the ``shard_map`` one; prints one J
 import gc
 import json
 import os
+import re
 import sys
 
 os.environ["XLA_FLAGS"] = (
@@ -73,11 +74,17 @@ def main() -> None:
         sharded_in = jax.device_put(
             h[:64], jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
         )
-        four = engine.project_sharded.lower(
+        lowered = engine.project_sharded.lower(
             p, sharded_in, mesh=mesh, objective=objective, n_l=4, n_m=4, full=full
-        ).compile()
+        )
+        four = lowered.compile()
         text = four.as_text()
+        # zero-sized arrays in the program as lowered: under shard_map, XLA's GPU compiler
+        # (Shardy, jax 0.11.2) crashes on any (benchmarks/experiments/pallas_shard_map.py)
+        zero_sized = sorted(set(re.findall(r"\b[a-z]+[0-9]*\[(?:[0-9]+,)*0(?:,[0-9]+)*\]",
+                                           lowered.as_text(dialect="hlo"))))  # fmt: skip
         out[objective].update(
+            zero_sized=zero_sized,
             flops_one=_flops(one),
             flops_four=_flops(four),
             collectives=[
