@@ -76,16 +76,22 @@ def pytest_configure(config: pytest.Config) -> None:
 _TIMELINE: dict[str, float] = {"compile_s": 0.0}
 
 
+_COMPILED: Counter[str] = Counter()
+"""Seconds of XLA compilation per jitted function's name during the current test (timeline)."""
+
+
 def _timeline_listener(event: str, duration: float, **kwargs: str | int) -> None:
     if event == BACKEND_COMPILE_EVENT:
         _TIMELINE["compile_s"] += duration
+        _COMPILED[str(kwargs.get("fun_name", ""))] += duration
 
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
     """With ``$JAXPROJ_TEST_TIMELINE`` set to a file: append one JSON line per test (worker,
-    start, end, seconds of XLA compilation in this process during it), to find where a run's
-    time goes (which worker waits at the end, which tests compile)."""
+    start, end, seconds of XLA compilation in this process during it, and those seconds per
+    jitted function), to find where a run's time goes (which worker waits at the end, which
+    tests compile what)."""
     path = os.environ.get("JAXPROJ_TEST_TIMELINE")
     if not path:
         yield
@@ -97,6 +103,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         jax.monitoring.register_event_duration_secs_listener(_timeline_listener)
         _TIMELINE["listening"] = 1.0
     c0, t0 = _TIMELINE["compile_s"], time.time()
+    _COMPILED.clear()
     yield
     rec = {
         "worker": os.environ.get("PYTEST_XDIST_WORKER", "main"),
@@ -104,6 +111,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         "start": t0,
         "end": time.time(),
         "compile_s": _TIMELINE["compile_s"] - c0,
+        "compiled": {k: round(v, 3) for k, v in _COMPILED.items()},
     }
     with open(path, "a") as f:
         f.write(json.dumps(rec) + "\n")
