@@ -51,7 +51,7 @@ def _function(kernel: str, a: argparse.Namespace) -> tuple[Any, tuple]:
     """The traceable wrapper of ``kernel`` and its random arguments."""
     import numpy as np
 
-    from jaxproj.projection.elm import ELMBank
+    from benchmarks.experiments.pallas_shard_map import random_bank
     from jaxproj.projection.ops import backproj_pallas, knn_pallas
 
     rng = np.random.default_rng(0)
@@ -61,15 +61,7 @@ def _function(kernel: str, a: argparse.Namespace) -> tuple[Any, tuple]:
         x = rng.standard_normal((1, a.rows, a.dim)).astype(np.float32)
         return (lambda p, v, q: knn_pallas.knn_full(p, v, q, N)), (pts, ok, x)
     k, hid, di, do = a.landmarks, a.hidden, a.dim, a.d_out
-    bank = ELMBank(
-        w=rng.standard_normal((hid, di)).astype(np.float32),
-        inv_scale=rng.uniform(0.5, 2, k).astype(np.float32),
-        bias=rng.standard_normal((k, hid)).astype(np.float32),
-        out=(0.1 * rng.standard_normal((k, do, hid))).astype(np.float32),
-        offset=rng.standard_normal((k, do)).astype(np.float32),
-        neighbours=np.zeros((k, 1), np.int32),
-        n_kernels=k, hidden=hid, d_in=di, d_out=do, k=1,
-    )  # fmt: skip
+    bank = random_bank(rng, k, hid, di, do)
     r = rng.standard_normal((a.rows, di)).astype(np.float32)
     h = rng.standard_normal((a.rows, do)).astype(np.float32)
     idx = rng.integers(0, k, (a.rows, a.m)).astype(np.int32)

@@ -62,6 +62,7 @@ import argparse
 import functools
 import subprocess
 import sys
+from typing import Any
 
 from benchmarks.harness import report
 
@@ -278,6 +279,23 @@ def _simple(kind: str):  # noqa: ANN202, C901 - a traceable function of one (B, 
     return f
 
 
+def random_bank(rng: Any, k: int, hidden: int, d_in: int, d_out: int) -> Any:
+    """An ``ELMBank`` of ``k`` random kernels (``hidden`` units, ``d_in`` -> ``d_out``)."""
+    import numpy as np
+
+    from jaxproj.projection.elm import ELMBank
+
+    return ELMBank(
+        w=rng.standard_normal((hidden, d_in)).astype(np.float32),
+        inv_scale=rng.uniform(0.5, 2, k).astype(np.float32),
+        bias=rng.standard_normal((k, hidden)).astype(np.float32),
+        out=(0.1 * rng.standard_normal((k, d_out, hidden))).astype(np.float32),
+        offset=rng.standard_normal((k, d_out)).astype(np.float32),
+        neighbours=np.zeros((k, 1), np.int32),
+        n_kernels=k, hidden=hidden, d_in=d_in, d_out=d_out, k=1,
+    )  # fmt: skip
+
+
 def child(case: str, n_dev: int) -> int:
     """Run one case; print ``ok DIFF``."""
     import jax
@@ -285,7 +303,6 @@ def child(case: str, n_dev: int) -> int:
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-    from jaxproj.projection.elm import ELMBank
     from jaxproj.projection.ops import backproj_pallas, knn_pallas
 
     rng = np.random.default_rng(0)
@@ -379,15 +396,7 @@ def child(case: str, n_dev: int) -> int:
             args, specs = (q, lengths), (PartitionSpec("b"), PartitionSpec("b"))
     else:
         k, hid, di, do = 4096, 64, 9, 12
-        bank = ELMBank(
-            w=rng.standard_normal((hid, di)).astype(np.float32),
-            inv_scale=rng.uniform(0.5, 2, k).astype(np.float32),
-            bias=rng.standard_normal((k, hid)).astype(np.float32),
-            out=(0.1 * rng.standard_normal((k, do, hid))).astype(np.float32),
-            offset=rng.standard_normal((k, do)).astype(np.float32),
-            neighbours=np.zeros((k, 1), np.int32),
-            n_kernels=k, hidden=hid, d_in=di, d_out=do, k=1,
-        )  # fmt: skip
+        bank = random_bank(rng, k, hid, di, do)
         rows = 8192 * n_dev
         r = rng.standard_normal((rows, di)).astype(np.float32)
         h = rng.standard_normal((rows, do)).astype(np.float32)
