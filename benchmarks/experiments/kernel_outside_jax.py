@@ -121,16 +121,11 @@ def dump(folder: Path, kernel: str, a: argparse.Namespace) -> dict:
 
         return call_
 
-    from jaxproj.projection.ops import backproj_pallas, knn_pallas
-
-    mods = (knn_pallas.pl, backproj_pallas.pl)
-    for m in mods:
-        m.pallas_call = recorder
+    pl.pallas_call = recorder  # the module both kernels' wrappers call it through
     try:
         fn(*args)
     finally:
-        for m in mods:
-            m.pallas_call = real
+        pl.pallas_call = real
     folder.mkdir(parents=True, exist_ok=True)
     (folder / f"{kernel}.ttir").write_text(text)
     for i, x in enumerate(seen):
